@@ -1,0 +1,25 @@
+"""keyframe_implicit: physically plausible in-betweens of implicit keyframes, for Blender.
+
+The package has two halves:
+
+- ``keyframe_implicit.core``: the numerical method (numpy/scipy/scikit-image, no bpy);
+- ``keyframe_implicit.blender``: the thin Blender layer (operators, panel, bake).
+
+``register()`` / ``unregister()`` below are what Blender calls when the
+extension is enabled; they also work when the package is imported from a
+source checkout with the ``bpy`` module.
+"""
+
+__version__ = "0.1.0"
+
+
+def register():
+    from . import blender
+
+    blender.register()
+
+
+def unregister():
+    from . import blender
+
+    blender.unregister()

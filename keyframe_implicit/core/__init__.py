@@ -1,0 +1,64 @@
+"""Numerical core of keyframe_implicit: pure numpy / scipy / scikit-image, never bpy.
+
+Pipeline (thesis "Keyframe Animation of Implicit Models", 2006), one module per stage:
+
+=====================  ==========================================================
+``grid``               `Grid`: the regular grid every field lives on (sec. 2.1)
+``sampling``           multilinear sampling of fields at off-grid points
+``sdf``                keyframe meshes / polygons -> signed distance grids
+``gridfit``            choosing a grid for given keyframes, memory estimate
+``rbf``                initial map from feature points (eq. 2.1-2.5)
+``terms``              the terms of the objective, eq. 2.6 (one per function)
+``constraints``        feature-point constraints C y = d (eq. 2.14-2.20)
+``solver``             constrained Gauss-Newton -> `solve_map` (sec. 2.5)
+``trajectory``         as-rigid-as-possible trajectories (sec. 3.1)
+``levelset``           in-between level sets (eq. 3.2-3.4) -> `inbetween`
+``surface``            marching cubes / contours -> `extract_surface`
+``template``           one mesh tracked through all frames (shape keys)
+``chain``              several keyframes in sequence
+``pipeline``           meshes + feature points + frames -> per-frame vertices
+=====================  ==========================================================
+
+The public names below are imported lazily so that ``import
+keyframe_implicit.core`` stays cheap and each stage can be used on its own.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+# public name -> module that defines it
+_EXPORTS = {
+    "Grid": "grid",
+    "sample": "sampling",
+    "sample_with_gradient": "sampling",
+    "cell_weights": "sampling",
+    "mesh_to_sdf": "sdf",
+    "polygon_to_sdf": "sdf",
+    "fit_grid": "gridfit",
+    "estimate_memory": "gridfit",
+    "MemoryLimitError": "gridfit",
+    "solve_map": "solver",
+    "MapResult": "solver",
+    "inbetween": "levelset",
+    "Inbetween": "levelset",
+    "extract_surface": "surface",
+    "track_template": "template",
+    "animate_chain": "chain",
+    "animate": "pipeline",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'keyframe_implicit.core' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -1,0 +1,134 @@
+"""Multilinear sampling of grid fields at off-grid points.
+
+Used wherever a field must be read between nodes: Psi(y(x)) in the level-set
+term of eq. 2.6 (with its gradient for the Gauss-Newton Jacobian), the
+bilinear/trilinear feature constraints of eq. 2.19 (as corrected in
+PAPER-NOTES section 4), and the backward values of eq. 3.4.
+
+Interpolation is (bi/tri)linear: the gradient is piecewise constant per cell,
+exact for fields that are linear in the cell, and the weights are the
+``t_i`` of eq. 2.19 (non-negative, summing to one).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from .grid import Grid
+
+__all__ = ["cell_weights", "sample", "sample_with_gradient"]
+
+
+def cell_weights(grid: Grid, points):
+    """Corner nodes and multilinear weights of the cell holding each point.
+
+    Points outside the grid are clamped onto its boundary first.
+
+    Returns
+    -------
+    flat_index : ndarray of int, shape (P, 2**d)
+        Flat (C-order) node index of each corner of the point's cell.
+    weights : ndarray, shape (P, 2**d)
+        Multilinear weights, non-negative, each row summing to 1.
+    """
+    idx, frac = _locate(grid, points)
+    corners = np.array(list(itertools.product((0, 1), repeat=grid.dim)))  # (2**d, d)
+    node = idx[:, None, :] + corners[None, :, :]
+    flat = np.ravel_multi_index(tuple(node[..., a] for a in range(grid.dim)), grid.shape)
+    w = np.ones(flat.shape)
+    for a in range(grid.dim):
+        w *= np.where(corners[None, :, a] == 1, frac[:, None, a], 1.0 - frac[:, None, a])
+    return flat, w
+
+
+def _locate(grid: Grid, points):
+    p = np.asarray(points, dtype=float).reshape(-1, grid.dim)
+    u = grid.to_index(p)
+    hi = np.asarray(grid.shape) - 1
+    u = np.clip(u, 0.0, hi)
+    idx = np.minimum(np.floor(u).astype(np.int64), hi - 1)
+    return idx, u - idx
+
+
+def sample(field, grid: Grid, points, outside: str = "clamp"):
+    """Multilinear value of ``field`` at world ``points``.
+
+    Parameters
+    ----------
+    field : ndarray, shape grid.shape or grid.shape + (k,)
+    points : ndarray, shape (..., d)
+    outside : {"clamp", "distance"}
+        ``"clamp"`` takes the value at the nearest boundary point. ``"distance"``
+        (for signed distance fields) adds the distance to that boundary point,
+        so the field keeps growing outside the grid and never turns "inside".
+
+    Returns
+    -------
+    ndarray, shape points.shape[:-1] (+ (k,) for vector fields)
+    """
+    return _sample(field, grid, points, outside, gradient=False)
+
+
+def sample_with_gradient(field, grid: Grid, points, outside: str = "clamp"):
+    """Value and spatial gradient (world units) of a scalar ``field`` at ``points``.
+
+    The gradient is that of the multilinear interpolant (zero across the
+    clamped direction outside the grid, plus the unit outward direction when
+    ``outside="distance"``).
+    """
+    return _sample(field, grid, points, outside, gradient=True)
+
+
+def _sample(field, grid, points, outside, gradient):
+    field = np.asarray(field, dtype=float)
+    pts = np.asarray(points, dtype=float)
+    lead = pts.shape[:-1]
+    if pts.shape[-1] != grid.dim:
+        raise ValueError(f"points have {pts.shape[-1]} coordinates, the grid has {grid.dim} axes.")
+    extra = field.shape[grid.dim:]
+    if field.shape[: grid.dim] != grid.shape:
+        raise ValueError(f"field shape {field.shape} does not start with grid shape {grid.shape}.")
+    flat_field = field.reshape((grid.size,) + extra)
+    p = pts.reshape(-1, grid.dim)
+    idx, frac = _locate(grid, p)
+    corners = np.array(list(itertools.product((0, 1), repeat=grid.dim)))
+    node = idx[:, None, :] + corners[None, :, :]
+    flat = np.ravel_multi_index(tuple(node[..., a] for a in range(grid.dim)), grid.shape)
+    vals = flat_field[flat]  # (P, 2**d, *extra)
+    # per-axis linear factors and their derivatives
+    f1 = frac[:, None, :]
+    fac = np.where(corners[None] == 1, f1, 1.0 - f1)  # (P, 2**d, d)
+    w = np.prod(fac, axis=-1)
+    wshape = w.shape + (1,) * len(extra)
+    value = np.sum(vals * w.reshape(wshape), axis=1)
+
+    if outside == "distance":
+        if extra:
+            raise ValueError('outside="distance" is for scalar fields only.')
+        clamped = grid.to_world(idx + frac)
+        off = p - clamped
+        dist = np.linalg.norm(off, axis=-1)
+        value = value + dist
+    elif outside != "clamp":
+        raise ValueError(f'outside must be "clamp" or "distance", got {outside!r}.')
+
+    value = value.reshape(lead + extra)
+    if not gradient:
+        return value
+    if extra:
+        raise ValueError("sample_with_gradient is for scalar fields only.")
+    grad = np.empty((p.shape[0], grid.dim))
+    for a in range(grid.dim):
+        dfac = fac.copy()
+        dfac[:, :, a] = np.where(corners[None, :, a] == 1, 1.0, -1.0)
+        grad[:, a] = np.sum(vals * np.prod(dfac, axis=-1), axis=1) / grid.spacing
+    if outside == "distance":
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = np.where(dist[:, None] > 0, off / np.maximum(dist, 1e-300)[:, None], 0.0)
+        # along a clamped axis the interpolant is flat; the distance term supplies the slope
+        u = grid.to_index(p)
+        clamped_axis = (u < 0) | (u > np.asarray(grid.shape) - 1)
+        grad = np.where(clamped_axis, 0.0, grad) + unit
+    return value, grad.reshape(lead + (grid.dim,))
