@@ -46,6 +46,10 @@ _EXPORTS = {
     "track_template": "template",
     "animate_chain": "chain",
     "animate": "pipeline",
+    "Keyframe": "pipeline",
+    "Animation": "pipeline",
+    "Cancelled": "progress",
+    "Reporter": "progress",
 }
 
 __all__ = sorted(_EXPORTS)
