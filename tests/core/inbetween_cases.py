@@ -107,13 +107,16 @@ def merge_case(d=3, n=36, r=0.35, gap=0.2, overlap=0.05):
 
 
 # ---------------------------------------------------------------- articulated bend
-def bend_case(d=2, n=40, half=0.6, radius=0.12, blend=0.15):
+def bend_case(d=2, n=40, half=0.6, radius=0.12, blend=0.15, left=None):
     """A rod (capsule) along x, bent 90 degrees at its middle (the origin).
 
     The left half stays, the right half turns rigidly by 90 degrees about the
     joint (to +y); across |x| < blend the angle goes smoothly from 0 to 90
-    degrees. B is the union of the two halves in their final places.
+    degrees. B is the union of the two halves in their final places. ``left``
+    (default ``half``) is the length of the left part: a longer left part puts
+    the joint away from the rod's centroid.
     """
+    left = half if left is None else left
     grid = make_grid(d, n, -1.0, 1.0)
     x = grid.points()
     t = np.clip((x[..., 0] + blend) / (2 * blend), 0.0, 1.0)
@@ -127,6 +130,9 @@ def bend_case(d=2, n=40, half=0.6, radius=0.12, blend=0.15):
     ex[0] = half
     ey = z.copy()
     ey[1] = half
-    phi_a = sd_capsule(x, -ex, ex, radius)
-    phi_b = np.minimum(sd_capsule(x, -ex, z, radius), sd_capsule(x, z, ey, radius))
-    return grid, phi_a, phi_b, mapped, dict(half=half, radius=radius, tip_a=-ex, tip_b=ex, joint=z)
+    el = z.copy()
+    el[0] = -left
+    phi_a = sd_capsule(x, el, ex, radius)
+    phi_b = np.minimum(sd_capsule(x, el, z, radius), sd_capsule(x, z, ey, radius))
+    return grid, phi_a, phi_b, mapped, dict(half=half, left=left, radius=radius, tip_a=el,
+                                            tip_b=ex, joint=z, blend=blend)
