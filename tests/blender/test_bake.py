@@ -181,3 +181,97 @@ def test_invalid_setup_is_refused_without_changes(scene, kfi):
     with pytest.raises(RuntimeError, match="add at least two"):
         bpy.ops.keyframe_implicit.bake()
     assert kfi.snapshot() == state
+
+
+class _Recorder:
+    """Stand-in for the window manager / workspace the modal bake talks to."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __getattr__(self, name):
+        return lambda *a, **k: self.calls.append((name, a))
+
+
+def _modal_operator(job, scene):
+    """A bake operator 'self' and context as invoke() leaves them, without a window."""
+    import types
+
+    from keyframe_implicit.blender import ops
+
+    reports = []
+    me = types.SimpleNamespace(_job=job, _timer=None)
+    me.report = lambda kind, msg: reports.append((next(iter(kind)), msg))
+    for name in ("_status", "_finish", "_hints"):
+        setattr(me, name, getattr(ops.KFI_OT_bake, name).__get__(me))
+    ctx = types.SimpleNamespace(window_manager=_Recorder(), workspace=_Recorder(), area=None,
+                                scene=scene)
+    ops._running.append(job)
+    return me, ctx, reports
+
+
+def _event(kind, value="PRESS"):
+    import types
+
+    return types.SimpleNamespace(type=kind, value=value)
+
+
+def _drive(op, me, ctx, timeout=120.0):
+    import time
+
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        result = op.modal(me, ctx, _event("TIMER"))
+        if result != {"RUNNING_MODAL"}:
+            return result
+        time.sleep(0.02)
+    raise AssertionError("modal bake did not finish")
+
+
+def test_modal_bake_esc_cancels_and_changes_nothing(scene, kfi):
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    state = kfi.snapshot()
+    started = []
+    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+                       on_progress=lambda j, f, m: started.append(m) or _wait_for_esc(j))
+    me, ctx, reports = _modal_operator(job, scene)
+    job.start()
+    job.join(0.0)
+    for _ in range(3000):
+        if started:
+            break
+        __import__("time").sleep(0.01)
+    assert ops.KFI_OT_bake.modal(me, ctx, _event("MOUSEMOVE")) == {"PASS_THROUGH"}  # responsive
+    assert ops.KFI_OT_bake.modal(me, ctx, _event("ESC")) == {"RUNNING_MODAL"}
+    assert job.cancel_requested
+    assert _drive(ops.KFI_OT_bake, me, ctx) == {"CANCELLED"}
+    assert reports and reports[-1][0] == "WARNING" and "cancelled" in reports[-1][1]
+    assert ("progress_end", ()) in ctx.window_manager.calls
+    assert ("status_text_set", (None,)) in ctx.workspace.calls
+    assert not ops._running
+    assert kfi.snapshot() == state
+
+
+def _wait_for_esc(job):
+    import time
+
+    t0 = time.time()
+    while not job.cancel_requested and time.time() - t0 < 30:
+        time.sleep(0.01)
+
+
+def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    me, ctx, reports = _modal_operator(job, scene)
+    job.start()
+    assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}
+    out = scene.keyframe_implicit.output_object
+    assert out is not None and len(out.data.shape_keys.key_blocks) == 8
+    assert any(name == "progress_update" for name, _ in ctx.window_manager.calls)
+    assert reports[-1][0] == "INFO" and "Baked" in reports[-1][1]
+    assert not ops._running
