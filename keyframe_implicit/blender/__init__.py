@@ -37,6 +37,9 @@ def register():
             bpy.utils.register_class(cls)
             _registered.append(cls)
     props.register_properties()
+    from . import ops
+
+    bpy.types.VIEW3D_MT_object.append(ops.menu_func)
 
 
 def unregister():
@@ -49,6 +52,7 @@ def unregister():
         return
     for job in list(ops._running):
         job.cancel()
+    bpy.types.VIEW3D_MT_object.remove(ops.menu_func)
     props.unregister_properties()
     for cls in reversed(_registered):
         bpy.utils.unregister_class(cls)

@@ -102,7 +102,12 @@ def set_keyframes(fcurve, frames, values, interpolation="LINEAR"):
     if len(frames) != len(values):
         raise ValueError(f"set_keyframes: {len(frames)} frames but {len(values)} values.")
     points = fcurve.keyframe_points
-    points.clear()
+    if len(points):
+        if hasattr(points, "clear"):
+            points.clear()
+        else:  # older API: remove one by one (a handful of keys)
+            for kp in reversed(list(points)):
+                points.remove(kp, fast=True)
     points.add(len(frames))
     co = [c for pair in zip(frames, values) for c in pair]
     points.foreach_set("co", co)

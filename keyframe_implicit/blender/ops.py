@@ -174,7 +174,11 @@ class KFI_OT_remove_feature_pair(bpy.types.Operator):
 
     pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
 
+    def invoke(self, context, event):
+        return _invoke_with_pair(self, context)
+
     def execute(self, context):
+        _resolve_pair(self, context)
         n = features.remove_pair(context.scene, self.pair)
         if not n:
             self.report({"ERROR"}, f"No feature pair {self.pair!r}: see the pairs in the sidebar.")
@@ -190,15 +194,58 @@ class KFI_OT_select_pair(bpy.types.Operator):
     bl_label = "Select Pair"
     bl_options = _OPTS
 
-    pair: StringProperty(name="Pair", default="")
+    pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
+
+    def invoke(self, context, event):
+        return _invoke_with_pair(self, context)
 
     def execute(self, context):
+        _resolve_pair(self, context)
         try:
             features.select_pair(context.view_layer, context.scene, self.pair)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         return {"FINISHED"}
+
+
+def _resolve_pair(op, context):
+    """No pair id given (menu, F3, script): take the active feature Empty's pair."""
+    if not op.pair and features.is_feature(context.active_object):
+        op.pair = str(context.active_object[features.PAIR])
+    return bool(op.pair)
+
+
+def _invoke_with_pair(op, context):
+    """From a menu or F3: the active feature Empty's pair, else ask for the id."""
+    if not _resolve_pair(op, context):
+        return context.window_manager.invoke_props_dialog(op)
+    return op.execute(context)
+
+
+class KFI_MT_menu(bpy.types.Menu):
+    """Object > Keyframe Implicit: every operator (this also puts them in F3 menu search)."""
+
+    bl_idname = "KFI_MT_menu"
+    bl_label = "Keyframe Implicit"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator("keyframe_implicit.add_keyframe")
+        layout.operator("keyframe_implicit.remove_keyframe")
+        layout.operator("keyframe_implicit.move_keyframe", text="Move Keyframe Up").direction = "UP"
+        layout.operator("keyframe_implicit.move_keyframe", text="Move Keyframe Down").direction = "DOWN"
+        layout.separator()
+        layout.operator("keyframe_implicit.add_feature_pair")
+        layout.operator("keyframe_implicit.pair_selected")
+        layout.operator("keyframe_implicit.select_pair")
+        layout.operator("keyframe_implicit.remove_feature_pair")
+        layout.separator()
+        layout.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
+
+
+def menu_func(self, context):
+    self.layout.menu(KFI_MT_menu.bl_idname)
 
 
 _running = []  # the BakeJob of the modal bake in progress (at most one)
@@ -324,4 +371,5 @@ classes = (
     KFI_OT_remove_feature_pair,
     KFI_OT_select_pair,
     KFI_OT_bake,
+    KFI_MT_menu,
 )

@@ -16,7 +16,9 @@ def test_operators_are_registered_undoable_and_searchable(scene):
         op = getattr(bpy.ops.keyframe_implicit, name)
         rna = op.get_rna_type()
         assert rna.identifier  # registered
-    for cls in ops.classes:
+    operators = [c for c in ops.classes if issubclass(c, bpy.types.Operator)]
+    assert sorted(c.bl_idname.split(".")[1] for c in operators) == sorted(OPS)
+    for cls in operators:
         assert cls.bl_options == {"REGISTER", "UNDO"}
         assert cls.bl_idname.startswith("keyframe_implicit.")
         assert cls.__doc__  # the F3 search / tooltip text
@@ -120,6 +122,11 @@ def test_pair_selected_select_and_remove(scene, kfi):
         bpy.ops.keyframe_implicit.pair_selected()
 
     n = len(bpy.data.objects)
+    bpy.ops.keyframe_implicit.add_feature_pair(segment=0)
+    # from the menu / F3 (no pair given): the active feature Empty's pair
+    bpy.context.view_layer.objects.active = bpy.data.objects["KFI 0.1 B"]
+    assert bpy.ops.keyframe_implicit.remove_feature_pair() == {"FINISHED"}
+    assert sorted(features.pairs(scene)) == ["0.0"]
     assert bpy.ops.keyframe_implicit.remove_feature_pair(pair="0.0") == {"FINISHED"}
     assert len(bpy.data.objects) == n - 2 and not features.pairs(scene)
     with pytest.raises(RuntimeError, match="No feature pair"):

@@ -131,3 +131,13 @@ def test_layout_stand_in_catches_mistakes(scene):
         layout.prop(scene.keyframe_implicit, "resolutoin")
     with pytest.raises(AttributeError):
         layout.operator("keyframe_implicit.bake").resolutoin = 3
+
+
+def test_object_menu_lists_every_operator(scene):
+    from keyframe_implicit.blender import ops
+
+    log = []
+    ops.KFI_MT_menu.draw(type("MenuSelf", (), {"layout": Layout(log)})(), bpy.context)
+    listed = {e[1] for e in log if e[0] == "operator"}
+    assert listed == {c.bl_idname for c in ops.classes if issubclass(c, bpy.types.Operator)}
+    assert ops.menu_func in bpy.types.VIEW3D_MT_object._dyn_ui_initialize()
