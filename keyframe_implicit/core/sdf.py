@@ -52,6 +52,7 @@ __all__ = ["mesh_to_sdf", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
 _SAMPLE_RADIUS = 0.5      # triangle points lie within this many cells of a sample
+_K = 16                   # nearest samples fetched per band node (more on demand)
 _MAX_LATTICE = 256        # subdivisions per triangle edge at most (delta grows beyond)
 
 
@@ -172,55 +173,88 @@ def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
-def _seg_dist2(p, a, b):
-    ab = b - a
-    t = np.clip(_dot(p - a, ab) / np.maximum(_dot(ab, ab), 1e-300), 0.0, 1.0)
-    d = p - a - t[:, None] * ab
-    return _dot(d, d)
+class _Triangles:
+    """Per-triangle constants for the vectorised distance kernel (component arrays)."""
+
+    def __init__(self, v, tris):
+        a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+        e0, e1 = b - a, c - a
+        e2 = c - b
+        n = np.cross(e0, e1)
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        self.n_tri = len(tris)
+        self.a = [np.ascontiguousarray(a[:, i]) for i in range(3)]
+        self.e0 = [np.ascontiguousarray(e0[:, i]) for i in range(3)]
+        self.e1 = [np.ascontiguousarray(e1[:, i]) for i in range(3)]
+        self.n = [np.ascontiguousarray(n[:, i]) for i in range(3)]
+        self.d00 = _dot(e0, e0)
+        self.d01 = _dot(e0, e1)
+        self.d11 = _dot(e1, e1)
+        self.d22 = _dot(e2, e2)
+        self.e02 = _dot(e0, e2)
+        self.inv = 1.0 / (self.d00 * self.d11 - self.d01 ** 2)
+
+    def distance(self, p, t):
+        """Exact distance from points p (P, 3) to triangles t (P,) (Ericson-style regions).
+
+        The projection onto the plane has barycentric coordinates (u, w) from the Gram
+        system of the edges; inside the triangle the distance is the plane distance,
+        outside it is the smallest distance to the three edge segments.
+        """
+        vx = p[:, 0] - self.a[0][t]
+        vy = p[:, 1] - self.a[1][t]
+        vz = p[:, 2] - self.a[2][t]
+        dv0 = vx * self.e0[0][t] + vy * self.e0[1][t] + vz * self.e0[2][t]
+        dv1 = vx * self.e1[0][t] + vy * self.e1[1][t] + vz * self.e1[2][t]
+        d00, d01, d11, d22 = self.d00[t], self.d01[t], self.d11[t], self.d22[t]
+        inv = self.inv[t]
+        u = (d11 * dv0 - d01 * dv1) * inv
+        w = (d00 * dv1 - d01 * dv0) * inv
+        inside = (u >= 0) & (w >= 0) & (u + w <= 1)
+        pn = vx * self.n[0][t] + vy * self.n[1][t] + vz * self.n[2][t]
+        vv = vx * vx + vy * vy + vz * vz
+        t0 = np.clip(dv0 / d00, 0.0, 1.0)
+        dist2 = vv - t0 * (2.0 * dv0 - t0 * d00)                 # edge a-b
+        t1 = np.clip(dv1 / d11, 0.0, 1.0)
+        np.minimum(dist2, vv - t1 * (2.0 * dv1 - t1 * d11), out=dist2)   # edge a-c
+        dv2 = (dv1 - dv0) - self.e02[t]                          # (p - b).(c - b)
+        wb = vv - 2.0 * dv0 + d00                                # |p - b|^2
+        t2 = np.clip(dv2 / d22, 0.0, 1.0)
+        np.minimum(dist2, wb - t2 * (2.0 * dv2 - t2 * d22), out=dist2)   # edge b-c
+        dist2 = np.where(inside, pn * pn, dist2)
+        return np.sqrt(np.maximum(dist2, 0.0))
 
 
 def point_triangle_distance(p, a, b, c):
-    """Euclidean distance from points ``p`` to triangles ``(a, b, c)``, all (P, 3).
-
-    If the projection of p onto the triangle's plane falls inside the triangle the
-    distance is the plane distance, otherwise the smallest distance to the edges.
-    """
-    ab, bc, ca = b - a, c - b, a - c
-    n = np.cross(ab, -ca)
-    nn = np.sqrt(_dot(n, n))
-    inside = ((_dot(np.cross(ab, p - a), n) >= 0)
-              & (_dot(np.cross(bc, p - b), n) >= 0)
-              & (_dot(np.cross(ca, p - c), n) >= 0))
-    out = np.empty(len(p))
-    if inside.any():
-        out[inside] = np.abs(_dot(p[inside] - a[inside], n[inside])) / np.maximum(nn[inside], 1e-300)
-    o = ~inside
-    if o.any():
-        po, ao, bo, co = p[o], a[o], b[o], c[o]
-        out[o] = np.sqrt(np.minimum(np.minimum(_seg_dist2(po, ao, bo), _seg_dist2(po, bo, co)),
-                                    _seg_dist2(po, co, ao)))
-    return out
+    """Euclidean distance from points ``p`` to triangles ``(a, b, c)``, all (P, 3)."""
+    p = np.asarray(p, dtype=float)
+    v = np.concatenate([a, b, c])
+    n = len(p)
+    tris = np.stack([np.arange(n), np.arange(n, 2 * n), np.arange(2 * n, 3 * n)], axis=1)
+    return _Triangles(v, tris).distance(p, np.arange(n))
 
 
 # ---------------------------------------------------------------------------
 # fast generalised winding number (Jacobson 2013, Barill 2018)
 # ---------------------------------------------------------------------------
-def _solid_angle_w(q, a, b, c):
-    """Winding contribution Omega / (4 pi) of triangles (a, b, c) seen from q, all (P, 3).
+def _solid_angle_w(qx, qy, qz, A, B, C, t):
+    """Winding contribution Omega / (4 pi) of triangles t seen from points q.
 
     Van Oosterom & Strackee (1983): tan(Omega/2) = a.(b x c) / (|a||b||c| + (a.b)|c|
-    + (b.c)|a| + (c.a)|b|) with corners relative to q. Positive when q sees the
-    triangle's back (counter-clockwise corners seen from outside, q inside).
+    + (b.c)|a| + (c.a)|b|) with the corners a, b, c relative to q. Positive when q
+    sees the triangle's back (counter-clockwise corners seen from outside, q inside).
+    A, B, C are lists of corner coordinate arrays (x, y, z).
     """
-    a = a - q
-    b = b - q
-    c = c - q
-    la = np.sqrt(_dot(a, a))
-    lb = np.sqrt(_dot(b, b))
-    lc = np.sqrt(_dot(c, c))
-    det = _dot(a, np.cross(b, c))
-    den = la * lb * lc + _dot(a, b) * lc + _dot(b, c) * la + _dot(c, a) * lb
-    return np.arctan2(det, den) / (2.0 * np.pi)
+    ax, ay, az = A[0][t] - qx, A[1][t] - qy, A[2][t] - qz
+    bx, by, bz = B[0][t] - qx, B[1][t] - qy, B[2][t] - qz
+    cx, cy, cz = C[0][t] - qx, C[1][t] - qy, C[2][t] - qz
+    la = np.sqrt(ax * ax + ay * ay + az * az)
+    lb = np.sqrt(bx * bx + by * by + bz * bz)
+    lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+    det = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+    den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la
+           + (cx * ax + cy * ay + cz * az) * lb)
+    return np.arctan2(det, den) * (0.5 / np.pi)
 
 
 def _part1by2(x):
@@ -261,6 +295,9 @@ class _WindingTree:
         area_vec = 0.5 * np.cross(self.b - self.a, self.c - self.a)
         area = np.linalg.norm(area_vec, axis=1)
         cen = cen[order]
+        self.A = [np.ascontiguousarray(self.a[:, i]) for i in range(3)]
+        self.B = [np.ascontiguousarray(self.b[:, i]) for i in range(3)]
+        self.C = [np.ascontiguousarray(self.c[:, i]) for i in range(3)]
         self.levels = []  # per level: dict(start, end, N, P, R, child_start, child_end)
         nt = len(order)
         for lev in range(0, self.LEVELS + 1):
@@ -275,7 +312,9 @@ class _WindingTree:
             r = np.sqrt(np.maximum.reduce([_dot(self.a - pc, self.a - pc), _dot(self.b - pc, self.b - pc),
                                            _dot(self.c - pc, self.c - pc)]))
             R = np.maximum.reduceat(r, start)
-            self.levels.append(dict(start=start, end=end, N=N, P=P, R=R))
+            self.levels.append(dict(start=start, end=end, N=[N[:, i].copy() for i in range(3)],
+                                    P=[P[:, i].copy() for i in range(3)],
+                                    R2=(self.beta * R) ** 2))
         for lev in range(self.LEVELS):
             nxt = self.levels[lev + 1]["start"]
             L = self.levels[lev]
@@ -300,6 +339,7 @@ class _WindingTree:
 
     def _eval(self, Q):
         nq = len(Q)
+        Qx, Qy, Qz = (np.ascontiguousarray(Q[:, i]) for i in range(3))
         w = np.zeros(nq)
         qi = np.arange(nq)
         ci = np.zeros(nq, dtype=np.int64)  # root cluster (level 0) for every query
@@ -307,12 +347,17 @@ class _WindingTree:
             if len(qi) == 0:
                 break
             L = self.levels[lev]
-            d = Q[qi] - L["P"][ci]
-            dist = np.sqrt(_dot(d, d))
-            far = dist > self.beta * L["R"][ci]
+            P, N = L["P"], L["N"]
+            dx = P[0][ci] - Qx[qi]
+            dy = P[1][ci] - Qy[qi]
+            dz = P[2][ci] - Qz[qi]
+            r2 = dx * dx + dy * dy + dz * dz
+            far = r2 > L["R2"][ci]
             if far.any():
-                df, cf = -d[far], ci[far]
-                contrib = _dot(L["N"][cf], df) / (4.0 * np.pi * dist[far] ** 3)
+                cf = ci[far]
+                r2f = r2[far]
+                contrib = ((N[0][cf] * dx[far] + N[1][cf] * dy[far] + N[2][cf] * dz[far])
+                           / (4.0 * np.pi * r2f * np.sqrt(r2f)))
                 w += np.bincount(qi[far], weights=contrib, minlength=nq)
             near = ~far
             qn, cn = qi[near], ci[near]
@@ -322,7 +367,7 @@ class _WindingTree:
                 ql, cl = qn[is_leaf], cn[is_leaf]
                 rep, t = self._expand(L["start"][cl], count[is_leaf])
                 qq = ql[rep]
-                contrib = _solid_angle_w(Q[qq], self.a[t], self.b[t], self.c[t])
+                contrib = _solid_angle_w(Qx[qq], Qy[qq], Qz[qq], self.A, self.B, self.C, t)
                 w += np.bincount(qq, weights=contrib, minlength=nq)
             if lev == self.LEVELS:
                 break
@@ -380,53 +425,56 @@ def _triangle_samples(v, tris, delta_target):
 
 
 def _band_candidates(grid, samples, radius_cells):
-    """Flat indices of all nodes within ``radius_cells`` (index units) of a sample's nearest node."""
+    """Flat indices of a superset of the nodes within ``radius_cells`` of a sample's nearest node.
+
+    The nodes nearest to the samples are marked and dilated by a cube of half-width
+    ceil(radius_cells) (separable maximum filter, cheap on the whole grid).
+    """
     shape = np.asarray(grid.shape)
     idx = np.clip(np.rint(grid.to_index(samples)).astype(np.int64), 0, shape - 1)
-    flat = np.unique(np.ravel_multi_index(tuple(idx.T), grid.shape))
+    mask = np.zeros(grid.shape, dtype=np.uint8)
+    mask[tuple(idx.T)] = 1
     R = int(np.ceil(radius_cells))
-    o = np.arange(-R, R + 1)
-    off = np.stack(np.meshgrid(o, o, o, indexing="ij"), axis=-1).reshape(-1, 3)
-    off = off[np.sum(off * off, axis=1) <= radius_cells ** 2]
-    mask = np.zeros(grid.size, dtype=bool)
-    base = np.stack(np.unravel_index(flat, grid.shape), axis=1)
-    step = max(1, _CHUNK * 8 // len(off))
-    for s in range(0, len(base), step):
-        nb = (base[s:s + step, None, :] + off[None, :, :]).reshape(-1, 3)
-        ok = np.all((nb >= 0) & (nb < shape), axis=1)
-        mask[np.ravel_multi_index(tuple(nb[ok].T), grid.shape)] = True
-    return np.flatnonzero(mask)
+    mask = ndimage.maximum_filter(mask, size=2 * R + 1, mode="constant")
+    return np.flatnonzero(mask.reshape(-1))
 
 
-def _exact_distance(X, v_a, v_b, v_c, tree, sample_tri, delta):
-    """Exact unsigned distance from points X to the nearest triangle (see module step 2)."""
-    ds, si = tree.query(X, workers=-1)
-    t0 = sample_tri[si]
-    d0 = point_triangle_distance(X, v_a[t0], v_b[t0], v_c[t0])
+def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
+    """Exact unsigned distance for the points X within ``band_r`` of the surface.
+
+    Returns (keep, dist): ``keep`` marks the points whose distance may be <= band_r
+    (nearest sample within band_r + delta), ``dist`` their exact distance. If d0 is
+    the exact distance to the triangle of the nearest sample, the closest triangle
+    owns a sample within d0 + delta (module step 2), so all those are tested.
+    """
+    k = min(k, len(tree.data))
+    ds, _ = tree.query(X, k=1, distance_upper_bound=band_r + delta * (1 + 1e-9) + 1e-12,
+                       workers=-1)
+    keep = np.isfinite(ds)
+    X = X[keep]
+    dd, ii = tree.query(X, k=k, distance_upper_bound=band_r + 2 * delta + 1e-12, workers=-1)
+    dd = dd.reshape(len(X), k)
+    ii = ii.reshape(len(X), k)
+    d0 = tri.distance(X, sample_tri[ii[:, 0]])
     r = d0 + delta * (1 + 1e-9) + 1e-12
-    best = d0.copy()
-    todo = np.arange(len(X))
-    k = 32
-    while len(todo):
-        k = min(k, len(tree.data))
-        dd, ii = tree.query(X[todo], k=k, distance_upper_bound=float(r[todo].max()), workers=-1)
-        dd = dd.reshape(len(todo), k)
-        ii = ii.reshape(len(todo), k)
-        ok = dd <= r[todo, None]
-        rows, cols = np.nonzero(ok)
-        tri = sample_tri[ii[rows, cols]]
-        node = todo[rows]
-        key = np.unique(node * len(v_a) + tri)
-        node, tri = key // len(v_a), key % len(v_a)
-        d = point_triangle_distance(X[node], v_a[tri], v_b[tri], v_c[tri])
-        first = np.concatenate([[0], np.flatnonzero(node[1:] != node[:-1]) + 1])
-        un = node[first]
-        best[un] = np.minimum(best[un], np.minimum.reduceat(d, first))
-        # rows whose k-th neighbour is still inside the radius may have more candidates
-        more = ok[:, -1] & (k < len(tree.data))
-        todo = todo[more]
-        k *= 4
-    return best
+    ok = dd <= r[:, None]
+    rows, cols = np.nonzero(ok)
+    d = tri.distance(X[rows], sample_tri[ii[rows, cols]])
+    first = np.concatenate([[0], np.flatnonzero(rows[1:] != rows[:-1]) + 1])
+    best = np.minimum(d0, np.minimum.reduceat(d, first)) if len(d) else d0
+    # rows whose k-th neighbour is still inside the radius may have more candidates
+    more = np.flatnonzero(ok[:, -1])
+    kk = k
+    while len(more) and kk < len(tree.data):
+        kk = min(kk * 4, len(tree.data))
+        dd2, ii2 = tree.query(X[more], k=kk, distance_upper_bound=float(r[more].max()), workers=-1)
+        ok2 = dd2 <= r[more, None]
+        rows2, cols2 = np.nonzero(ok2)
+        d2 = tri.distance(X[more[rows2]], sample_tri[ii2[rows2, cols2]])
+        first2 = np.concatenate([[0], np.flatnonzero(rows2[1:] != rows2[:-1]) + 1])
+        best[more] = np.minimum(best[more], np.minimum.reduceat(d2, first2))
+        more = more[ok2[:, -1]]
+    return keep, best
 
 
 # ---------------------------------------------------------------------------
@@ -488,24 +536,26 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     st["samples"] = len(samples)
     band_r = band_cells * h
     cand = _band_candidates(grid, samples, band_cells + 0.5 * np.sqrt(3.0) + delta / h + 1e-6)
-    pts = grid.to_world(np.stack(np.unravel_index(cand, grid.shape), axis=1))
-    ds, _ = tree.query(pts, workers=-1, distance_upper_bound=band_r + delta * 1.000001 + 1e-12)
-    keep = np.isfinite(ds)
-    cand, pts = cand[keep], pts[keep]
     t1 = time.perf_counter()
     st["seconds_band"] = t1 - t_start
     rep(0.1, "exact distance near the surface")
 
     # 2. exact distances in the band
-    va, vb, vc = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+    tri = _Triangles(v, tris)
+    keep = np.zeros(len(cand), dtype=bool)
     dist_band = np.empty(len(cand))
     sub = rep.sub(0.1, 0.45)
     for s in range(0, len(cand), _CHUNK):
-        dist_band[s:s + _CHUNK] = _exact_distance(pts[s:s + _CHUNK], va, vb, vc, tree,
-                                                  sample_tri, delta)
+        c = cand[s:s + _CHUNK]
+        pts_c = grid.to_world(np.stack(np.unravel_index(c, grid.shape), axis=1))
+        kp, dist = _band_distance(pts_c, tri, tree, sample_tri, delta, band_r)
+        keep[s:s + _CHUNK] = kp
+        dist_band[s:s + _CHUNK][kp] = dist
         sub(min(1.0, (s + _CHUNK) / max(len(cand), 1)), "exact distance near the surface")
+    cand, dist_band = cand[keep], dist_band[keep]
     inband = dist_band <= band_r
-    cand, pts, dist_band = cand[inband], pts[inband], dist_band[inband]
+    cand, dist_band = cand[inband], dist_band[inband]
+    pts = grid.to_world(np.stack(np.unravel_index(cand, grid.shape), axis=1))
     st["band_nodes"] = len(cand)
     t2 = time.perf_counter()
     st["seconds_exact"] = t2 - t1
