@@ -224,7 +224,7 @@ def test_winding_number_hierarchy_matches_exact_sum():
     w = winding_number(vc, fc, q)
     inside = np.linalg.norm(q, axis=1) < 0.55
     outside = np.linalg.norm(q, axis=1) > 0.65
-    assert np.all(np.abs(w[inside] - 1) < 0.02) and np.all(np.abs(w[outside]) < 0.02)
+    assert np.all(np.abs(w[inside] - 1) < 0.05) and np.all(np.abs(w[outside]) < 0.05)
 
 
 # -- bad input ----------------------------------------------------------------------
