@@ -33,6 +33,12 @@ Sign (steps 4-5)
        at most sqrt(3) cells away (same side of the surface, since the node is
        more than ``band_cells`` cells from it).
 
+Overlaps (step 6)
+    6. Where parts overlap (w >= 1.5 seen near the surface) the faces inside the
+       union are not boundary: inside nodes get at least ``D - sqrt(3) h``, D the
+       distance to the nearest outside node, so the union's interior is not
+       mistaken for a near-surface layer.
+
 `polygon_to_sdf` is the 2D counterpart (the thesis' 2D examples): exact distance
 to all segments of one or more closed loops, sign by even-odd or non-zero rule.
 """
@@ -709,6 +715,19 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
                 inside[rest] = inside[np.ravel_multi_index(tuple(lat.T), grid.shape)]
     st["winding_nodes"] = n_wind
     st["leaky_regions"] = leaky
+
+    # 6. overlapping parts / self-intersections (w >= 1.5 seen in the layer): faces
+    # inside the union would make |d| small deep inside the material. The true
+    # distance to the union's boundary is at least D - sqrt(3) h, D the distance to
+    # the nearest outside node (an outside node lies within sqrt(3) h of every
+    # boundary point with room outside), so raise |d| of inside nodes to that.
+    overlap = bool(len(w_layer) and np.any(w_layer >= 1.5) and not inside.all())
+    st["overlap_corrected"] = overlap
+    if overlap:
+        rep(0.9, "inside/outside (overlapping parts)")
+        D = ndimage.distance_transform_edt(inside.reshape(grid.shape)).reshape(-1) * h
+        unsigned[inside] = np.maximum(unsigned[inside], D[inside] - np.sqrt(3.0) * h)
+        del D
     t5 = time.perf_counter()
     st["seconds_sign"] = t5 - t3
     st["seconds_total"] = t5 - t_start

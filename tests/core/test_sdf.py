@@ -128,12 +128,12 @@ def test_ngon_prism_given_as_ragged_polygons():
 
 
 def test_band_distance_is_exact_against_brute_force_on_irregular_mesh():
-    """Mixed triangle sizes (a coarse box fused with a fine noisy sphere): the
+    """Mixed triangle sizes (a coarse box next to a fine noisy sphere): the
     candidate radius must still find the closest triangle for every band node."""
     rng = np.random.default_rng(3)
     vs, fs = icosphere(3, 0.45, center=(0.1, 0.0, 0.05))
     vs = vs + rng.normal(scale=0.01, size=vs.shape)
-    vb, qb = box((-0.8, -0.7, -0.75), (0.2, 0.1, 0.0))
+    vb, qb = box((-0.9, -0.8, -0.85), (0.2, 0.1, -0.47))  # disjoint from the sphere
     v = np.concatenate([vs, vb])
     f = np.concatenate([fs, triangulate(qb, len(vb)) + len(vs)])
     g = cube_grid(40)
@@ -210,6 +210,14 @@ def test_overlapping_closed_meshes_give_their_union():
     assert np.array_equal(np.sign(d[clear]), np.sign(union[clear]))
     both = (r1 < -0.03) & (r2 < -0.03)
     assert both.sum() > 100 and np.all(d[both] < 0)  # winding number 2 is inside
+    # the faces inside the union are not its boundary: distances there follow the union
+    h = g.spacing
+    assert np.all(np.abs(d[both]) >= np.abs(union[both]) - 2 * h)
+    assert np.all(np.abs(d) <= np.abs(union) + 1.5 * h + 0.02)
+
+
+def test_single_closed_mesh_is_not_overlap_corrected(sphere64):
+    assert sphere64[2]["overlap_corrected"] is False
 
 
 def test_winding_number_hierarchy_matches_exact_sum():
