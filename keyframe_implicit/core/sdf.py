@@ -14,16 +14,20 @@ Magnitude (`mesh_to_sdf`, steps 1-3)
        from a `scipy.spatial.cKDTree` over the samples: if ``d0`` is the exact
        distance to the triangle of the nearest sample, the closest triangle owns
        a sample within ``d0 + delta``, so querying that radius is exact.
-    3. Nodes outside the band get ``|x - b| + d(b)``, ``b`` the nearest band node
-       (`scipy.ndimage.distance_transform_edt`): an upper bound on the true
-       distance that is tight to within a fraction of a cell.
+    3. Nodes outside the band get ``|x - c(b)|``, ``b`` the nearest band node
+       (`scipy.ndimage.distance_transform_edt`) and ``c(b)`` its closest surface
+       point: an upper bound on the true distance, exact whenever x and b share
+       their closest point, and never above ``|x - b| + d(b)``. Where the surface
+       leaves the grid (no band nodes there) the distance to the triangle of the
+       nearest sample is used too; with no band node at all, it alone.
 
 Sign (steps 4-5)
     4. The generalised winding number w (Jacobson et al. 2013) at the nodes within
        one cell of the surface, evaluated hierarchically (Barill et al. 2018, "fast
        winding numbers": an octree over the triangles, far clusters replaced by
        their area-weighted-normal dipole, near leaves summed exactly with the
-       van Oosterom-Strackee solid angle). Inside is ``w >= 0.5``: open holes are
+       van Oosterom-Strackee solid angle). Inside is ``|w| >= 0.5`` (|w|: a mesh with all
+       normals flipped is read the same): open holes are
        bridged smoothly, and overlapping loose parts (w = 2) give their union.
     5. The other nodes are split into 6-connected regions (`scipy.ndimage.label`)
        that the one-cell layer separates; each region takes the unanimous sign of
@@ -34,7 +38,7 @@ Sign (steps 4-5)
        more than ``band_cells`` cells from it).
 
 Overlaps (step 6)
-    6. Where parts overlap (w >= 1.5 seen near the surface) the faces inside the
+    6. Where parts overlap (|w| >= 1.5 seen near the surface) the faces inside the
        union are not boundary: inside nodes get at least ``D - sqrt(3) h``, D the
        distance to the nearest outside node, so the union's interior is not
        mistaken for a near-surface layer.
@@ -250,6 +254,32 @@ class _Triangles:
         return np.sqrt(np.maximum(dist2, 0.0))
 
 
+def _closest_point_method(self, p, t):
+    """Closest point on triangles t (P,) to points p (P, 3) (same regions as `distance`)."""
+    a = np.stack([self.a[i][t] for i in range(3)], axis=1)
+    e0 = np.stack([self.e0[i][t] for i in range(3)], axis=1)
+    e1 = np.stack([self.e1[i][t] for i in range(3)], axis=1)
+    v = p - a
+    dv0, dv1 = _dot(v, e0), _dot(v, e1)
+    d00, d01, d11 = self.d00[t], self.d01[t], self.d11[t]
+    u = (d11 * dv0 - d01 * dv1) * self.inv[t]
+    w = (d00 * dv1 - d01 * dv0) * self.inv[t]
+    inside = (u >= 0) & (w >= 0) & (u + w <= 1)
+    best = a + u[:, None] * e0 + w[:, None] * e1
+    bd = np.where(inside, 0.0, np.inf)
+    for s0, e in ((a, e0), (a, e1), (a + e0, e1 - e0)):  # the three edges
+        tt = np.clip(_dot(p - s0, e) / _dot(e, e), 0.0, 1.0)
+        q = s0 + tt[:, None] * e
+        dq = _dot(p - q, p - q)
+        use = ~inside & (dq < bd)
+        best[use] = q[use]
+        bd = np.where(use, dq, bd)
+    return best
+
+
+_Triangles.closest_point = _closest_point_method
+
+
 def point_triangle_distance(p, a, b, c):
     """Euclidean distance from points ``p`` to triangles ``(a, b, c)``, all (P, 3)."""
     p = np.asarray(p, dtype=float)
@@ -374,7 +404,7 @@ class _WindingTree:
         if coarse_beta >= self.beta:
             return self(points)
         w = self(points, beta=coarse_beta)
-        unsure = np.flatnonzero(np.abs(w - 0.5) < margin)
+        unsure = np.flatnonzero(np.abs(np.abs(w) - 0.5) < margin)
         if len(unsure):
             w[unsure] = self(np.asarray(points, dtype=float)[unsure])
         return w
@@ -481,11 +511,12 @@ def _band_candidates(grid, samples, radius_cells):
     return np.flatnonzero(mask.reshape(-1))
 
 
-def _refine(best, rows_of, X, ok, ii, tri, sample_tri):
-    """best[rows_of[i]] = min(best, exact distance to the candidate triangles of row i).
+def _refine(best, best_t, rows_of, X, ok, ii, tri, sample_tri):
+    """Lower best[rows_of[i]] to the exact distance to the candidates of row i.
 
     Candidates (``ok`` entries of the sample table ``ii``) whose cheap lower bound
     already exceeds the current best are skipped; the others get the exact kernel.
+    ``best_t`` follows the closest triangle. ``rows_of`` must be ascending.
     """
     rows, cols = np.nonzero(ok)
     if len(rows) == 0:
@@ -499,21 +530,34 @@ def _refine(best, rows_of, X, ok, ii, tri, sample_tri):
     if len(node) == 0:
         return
     d = tri.distance(p[need], t)
-    np.minimum.at(best, node, d) if len(node) < 64 else _min_sorted(best, node, d)
-
-
-def _min_sorted(best, node, d):
-    """best[node] = min(best[node], d) for node sorted ascending (grouped reduce)."""
     first = np.concatenate([[0], np.flatnonzero(node[1:] != node[:-1]) + 1])
     un = node[first]
-    best[un] = np.minimum(best[un], np.minimum.reduceat(d, first))
+    m = np.minimum.reduceat(d, first)
+    better = m < best[un]
+    if better.any():
+        gid = np.repeat(np.arange(len(first)), np.diff(np.append(first, len(node))))
+        hit = (d == m[gid]) & better[gid]
+        hn, hi = np.unique(node[hit], return_index=True)
+        best_t[hn] = t[hit][hi]
+        best[un[better]] = m[better]
+
+
+def _nearest_sample_distance(out, nodes, grid, tree, tri, sample_tri, keep_min=False):
+    """out[nodes] = distance to the triangle of the nearest sample (an upper bound)."""
+    for s in range(0, len(nodes), 8 * _CHUNK):
+        o = nodes[s:s + 8 * _CHUNK]
+        x = grid.to_world(np.stack(np.unravel_index(o, grid.shape), axis=1))
+        _, si = tree.query(x, workers=-1)
+        d = tri.distance(x, sample_tri[si])
+        out[o] = np.minimum(out[o], d) if keep_min else d
 
 
 def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
     """Exact unsigned distance for the points X within ``band_r`` of the surface.
 
-    Returns (keep, dist): ``keep`` marks the points whose distance may be <= band_r
-    (nearest sample within band_r + delta), ``dist`` their exact distance. If d0 is
+    Returns (keep, dist, tri): ``keep`` marks the points whose distance may be <= band_r
+    (nearest sample within band_r + delta), ``dist`` their exact distance, ``tri``
+    their closest triangle. If d0 is
     the exact distance to the triangle of the nearest sample, the closest triangle
     owns a sample within d0 + delta (module step 2), so all those are tested.
     """
@@ -530,7 +574,8 @@ def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
     ok = dd <= r[:, None]
     ok[:, 0] = False  # d0 is known
     best = d0.copy()
-    _refine(best, np.arange(len(X)), X, ok, ii, tri, sample_tri)
+    best_t = sample_tri[ii[:, 0]]
+    _refine(best, best_t, np.arange(len(X)), X, ok, ii, tri, sample_tri)
     ok[:, 0] = True
     # rows whose k-th neighbour is still inside the radius may have more candidates
     more = np.flatnonzero(ok[:, -1])
@@ -539,9 +584,9 @@ def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
         kk = min(kk * 4, len(tree.data))
         dd2, ii2 = tree.query(X[more], k=kk, distance_upper_bound=float(r[more].max()), workers=-1)
         ok2 = dd2 <= r[more, None]
-        _refine(best, more, X, ok2, ii2, tri, sample_tri)
+        _refine(best, best_t, more, X, ok2, ii2, tri, sample_tri)
         more = more[ok2[:, -1]]
-    return keep, best
+    return keep, best, best_t
 
 
 # ---------------------------------------------------------------------------
@@ -561,7 +606,8 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
         3D grid to sample on.
     band_cells : float
         Nodes within ``band_cells * h`` of the surface get the exact distance; the rest
-        an upper bound ``|x - b| + d(b)`` through the nearest band node ``b``.
+        the upper bound ``|x - c(b)|``, c(b) the closest surface point of the nearest
+        band node ``b``.
     progress, cancel : callables, optional
         See `keyframe_implicit.core.progress`.
     stats : dict, optional
@@ -573,8 +619,9 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     Returns
     -------
     ndarray of grid.shape
-        Signed distance in world units, negative inside (generalised winding number
-        >= 0.5, so the union of overlapping parts is inside).
+        Signed distance in world units, negative inside (|generalised winding number|
+        >= 0.5: the union of overlapping parts is inside; fully flipped normals are
+        read the same as outward ones).
 
     Raises
     ------
@@ -611,40 +658,54 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     tri = _Triangles(v, tris)
     keep = np.zeros(len(cand), dtype=bool)
     dist_band = np.empty(len(cand))
+    tri_band = np.empty(len(cand), dtype=np.int64)
     sub = rep.sub(0.1, 0.45)
     for s in range(0, len(cand), _CHUNK):
         c = cand[s:s + _CHUNK]
         pts_c = grid.to_world(np.stack(np.unravel_index(c, grid.shape), axis=1))
-        kp, dist = _band_distance(pts_c, tri, tree, sample_tri, delta, band_r)
+        kp, dist, near_t = _band_distance(pts_c, tri, tree, sample_tri, delta, band_r)
         keep[s:s + _CHUNK] = kp
         dist_band[s:s + _CHUNK][kp] = dist
+        tri_band[s:s + _CHUNK][kp] = near_t
         sub(min(1.0, (s + _CHUNK) / max(len(cand), 1)), "exact distance near the surface")
-    cand, dist_band = cand[keep], dist_band[keep]
+    cand, dist_band, tri_band = cand[keep], dist_band[keep], tri_band[keep]
     inband = dist_band <= band_r
-    cand, dist_band = cand[inband], dist_band[inband]
+    cand, dist_band, tri_band = cand[inband], dist_band[inband], tri_band[inband]
     pts = grid.to_world(np.stack(np.unravel_index(cand, grid.shape), axis=1))
     st["band_nodes"] = len(cand)
     t2 = time.perf_counter()
     st["seconds_exact"] = t2 - t1
 
-    # 3. far field: |x - b| + d(b) through the nearest band node b
+    # 3. far field: |x - c(b)|, c(b) the closest surface point of the nearest band node b
     unsigned = np.empty(grid.size)
     unsigned[cand] = dist_band
     band_mask = np.zeros(grid.size, dtype=bool)
     band_mask[cand] = True
     rep(0.5, "far field")
+    outside_parts = bool(np.any(~grid.contains(samples, margin=band_r)))
     if len(cand) == 0:
-        # surface entirely away from the grid: distance to the samples is within delta
-        far_pts = grid.points().reshape(-1, 3)
-        dd, _ = tree.query(far_pts, workers=-1)
-        unsigned[:] = np.maximum(dd - delta, 0.0)
+        # surface entirely away from the grid: distance to the triangle of the
+        # nearest sample (an upper bound, at most delta above the true distance)
+        _nearest_sample_distance(unsigned, np.arange(grid.size), grid, tree, tri, sample_tri)
     elif not band_mask.all():
         edt, inds = ndimage.distance_transform_edt(~band_mask.reshape(grid.shape),
                                                    return_indices=True)
         nb = np.ravel_multi_index(tuple(inds), grid.shape).reshape(-1)
-        off = ~band_mask
-        unsigned[off] = edt.reshape(-1)[off] * h + unsigned[nb[off]]
-        del edt, inds, nb
+        del edt
+        off = np.flatnonzero(~band_mask)
+        # closest surface points of the band nodes that are someone's nearest
+        need = np.unique(nb[off])
+        bi = np.searchsorted(cand, need)
+        cp = tri.closest_point(pts[bi], tri_band[bi])
+        for s in range(0, len(off), 8 * _CHUNK):
+            o = off[s:s + 8 * _CHUNK]
+            c = cp[np.searchsorted(need, nb[o])]
+            x = grid.to_world(np.stack(np.unravel_index(o, grid.shape), axis=1))
+            unsigned[o] = np.sqrt(np.sum((x - c) ** 2, axis=1))
+        del inds, nb
+        if outside_parts:
+            # surface beyond the grid has no band nodes: bound through its samples too
+            _nearest_sample_distance(unsigned, off, grid, tree, tri, sample_tri, keep_min=True)
     t3 = time.perf_counter()
     st["seconds_far"] = t3 - t2
 
@@ -656,7 +717,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     inside = np.zeros(grid.size, dtype=bool)
     known = np.zeros(grid.size, dtype=bool)
     w_layer = wt.sign(pts[layer_sel]) if len(layer) else np.zeros(0)
-    inside[layer] = w_layer >= 0.5
+    inside[layer] = np.abs(w_layer) >= 0.5
     known[layer] = True
     n_wind = len(layer)
     t4 = time.perf_counter()
@@ -667,7 +728,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     leaky = 0
     if len(layer) == 0:
         w = wt.sign(grid.points().reshape(-1, 3))
-        inside[:] = w >= 0.5
+        inside[:] = np.abs(w) >= 0.5
         n_wind += grid.size
     else:
         labels, nlab = ndimage.label(~known.reshape(grid.shape))
@@ -704,7 +765,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
                 evaluate = in_mixed
             ev = np.flatnonzero(evaluate)
             w = wt.sign(grid.to_world(np.stack(np.unravel_index(ev, grid.shape), axis=1)))
-            inside[ev] = w >= 0.5
+            inside[ev] = np.abs(w) >= 0.5
             n_wind += len(ev)
             rest = np.flatnonzero(in_mixed & ~evaluate)
             if len(rest):
@@ -721,7 +782,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     # distance to the union's boundary is at least D - sqrt(3) h, D the distance to
     # the nearest outside node (an outside node lies within sqrt(3) h of every
     # boundary point with room outside), so raise |d| of inside nodes to that.
-    overlap = bool(len(w_layer) and np.any(w_layer >= 1.5) and not inside.all())
+    overlap = bool(len(w_layer) and np.any(np.abs(w_layer) >= 1.5) and not inside.all())
     st["overlap_corrected"] = overlap
     if overlap:
         rep(0.9, "inside/outside (overlapping parts)")
