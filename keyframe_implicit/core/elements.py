@@ -104,7 +104,8 @@ def deformation_gradient(Y: np.ndarray, G: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (E, Q, d, d), ``F[e, q, i, a] = dy_i / dx_a``.
     """
-    return np.einsum("eci,qac->eqia", Y, G, optimize=True)
+    # (E, 1, d, K) @ (1, Q, K, d): batched matrix products are much faster than einsum here
+    return np.matmul(Y.transpose(0, 2, 1)[:, None], G.transpose(0, 2, 1)[None])
 
 
 def determinant(F: np.ndarray) -> np.ndarray:

@@ -68,7 +68,7 @@ DEFAULTS = dict(
     cg_tolerance=1e-2,
     cg_max_iterations=300,
     damping=1e-6,
-    chunk_elements=20000,
+    chunk_elements=2000,
     extension_passes=8,
     initial=None,
 )
@@ -247,7 +247,7 @@ class _Level:
             for c in range(K):
                 grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
                 if hessian:
-                    Hs[el[:, c][:, None], self.pair_off[c][None, :]] += h_sum[:, c].transpose(0, 2, 1, 3)
+                    Hs[el[:, c][:, None], self.pair_off[c][None, :]] += h_sum[:, c]
         for t in TERMS:
             if t.kind != "node" or weights[t.name] == 0:
                 continue
@@ -428,7 +428,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
         `keyframe_implicit.core.constraints`; ``coarse_nodes`` (17, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
         ``cg_tolerance`` (1e-2), ``cg_max_iterations`` (300), ``damping``
-        (1e-6), ``chunk_elements`` (20000, memory vs. speed of assembly),
+        (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
         ``extension_passes`` (8), ``initial`` (an array grid.shape + (d,) to
         start from instead of the RBF map; the constraints are re-imposed),
         and the weight of any extra term registered

@@ -19,7 +19,7 @@ Two kinds of term exist:
 ``"element"``
     takes an `ElementBatch` (corner positions of E cells) and returns the
     gradient per element ``(E, 2**d, d)`` and the Hessian blocks
-    ``(E, 2**d, d, 2**d, d)``;
+    ``(E, 2**d, 2**d, d, d)`` (block [c, c'] couples corners c and c');
 ``"node"``
     takes a `NodeBatch` (the mapped nodes) and returns the gradient ``(n, d)``
     and diagonal Hessian blocks ``(n, d, d)`` (nodal quadrature: each node
@@ -131,11 +131,12 @@ def volume_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     r = determinant(F) - 1.0
     w = batch.weight * vol
     energy = float(np.sum(w * r * r))
-    J = np.einsum("eja,ac->ecj", cofactor(F), G[0], optimize=True)  # (E, K, d)
+    J = (cofactor(F) @ G[0]).transpose(0, 2, 1)  # (E, K, d): dr / dY[c, j]
     grad = (2.0 * w * r)[:, None, None] * J
     hess = None
     if hessian:
-        hess = (2.0 * w)[:, None, None, None, None] * J[:, :, :, None, None] * J[:, None, None, :, :]
+        Js = np.sqrt(2.0 * w)[:, None, None] * J
+        hess = Js[:, :, None, :, None] * Js[:, None, :, None, :]  # (E, c, c', j, j')
     return TermValue(energy, grad, hess)
 
 
@@ -151,24 +152,26 @@ def rigidity_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     G = batch.gauss.G  # (Q, d, K)
     qw = batch.gauss.weights  # (Q,)
     F = deformation_gradient(batch.Y, G)  # (E, Q, d, d)
-    d = F.shape[-1]
-    R = np.einsum("eqia,eqib->eqab", F, F, optimize=True) - np.eye(d)
+    E, Q, d = F.shape[0], F.shape[1], F.shape[-1]
+    nK = G.shape[2]
+    Ft = F.swapaxes(-1, -2)
+    R = Ft @ F - np.eye(d)
     w = batch.weight[:, None] * qw[None, :]  # (E, Q)
-    energy = float(np.sum(w * np.einsum("eqab,eqab->eq", R, R, optimize=True)))
-    B = np.einsum("eqja,qac->eqjc", F, G, optimize=True)  # (E, Q, d, K)
-    FR = np.einsum("eqjb,eqba->eqja", F, R, optimize=True)
-    grad = 4.0 * np.einsum("eq,eqja,qac->ecj", w, FR, G, optimize=True)
+    energy = float(np.sum(w * np.sum(R * R, axis=(-1, -2))))
+    FRG = (F @ R) @ G[None]  # (E, Q, d, K)
+    grad = 4.0 * np.einsum("eq,eqjc->ecj", w, FRG)
     hess = None
     if hessian:
-        E, Q, nK = len(F), G.shape[0], G.shape[2]
-        K = np.einsum("qac,qad->qcd", G, G).reshape(Q, nK * nK)  # G^T G per point
-        S = np.einsum("eq,eqja,eqka->eqjk", w, F, F, optimize=True).reshape(E, Q, d * d)
-        # sum_q w K[c, c'] S[j, j']  as one matrix product, laid out (e, c, j, c', j')
-        t1 = (S.transpose(0, 2, 1) @ K).reshape(E, d, d, nK, nK).transpose(0, 3, 1, 4, 2)
-        # sum_q w B[j', c] B[j, c']  as a batched product of (d K) x Q by Q x (d K)
-        U = (np.sqrt(w)[:, :, None, None] * B).reshape(E, Q, d * nK)
-        t2 = (U.transpose(0, 2, 1) @ U).reshape(E, d, nK, d, nK).transpose(0, 2, 3, 4, 1)
-        hess = 4.0 * (t1 + t2)
+        Kq = (G.swapaxes(1, 2) @ G).reshape(Q, nK * nK)  # G^T G per Gauss point
+        S = (w[:, :, None, None] * (F @ Ft)).reshape(E, Q, d * d)
+        # sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
+        hess = (Kq.T[None] @ S).reshape(E, nK, nK, d, d)
+        # sum_q w B[j', c] B[j, c']: Gram matrix over q of V[(c, j')] = sqrt(w) B[j', c]
+        B = F @ G[None]  # (E, Q, d, K)
+        V = (np.sqrt(w)[:, :, None, None] * B).transpose(0, 3, 2, 1).reshape(E, nK * d, Q)
+        t2 = (V @ V.transpose(0, 2, 1)).reshape(E, nK, d, nK, d)  # (e, c, j', c', j)
+        hess += t2.transpose(0, 1, 3, 4, 2)
+        hess *= 4.0
     return TermValue(energy, grad, hess)
 
 

@@ -105,7 +105,7 @@ def test_element_gradient_and_gauss_newton_hessian(d, fn):
             Ym[0, c, j] -= step
             J[:, k] = (residual(Yp) - residual(Ym))[0] / (2 * step)
         want = 2 * w[e] * J.T @ J
-        got = tv.hess[e].reshape(K * d, K * d)
+        got = tv.hess[e].transpose(0, 2, 1, 3).reshape(K * d, K * d)  # (c, c', j, j') blocks
         assert np.allclose(got, want, rtol=1e-5, atol=1e-8 * np.abs(want).max())
 
 
