@@ -307,3 +307,15 @@ def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
     # reading never touches the keyframes' data nor leaves temporary meshes behind
     assert kfi.mesh_hash(cube.data) == before and len(bpy.data.meshes) == n_meshes
     assert scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 24).resolution == 24
+
+
+def test_keyframe_emptied_by_modifiers_fails_cleanly(scene, kfi):
+    kfi.build_spheres(TWO)
+    a = scene.keyframe_implicit.keyframes[0].object
+    a.vertex_groups.new(name="nothing")
+    mask = a.modifiers.new("Mask", "MASK")
+    mask.vertex_group = "nothing"  # evaluated mesh has no faces
+    state = kfi.snapshot()
+    with pytest.raises(RuntimeError, match="no faces after modifiers"):
+        bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
+    assert kfi.snapshot() == state
