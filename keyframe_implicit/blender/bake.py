@@ -144,7 +144,11 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None):
     import bpy
 
     if depsgraph is None:
-        depsgraph = bpy.context.evaluated_depsgraph_get()
+        if bpy.context.scene == scene:
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+        else:
+            depsgraph = scene.view_layers[0].depsgraph
+            depsgraph.update()
     job = BakeJob(scene_io.collect(scene, depsgraph, resolution), on_progress=on_progress)
     job.run()
     if job.state == CANCELLED:

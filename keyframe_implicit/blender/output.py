@@ -167,9 +167,13 @@ def write_animation(scene, settings, animation, *, material_name="", stats=None)
         grid = getattr(animation, "grid", None)
         if grid is not None:
             obj["kfi_spacing"] = float(grid.spacing)
-        for k, v in (stats or {}).items():
-            if isinstance(v, (int, float)) and not isinstance(v, bool):
-                obj[f"kfi_{k}"] = v
+        for k, v in (stats or {}).items():  # scalar figures only (timings, iterations, ...)
+            if isinstance(v, (bool, np.bool_)) or len(str(k)) > 58:
+                continue
+            if isinstance(v, (int, np.integer)):
+                obj[f"kfi_{k}"] = int(v)
+            elif isinstance(v, (float, np.floating)):
+                obj[f"kfi_{k}"] = float(v)
         old = settings.output_object
         if old is not None and old != obj:
             remove_output(old)

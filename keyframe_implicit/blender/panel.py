@@ -61,9 +61,15 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col = layout.column(align=True)
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
+        from .ops import _running
+
+        if _running:
+            fraction, message = _running[0].status()
+            layout.label(text=f"Baking {100 * fraction:.0f}%: {message}", icon="SORTTIME")
+            layout.label(text="Press ESC in the 3D view to cancel.")
         row = layout.row()
         row.scale_y = 1.4
-        row.enabled = not validate.errors(found)
+        row.enabled = not validate.errors(found) and not _running
         row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
         out = settings.output_object
         if out is not None:

@@ -8,7 +8,6 @@ baked output object, so that baking again replaces that object and only it.
 
 import bpy
 from bpy.props import (
-    BoolProperty,
     CollectionProperty,
     FloatProperty,
     IntProperty,
@@ -73,7 +72,6 @@ class KFI_Settings(bpy.types.PropertyGroup):
         type=bpy.types.Object,
         description="The baked object; Bake replaces it (and nothing else)",
     )
-    show_feature_details: BoolProperty(name="Show Pairs", default=True)
 
     def weights(self):
         """The weights as the core expects them (``animate(weights=...)``)."""

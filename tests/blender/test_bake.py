@@ -275,3 +275,47 @@ def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
     assert any(name == "progress_update" for name, _ in ctx.window_manager.calls)
     assert reports[-1][0] == "INFO" and "Baked" in reports[-1][1]
     assert not ops._running
+
+
+def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(1.0, 2.0, 3.0))
+    cube = bpy.context.active_object
+    cube.scale = (2.0, 1.0, 1.0)
+    cube.rotation_euler = (0.0, 0.0, 0.5)
+    cube.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    bpy.ops.keyframe_implicit.add_keyframe(frame=1)
+    kfi.add_sphere("S", (5, 0, 0))
+    bpy.ops.keyframe_implicit.add_keyframe(frame=5)
+    bpy.ops.keyframe_implicit.add_feature_pair(segment=0, location_a=(1, 2, 4), location_b=(5, 0, 1))
+    bpy.ops.keyframe_implicit.add_feature_pair(segment=0, location_a=(1, 2, 2), location_b=(5, 0, -1))
+    scene.keyframe_implicit.rigidity_weight = 3.0
+    before = kfi.mesh_hash(cube.data)
+    n_meshes = len(bpy.data.meshes)
+
+    inp = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
+    assert inp.resolution == 48 and inp.weights["rigidity"] == 3.0 and inp.frames == [1, 5]
+    ka = inp.keyframes[0]
+    ref, tris = kfi.evaluated_arrays(cube)  # what Blender evaluates: 26 verts after subsurf
+    assert len(ka.vertices) == len(ref) == 26 and len(cube.data.vertices) == 8
+    np.testing.assert_allclose(ka.vertices, ref, atol=1e-5)
+    np.testing.assert_array_equal(np.sort(ka.faces, axis=1), np.sort(tris, axis=1))
+    assert ka.faces.shape[1] == 3  # triangulated
+    pa, pb = inp.features[0]
+    np.testing.assert_allclose(pa, [(1, 2, 4), (1, 2, 2)], atol=1e-6)
+    np.testing.assert_allclose(pb, [(5, 0, 1), (5, 0, -1)], atol=1e-6)
+    assert inp.pair_ids == [["0.0", "0.1"]]
+    # reading never touches the keyframes' data nor leaves temporary meshes behind
+    assert kfi.mesh_hash(cube.data) == before and len(bpy.data.meshes) == n_meshes
+    assert scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 24).resolution == 24
+
+
+def test_keyframe_emptied_by_modifiers_fails_cleanly(scene, kfi):
+    kfi.build_spheres(TWO)
+    a = scene.keyframe_implicit.keyframes[0].object
+    a.vertex_groups.new(name="nothing")
+    mask = a.modifiers.new("Mask", "MASK")
+    mask.vertex_group = "nothing"  # evaluated mesh has no faces
+    state = kfi.snapshot()
+    with pytest.raises(RuntimeError, match="no faces after modifiers"):
+        bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
+    assert kfi.snapshot() == state

@@ -124,6 +124,20 @@ def test_panels_draw_baked_scene(scene, kfi):
     assert "no partner" not in text
 
 
+def test_panel_shows_a_running_bake(scene, kfi):
+    from keyframe_implicit.blender import bake, ops, scene_io
+
+    kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (1.5, 0, 0), 1, 4)])
+    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job._progress(0.42, "solving the volume map")
+    ops._running.append(job)
+    try:
+        text = labels(draw_all(bpy.context))
+    finally:
+        ops._running.remove(job)
+    assert "Baking 42%: solving the volume map" in text and "ESC" in text
+
+
 def test_layout_stand_in_catches_mistakes(scene):
     # the checks above would fail on a typo in a panel
     layout = Layout([])
