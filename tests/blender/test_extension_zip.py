@@ -19,6 +19,7 @@ repository, enabling it, and checks that
   parts work: a distance transform and marching cubes on a sphere.
 """
 
+import io
 import json
 import os
 import pathlib
@@ -33,6 +34,16 @@ BAKE_RESOLUTION = 16
 
 
 def _build_linux_zip(tmp_path):
+    """Build the linux-x64 zip into ``tmp_path``, or take ``$KFI_EXTENSION_ZIP``.
+
+    A given zip is used only if its package files are byte-identical to this
+    checkout's (so a stale zip cannot pass); scripts/blender_chroot.sh passes the
+    zip it built, because a distribution Blender's Python may lack pip.
+    """
+    given = os.environ.get("KFI_EXTENSION_ZIP")
+    if given:
+        _assert_zip_matches_checkout(pathlib.Path(given))
+        return pathlib.Path(given)
     out = tmp_path / "dist"
     proc = subprocess.run(
         [sys.executable, str(ROOT / "scripts" / "build_extension.py"), "--platform", "linux-x64",
@@ -42,6 +53,32 @@ def _build_linux_zip(tmp_path):
     zips = sorted(out.glob("keyframe_implicit-*-linux_x64.zip"))
     assert len(zips) == 1, (zips, proc.stdout)
     return zips[0]
+
+
+def _package_files():
+    pkg = ROOT / "keyframe_implicit"
+    return {p.relative_to(pkg).as_posix(): p.read_bytes() for p in pkg.rglob("*")
+            if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".pyo")}
+
+
+def _assert_zip_matches_checkout(zip_path):
+    with zipfile.ZipFile(zip_path) as z:
+        packaged = {n: z.read(n) for n in z.namelist()
+                    if not n.endswith("/") and not n.startswith("wheels/") and n != "blender_manifest.toml"}
+    mine = _package_files()
+    assert sorted(packaged) == sorted(mine), f"{zip_path} does not hold this checkout's package files"
+    stale = [n for n in mine if packaged[n] != mine[n]]
+    assert not stale, f"{zip_path} is stale: {stale} differ from this checkout; rebuild it"
+
+
+def _child_command(script, args):
+    """Command that runs ``script`` with bpy: this Python, or this Blender if we run inside one."""
+    import bpy
+
+    if bpy.app.binary_path:  # a real Blender (the bpy module has no binary)
+        return [bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1",
+                "--python", str(script), "--", *args]
+    return [sys.executable, str(script), *args]
 
 
 def _bundled_top_level_names(zip_path, python_tag):
@@ -54,7 +91,6 @@ def _bundled_top_level_names(zip_path, python_tag):
             py = entry.rsplit("/", 1)[1].split("-")[-3]
             if py not in (python_tag, "py3") and not py.startswith("py3."):
                 continue
-            import io
             with zipfile.ZipFile(io.BytesIO(outer.read(entry))) as whl:
                 for member in whl.namelist():
                     top = member.split("/", 1)[0]
@@ -81,6 +117,8 @@ def test_zip_manifest_and_contents(tmp_path):
         for tag in ("cp311", "cp313"):
             assert any(w.startswith(f"wheels/{dist}-") and f"-{tag}-" in w for w in wheels), (dist, tag, wheels)
     assert not [w for w in wheels if w.startswith("wheels/numpy-")]
+    # Every file of the package is in the zip, unchanged.
+    _assert_zip_matches_checkout(zip_path)
 
 
 def test_zip_installs_enables_and_runs_in_isolated_profile(tmp_path):
@@ -102,7 +140,7 @@ def test_zip_installs_enables_and_runs_in_isolated_profile(tmp_path):
     )
     result_file = tmp_path / "result.json"
     proc = subprocess.run(
-        [sys.executable, str(pathlib.Path(__file__).resolve()), str(zip_path), str(result_file)],
+        _child_command(pathlib.Path(__file__).resolve(), [str(zip_path), str(result_file)]),
         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-6000:]
     r = json.loads(result_file.read_text())
@@ -180,4 +218,5 @@ def _child(zip_path, result_file):  # pragma: no cover - runs in a subprocess
 
 
 if __name__ == "__main__":
-    _child(sys.argv[1], sys.argv[2])
+    _args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    _child(_args[0], _args[1])
