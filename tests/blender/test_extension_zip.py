@@ -27,10 +27,17 @@ import subprocess
 import sys
 import zipfile
 
+import pytest
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 #: Bake resolution for the installed add-on (low: this checks the zip, not the method).
 BAKE_RESOLUTION = 16
+
+
+@pytest.fixture(scope="module")
+def linux_zip(tmp_path_factory):
+    return _build_linux_zip(tmp_path_factory.mktemp("zip"))
 
 
 def _build_linux_zip(tmp_path):
@@ -75,7 +82,7 @@ def _child_command(script, args):
     """Command that runs ``script`` with bpy: this Python, or this Blender if we run inside one."""
     import bpy
 
-    if bpy.app.binary_path:  # a real Blender (the bpy module has no binary)
+    if _in_real_blender():  # the bpy module has no binary
         return [bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1",
                 "--python", str(script), "--", *args]
     return [sys.executable, str(script), *args]
@@ -100,8 +107,44 @@ def _bundled_top_level_names(zip_path, python_tag):
     return sorted(names)
 
 
-def test_zip_manifest_and_contents(tmp_path):
-    zip_path = _build_linux_zip(tmp_path)
+def _blender_ext():
+    """Blender's own extension tool, from the running bpy module or Blender."""
+    import bpy
+
+    path = pathlib.Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+    assert path.is_file(), path
+    return path
+
+
+def test_blender_validator_accepts_zip_and_manifest_is_honest(linux_zip):
+    import tomllib
+
+    tool = _blender_ext()
+    tags = tool.parents[3] / "modules" / "_bpy_internal" / "extensions" / "tags.py"
+    proc = subprocess.run([sys.executable, str(tool), "validate",
+                           f"--valid-tags={tags}", str(linux_zip)],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+    assert proc.returncode == 0 and "Success" in proc.stdout, proc.stdout
+    with zipfile.ZipFile(linux_zip) as z:
+        manifest = tomllib.loads(z.read("blender_manifest.toml").decode())
+    source = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    assert source["blender_version_min"] == manifest["blender_version_min"] == "4.2.0"
+    # Files only (the headless bake reads/writes .blend files); never network.
+    assert set(manifest["permissions"]) == {"files"}
+    assert manifest["build"]["generated"]["platforms"] == ["linux-x64"]
+    with zipfile.ZipFile(linux_zip) as z:
+        packed = sorted("./" + n for n in z.namelist() if n.endswith(".whl"))
+    assert sorted(manifest["build"]["generated"]["wheels"]) == packed
+
+
+def _in_real_blender():
+    import bpy
+
+    return bool(bpy.app.binary_path)
+
+
+def test_zip_manifest_and_contents(linux_zip):
+    zip_path = linux_zip
     with zipfile.ZipFile(zip_path) as z:
         names = z.namelist()
     # The extension's root is the package: its __init__.py, core/ and blender/ at the top.
@@ -121,8 +164,8 @@ def test_zip_manifest_and_contents(tmp_path):
     _assert_zip_matches_checkout(zip_path)
 
 
-def test_zip_installs_enables_and_runs_in_isolated_profile(tmp_path):
-    zip_path = _build_linux_zip(tmp_path)
+def test_zip_installs_enables_and_runs_in_isolated_profile(linux_zip, tmp_path):
+    zip_path = linux_zip
     tag = f"cp{sys.version_info[0]}{sys.version_info[1]}"
     hidden = _bundled_top_level_names(zip_path, tag)
     assert {"scipy", "skimage"} <= set(hidden)
