@@ -42,6 +42,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -140,22 +141,25 @@ def resolve(platform, python, cache, refresh=False):
     if memo.is_file() and not refresh:
         return [tuple(x) for x in json.loads(memo.read_text())]
     memo.parent.mkdir(parents=True, exist_ok=True)
-    constraints = memo.with_suffix(".constraints.txt")
-    constraints.write_text(PYTHONS[python] + "\n")
-    report = memo.with_suffix(".report.json")
-    cmd = [sys.executable, "-m", "pip", "install", "--dry-run", "--ignore-installed", "--quiet",
-           "--report", str(report), "--target", str(cache / "unused-target"),
-           "-c", str(constraints), *pip_target_args(platform, python), *REQUIREMENTS]
-    run(cmd, f"resolve {platform} py{python}")
+    # Per-process scratch files: several builds may share the cache at once.
+    with tempfile.TemporaryDirectory(dir=memo.parent) as scratch:
+        constraints = pathlib.Path(scratch) / "constraints.txt"
+        constraints.write_text(PYTHONS[python] + "\n")
+        report = pathlib.Path(scratch) / "report.json"
+        cmd = [sys.executable, "-m", "pip", "install", "--dry-run", "--ignore-installed", "--quiet",
+               "--report", str(report), "--target", str(pathlib.Path(scratch) / "unused-target"),
+               "-c", str(constraints), *pip_target_args(platform, python), *REQUIREMENTS]
+        run(cmd, f"resolve {platform} py{python}")
+        items = json.loads(report.read_text())["install"]
     picked = []
-    for item in json.loads(report.read_text())["install"]:
+    for item in items:
         name = canonical(item["metadata"]["name"])
         if name in BLENDER_SHIPS:
             continue
         filename = item["download_info"]["url"].rsplit("/", 1)[1]
         picked.append((name, item["metadata"]["version"], filename))
     picked.sort()
-    memo.write_text(json.dumps(picked, indent=1))
+    _write_atomic(memo, json.dumps(picked, indent=1).encode())
     return picked
 
 
@@ -165,9 +169,14 @@ def download(platform, python, picked, cache):
     store.mkdir(parents=True, exist_ok=True)
     missing = [(n, v) for n, v, f in picked if not (store / f).is_file()]
     if missing:
-        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--quiet", "-d", str(store),
-               *pip_target_args(platform, python), *[f"{n}=={v}" for n, v in missing]]
-        run(cmd, f"download {len(missing)} wheel(s) for {platform} py{python}")
+        # Download into a private directory, then move each wheel into the store in one
+        # step, so a concurrent build never sees a half-written wheel.
+        with tempfile.TemporaryDirectory(dir=store.parent) as scratch:
+            cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--quiet", "-d", scratch,
+                   *pip_target_args(platform, python), *[f"{n}=={v}" for n, v in missing]]
+            run(cmd, f"download {len(missing)} wheel(s) for {platform} py{python}")
+            for got in pathlib.Path(scratch).glob("*.whl"):
+                os.replace(got, store / got.name)
     paths = []
     for n, v, f in picked:
         path = store / f
@@ -176,6 +185,12 @@ def download(platform, python, picked, cache):
                              "run again with --refresh to re-resolve the versions.")
         paths.append(path)
     return paths
+
+
+def _write_atomic(path, data):
+    tmp = path.with_name(f".{path.name}.{os.getpid()}")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
 
 
 def run(cmd, what):
