@@ -129,6 +129,11 @@ def test_blender_validator_accepts_zip_and_manifest_is_honest(linux_zip):
         manifest = tomllib.loads(z.read("blender_manifest.toml").decode())
     source = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
     assert source["blender_version_min"] == manifest["blender_version_min"] == "4.2.0"
+    # One version everywhere: manifest, package, pyproject.
+    init = (ROOT / "keyframe_implicit" / "__init__.py").read_text()
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert f'__version__ = "{source["version"]}"' in init
+    assert manifest["version"] == source["version"] == pyproject["project"]["version"]
     # Files only (the headless bake reads/writes .blend files); never network.
     assert set(manifest["permissions"]) == {"files"}
     assert manifest["build"]["generated"]["platforms"] == ["linux-x64"]
