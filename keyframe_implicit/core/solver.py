@@ -212,10 +212,11 @@ class _Level:
         code = {tuple(o): i for i, o in enumerate(offs.tolist())}
         self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
                                   for c1 in range(K)])
-        valid = nbr >= 0
-        self.bsr_indices = nbr[valid]
-        self.bsr_indptr = np.concatenate([[0], np.cumsum(valid.sum(axis=1))])
-        self.bsr_valid = valid
+        # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
+        # its block stays zero, so the stencil array is the BSR data without a copy
+        own = np.broadcast_to(np.arange(self.n)[:, None], nbr.shape)
+        self.bsr_indices = np.where(nbr >= 0, nbr, own).reshape(-1)
+        self.bsr_indptr = np.arange(self.n + 1) * len(offs)
         self.cons = FeatureConstraints(grid, active, xa, yb, radius)
         self.x = grid.to_world(idx)
 
@@ -276,8 +277,9 @@ class _Level:
 
     def bsr(self, Hs):
         d = self.d
-        data = Hs[self.bsr_valid]
-        return sp.bsr_matrix((data, self.bsr_indices, self.bsr_indptr), shape=(self.n * d, self.n * d))
+        data = Hs.reshape(-1, d, d)
+        return sp.bsr_matrix((data, self.bsr_indices, self.bsr_indptr), shape=(self.n * d, self.n * d),
+                             copy=False)
 
 
 def _pcg(apply_A, b, precond, project, tol, maxiter):
