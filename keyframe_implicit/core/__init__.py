@@ -38,6 +38,7 @@ _EXPORTS = {
     "fit_grid": "gridfit",
     "estimate_memory": "gridfit",
     "MemoryLimitError": "gridfit",
+    "check_memory": "gridfit",
     "solve_map": "solver",
     "MapResult": "solver",
     "inbetween": "levelset",

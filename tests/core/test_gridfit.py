@@ -1,0 +1,102 @@
+"""Grid fitting and the memory estimate (issue 3, keyframe_implicit.core.gridfit)."""
+
+import re
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core import Grid, MemoryLimitError, check_memory, estimate_memory, fit_grid
+
+
+def test_grid_holds_all_keyframes_with_padding_and_resolution_on_longest_side():
+    rng = np.random.default_rng(1)
+    a = rng.uniform([-1, 0, 0], [1, 0.5, 0.3], size=(50, 3))
+    b = rng.uniform([0, -0.2, 0], [2.0, 0.4, 0.6], size=(40, 3))
+    g = fit_grid([a, b], 30, padding_cells=3)
+    pts = np.concatenate([a, b])
+    lo, hi = pts.min(0), pts.max(0)
+    assert g.dim == 3
+    assert g.spacing == pytest.approx((hi - lo).max() / 30)
+    # longest axis: exactly resolution + 2 * padding cells
+    longest = int(np.argmax(hi - lo))
+    assert g.shape[longest] - 1 == 30 + 6
+    # every point at least padding cells inside the box, box centred on the points
+    assert np.all(lo - g.origin >= 3 * g.spacing - 1e-9)
+    assert np.all(g.upper - hi >= 3 * g.spacing - 1e-9)
+    np.testing.assert_allclose((g.origin + g.upper) / 2, (lo + hi) / 2, atol=1e-12)
+    # other axes: no more than one cell of slack beyond the padding
+    assert np.all((g.upper - g.origin) - (hi - lo) <= (6 + 1) * g.spacing + 1e-9)
+
+
+def test_extra_points_and_2d_keyframes():
+    a = np.array([[0.0, 0.0], [1.0, 0.5]])
+    g = fit_grid([a], 10, padding_cells=2, extra_points=[[3.0, 0.2]])
+    assert g.dim == 2 and g.spacing == pytest.approx(0.3)
+    assert g.contains(np.array([[3.0, 0.2], [0.0, 0.0]]), margin=2 * 0.3 - 1e-9).all()
+    g1 = fit_grid(a, 10, padding_cells=0)  # a single array is one keyframe
+    assert g1.shape == (11, 6)
+
+
+@pytest.mark.parametrize("args, kwargs, words", [
+    (([np.zeros((3, 3)), np.zeros((3, 2))], 10), {}, "mix 2D and 3D"),
+    (([np.array([[0, 0, 0], [1, np.nan, 0]])], 10), {}, "NaN"),
+    (([np.ones((4, 3))], 10), {}, "coincide"),
+    (([np.eye(3)], 1), {}, "resolution"),
+    (([np.eye(3)], 10.5), {}, "resolution"),
+    (([np.eye(3)], 10), {"padding_cells": -1}, "padding_cells"),
+    (([], 10), {}, "no keyframe vertices"),
+    (([np.zeros((3, 4))], 10), {}, r"shape \(N, 2\) or \(N, 3\)"),
+])
+def test_bad_requests_are_refused_with_a_reason(args, kwargs, words):
+    with pytest.raises(ValueError, match=words):
+        fit_grid(*args, **kwargs)
+
+
+def test_estimate_grows_with_the_grid_and_adds_up():
+    pts = np.array([[0, 0, 0], [1, 1, 1.0]])
+    small = estimate_memory(fit_grid(pts, 16))
+    big = estimate_memory(fit_grid(pts, 32))
+    for est in (small, big):
+        assert est["peak"] == est["keyframes"] + max(est["sdf"], est["solver"], est["inbetween"])
+    ratio = big["nodes"] / small["nodes"]
+    assert 0.5 * ratio < big["peak"] / small["peak"] <= ratio * 1.01
+    more = estimate_memory(fit_grid(pts, 32), material_fraction=0.8)
+    assert more["solver"] > big["solver"] and more["active_nodes"] > big["active_nodes"]
+    with pytest.raises(ValueError, match="material_fraction"):
+        estimate_memory(fit_grid(pts, 16), material_fraction=1.5)
+
+
+def test_oversized_request_fails_before_any_work_and_names_what_fits():
+    pts = np.array([[0, 0, 0], [2.0, 1.0, 1.0]])
+    limit = estimate_memory(fit_grid(pts, 100))["peak"]
+    tracemalloc.start()
+    try:
+        with pytest.raises(MemoryLimitError) as info:
+            fit_grid([pts], 2000, max_bytes=limit)  # ~ 2000 x 1000 x 1000 nodes
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20  # nothing of grid size was allocated
+    err = info.value
+    assert isinstance(err, ValueError) and err.limit == limit and err.required > limit
+    fits = err.max_resolution
+    assert re.search(rf"largest resolution that fits is {fits}\b", str(err))
+    assert "lower the resolution" in str(err)
+    assert estimate_memory(fit_grid(pts, fits))["peak"] <= limit
+    assert estimate_memory(fit_grid(pts, fits + 1))["peak"] > limit
+    assert fits in (99, 100)  # the limit was the estimate at resolution 100
+    # within the limit: the grid comes back
+    assert isinstance(fit_grid(pts, fits, max_bytes=limit), Grid)
+    # nothing fits at all
+    with pytest.raises(MemoryLimitError, match="raise the memory limit"):
+        fit_grid(pts, 50, max_bytes=1000)
+
+
+def test_check_memory_on_a_given_grid():
+    g = Grid((0, 0, 0), 0.1, (200, 100, 100))
+    est = check_memory(g, 1 << 40)
+    assert est["nodes"] == 2_000_000
+    with pytest.raises(MemoryLimitError, match="largest that fits has") as info:
+        check_memory(g, est["peak"] // 4)
+    assert info.value.max_resolution < 200
