@@ -23,6 +23,12 @@ Levin (2000), the "stronger reading" of PAPER-NOTES section 5:
 4. the residual r = y - Y(1) is added linearly, x(s) = Y(s) + s r, so the path
    ends exactly at y (eq. 3.1's last term).
 
+Cells the map folds (det F_c <= 0) have no meaningful rotation and are
+blended linearly, F_c(s) = (1 - s) I + s F_c. Rotation vectors are taken per
+cell in [0, pi]: near half turns neighbouring cells may pick opposite axes
+(a known limit of per-element log maps; keyframes more than ~170 degrees apart
+need an inner keyframe).
+
 Rigid maps are reproduced exactly (F_c = R, S = I: Y(s) is the rotation by s of
 the whole body about its centroid); articulated maps keep each part rigid and
 the parts joined, because every edge is shared by neighbouring cells.
@@ -360,9 +366,15 @@ class Trajectories:
                                             axis=1))[0]) for k in lo]
             F[:, :, a] = (yc[:, hi] - yc[:, lo]).mean(axis=1) / h
         R, S = polar(F)
+        # a folded cell (det F <= 0: the map turns it inside out, e.g. where two parts are
+        # pressed into each other in a merge) has no meaningful rotation: its closest
+        # rotation is a half turn. Such cells blend linearly, F(s) = (1 - s) I + s F.
+        folded = np.linalg.det(F) <= 0
+        R[folded] = np.eye(d)
+        S[folded] = F[folded]
         self._cell_rv = rotation_log(R)
         self._cell_S = S
-        self.stats["folded_cells"] = int(np.sum(np.linalg.det(F) <= 0))
+        self.stats["folded_cells"] = int(folded.sum())
 
         # centroid constraint per component of the active graph: material nodes of it
         mat_local = self.material.reshape(-1)[nodes]
