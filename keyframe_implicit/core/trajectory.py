@@ -29,6 +29,14 @@ cell in [0, pi]: near half turns neighbouring cells may pick opposite axes
 (a known limit of per-element log maps; keyframes more than ~170 degrees apart
 need an inner keyframe).
 
+Cells the map folds (det F_c <= 0, e.g. where two parts are pressed into each
+other in a merge) keep the closest rotation (the smallest singular value takes
+the sign), so S_c has one negative eigenvalue and the cell passes through a
+flat state on its way to the fold. Rotation vectors are taken per cell with
+angles in [0, pi]: near half turns neighbouring cells may pick opposite axes
+(a limit of per-element log maps; keyframes turned more than ~170 degrees
+apart need an inner keyframe).
+
 Rigid maps are reproduced exactly (F_c = R, S = I: Y(s) is the rotation by s of
 the whole body about its centroid); articulated maps keep each part rigid and
 the parts joined, because every edge is shared by neighbouring cells.
