@@ -374,12 +374,7 @@ class Trajectories:
                                             axis=1))[0]) for k in lo]
             F[:, :, a] = (yc[:, hi] - yc[:, lo]).mean(axis=1) / h
         R, S = polar(F)
-        # a folded cell (det F <= 0: the map turns it inside out, e.g. where two parts are
-        # pressed into each other in a merge) has no meaningful rotation: its closest
-        # rotation is a half turn. Such cells blend linearly, F(s) = (1 - s) I + s F.
         folded = np.linalg.det(F) <= 0
-        R[folded] = np.eye(d)
-        S[folded] = F[folded]
         self._cell_rv = rotation_log(R)
         self._cell_S = S
         self.stats["folded_cells"] = int(folded.sum())
