@@ -142,11 +142,19 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=3, tol=1
     keep = np.all((u > -0.35) & (u < 1.35), axis=1)
     cc, z, u = cc[keep], z[keep], u[keep]
     a_c = coef[cc]
-    for _ in range(newton_steps):
-        T, J = _poly_eval(a_c, u, subsets)
-        u = np.clip(u - _solve_small(J, T - z), -0.5, 1.5)
-    T, _ = _poly_eval(a_c, u, subsets, jacobian=False)
-    res = np.einsum("md,md->m", T - z, T - z)
+    todo = np.arange(cc.size)  # Newton only on candidates not yet converged
+    res = np.full(cc.size, np.inf)
+    for it in range(newton_steps + 1):
+        T, J = _poly_eval(a_c[todo], u[todo], subsets, jacobian=it < newton_steps)
+        r = T - z[todo]
+        res[todo] = np.einsum("md,md->m", r, r)
+        if it == newton_steps:
+            break
+        live = res[todo] > 1e-20
+        todo, J, r = todo[live], J[live], r[live]
+        if todo.size == 0:
+            break
+        u[todo] = np.clip(u[todo] - _solve_small(J, r), -0.5, 1.5)
     inside = np.all((u >= -1e-4) & (u <= 1 + 1e-4), axis=1) & (res < 1e-8)
     zi = z[inside].astype(np.int64)
     target = np.ravel_multi_index(tuple(zi[:, a] for a in range(d)), grid.shape)
@@ -155,12 +163,18 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=3, tol=1
 
 
 def _moebius(P, subsets):
-    """Monomial coefficients a_S = sum_{T subset S} (-1)^{|S|-|T|} P_T of a multilinear cell."""
-    coef = np.zeros_like(P)
-    for i, S in enumerate(subsets):  # loop over the 2^d subsets
-        for j, T in enumerate(subsets):
-            if np.all(T <= S):
-                coef[:, i] += (-1.0) ** int(S.sum() - T.sum()) * P[:, j]
+    """Monomial coefficients a_S = sum_{T subset S} (-1)^{|S|-|T|} P_T of a multilinear cell.
+
+    One difference pass per axis (the fast Moebius transform over subsets).
+    """
+    coef = np.array(P, dtype=float, copy=True)
+    index = {tuple(S): i for i, S in enumerate(subsets)}
+    for a in range(subsets.shape[1]):
+        for i, S in enumerate(subsets):
+            if S[a]:
+                T = S.copy()
+                T[a] = 0
+                coef[:, i] -= coef[:, index[tuple(T)]]
     return coef
 
 
