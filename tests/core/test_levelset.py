@@ -140,3 +140,18 @@ def test_from_map_refuses_bad_input(rigid):
         Inbetween.from_map(phi_a, phi_b, grid, mapped, resample="nearest")
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         ib.levelset(-0.1)
+
+
+def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
+    from keyframe_implicit.core.levelset import inverse_lookup
+
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    corners = ib.trajectories.node_positions(0.5, ib._corner_nodes)[ib._cnodes_local]
+    t1, s1 = inverse_lookup(grid, corners, ib._cells)
+    t2, s2 = inverse_lookup(grid, corners, ib._cells, max_candidates=997)
+    np.testing.assert_array_equal(t1, t2)
+    np.testing.assert_allclose(s1, s2)
+    # every source maps onto its target: x(s) at the source is the grid node
+    src_world = grid.to_world(s1)
+    moved = ib.trajectory(src_world, 0.5)
+    np.testing.assert_allclose(moved, grid.points().reshape(-1, 3)[t1], atol=1e-6)
