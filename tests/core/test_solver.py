@@ -296,3 +296,24 @@ def test_bad_options_are_rejected():
         solve_map(pa, pb, g, fa, fb, band_wieght=0.1)
     with pytest.raises(ValueError, match="levelset_weight must be"):
         solve_map(pa, pb, g, fa, fb, levelset_weight=-1)
+
+
+@pytest.mark.parametrize("band_weight", [0.1, 0.0])
+def test_close_features_use_hard_constraints_and_featureless_components_follow(band_weight):
+    """Two features closer than a cell diagonal cannot both have a patch: the plain hard
+    constraint (eq. 2.19) takes over and still lands them; a feature slightly outside the
+    material is honoured; a component without features is aligned rigidly onto B."""
+    g = _unit_grid(40, 2)
+    h = g.spacing
+    P = g.points()
+    phi_a = np.minimum(np.linalg.norm(P - [.3, .5], axis=-1) - .12, np.linalg.norm(P - [.72, .5], axis=-1) - .1)
+    phi_b = np.minimum(np.linalg.norm(P - [.33, .52], axis=-1) - .12, np.linalg.norm(P - [.7, .45], axis=-1) - .1)
+    fa = np.array([[.3, .5], [.3 + .4 * h, .5 + .3 * h], [.3, .38], [.17, .5], [.3, .62]])
+    fb = fa + [.03, .02]
+    res = solve_map(phi_a, phi_b, g, fa, fb, band_weight=band_weight)
+    assert res.stats["hard_features"] == 2 and res.stats["patch_features"] == 3
+    assert np.abs(sample(res.mapped, g, fa) - fb).max() < 1e-6 * h
+    assert res.stats["initial_methods"] == ["rbf", "rigid"]
+    right = (phi_a < 0) & (P[..., 0] > 0.55)
+    assert np.mean(sample(phi_b, g, res.mapped[right]) < 0) > 0.97
+    assert res.stats["min_det"] > 0.5
