@@ -62,6 +62,7 @@ __all__ = ["mesh_to_sdf", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
 _SAMPLE_RADIUS = 1.3      # triangle points lie within this many cells of a sample
+_WORKERS = -1             # cKDTree query threads (all cores)
 _K = 16                   # nearest samples fetched per band node (more on demand)
 _MAX_LATTICE = 256        # subdivisions per triangle edge at most (delta grows beyond)
 
@@ -547,7 +548,7 @@ def _nearest_sample_distance(out, nodes, grid, tree, tri, sample_tri, keep_min=F
     for s in range(0, len(nodes), 8 * _CHUNK):
         o = nodes[s:s + 8 * _CHUNK]
         x = grid.to_world(np.stack(np.unravel_index(o, grid.shape), axis=1))
-        _, si = tree.query(x, workers=-1)
+        _, si = tree.query(x, workers=_WORKERS)
         d = tri.distance(x, sample_tri[si])
         out[o] = np.minimum(out[o], d) if keep_min else d
 
@@ -563,10 +564,10 @@ def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
     """
     k = min(k, len(tree.data))
     ds, _ = tree.query(X, k=1, distance_upper_bound=band_r + delta * (1 + 1e-9) + 1e-12,
-                       workers=-1)
+                       workers=_WORKERS)
     keep = np.isfinite(ds)
     X = X[keep]
-    dd, ii = tree.query(X, k=k, distance_upper_bound=band_r + 2 * delta + 1e-12, workers=-1)
+    dd, ii = tree.query(X, k=k, distance_upper_bound=band_r + 2 * delta + 1e-12, workers=_WORKERS)
     dd = dd.reshape(len(X), k)
     ii = ii.reshape(len(X), k)
     d0 = tri.distance(X, sample_tri[ii[:, 0]])
@@ -582,7 +583,8 @@ def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
     kk = k
     while len(more) and kk < len(tree.data):
         kk = min(kk * 4, len(tree.data))
-        dd2, ii2 = tree.query(X[more], k=kk, distance_upper_bound=float(r[more].max()), workers=-1)
+        dd2, ii2 = tree.query(X[more], k=kk, distance_upper_bound=float(r[more].max()),
+                              workers=_WORKERS)
         ok2 = dd2 <= r[more, None]
         _refine(best, best_t, more, X, ok2, ii2, tri, sample_tri)
         more = more[ok2[:, -1]]
