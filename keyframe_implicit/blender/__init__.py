@@ -1,9 +1,59 @@
-"""Blender side: scene properties, operators, sidebar panel, bake (imports bpy)."""
+"""Blender side: scene properties, operators, sidebar panel, bake (imports bpy).
+
+Module map (operators and panels are thin; logic lives in plain functions):
+
+============  ================================================================
+``props``     ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
+``features``  feature-point pairs as Empties (create, pair, find, remove)
+``validate``  problems of a setup, with what to do
+``scene_io``  scene -> numpy (evaluated meshes in world space, feature points)
+``bake``      `BakeJob` (runs the core, cancel path) and blocking `bake_scene`
+``output``    numpy -> mesh object with one shape key per frame
+``fcurves``   F-curves on Blender 4.2 (Action.fcurves) and 4.4+ (slotted actions)
+``ops``       operators ``keyframe_implicit.*``
+``panel``     View3D sidebar "Keyframe Implicit"
+============  ================================================================
+"""
+
+_registered = []
+
+
+def _class_lists():
+    from . import ops, panel, props
+
+    return (props.classes, ops.classes, panel.classes)
 
 
 def register():
-    pass
+    """Register the property groups, operators and panels (idempotent after unregister)."""
+    import bpy
+
+    from . import props
+
+    if _registered:
+        return
+    for group in _class_lists():
+        for cls in group:
+            bpy.utils.register_class(cls)
+            _registered.append(cls)
+    props.register_properties()
+    from . import ops
+
+    bpy.types.VIEW3D_MT_object.append(ops.menu_func)
 
 
 def unregister():
-    pass
+    """Undo `register` in reverse order."""
+    import bpy
+
+    from . import ops, props
+
+    if not _registered:
+        return
+    for job in list(ops._running):
+        job.cancel()
+    bpy.types.VIEW3D_MT_object.remove(ops.menu_func)
+    props.unregister_properties()
+    for cls in reversed(_registered):
+        bpy.utils.unregister_class(cls)
+    _registered.clear()

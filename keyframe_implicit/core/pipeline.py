@@ -7,9 +7,13 @@ of every adjacent pair, and tracks one template mesh through all frames.
 
 from __future__ import annotations
 
+import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .progress import Reporter
 
 __all__ = ["Keyframe", "Animation", "animate"]
 
@@ -46,9 +50,51 @@ class Animation:
     stats: dict = field(default_factory=dict)
 
 
+_WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
+                 "levelset": "levelset_weight"}
+
+
+def _physical_memory():
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # not on every platform
+        return None
+
+
+def _check_inputs(keyframes, features):
+    keyframes = list(keyframes)
+    if len(keyframes) < 2:
+        raise ValueError(f"Need at least two keyframes, got {len(keyframes)}: add another keyframe.")
+    frames = [kf.frame for kf in keyframes]
+    if any(int(f) != f for f in frames):
+        raise ValueError(f"Keyframe frames must be whole numbers, got {frames}.")
+    if any(b <= a for a, b in zip(frames, frames[1:])):
+        raise ValueError(f"Keyframes must be on strictly increasing frames, got {frames}: "
+                         "give each keyframe its own frame, in timeline order.")
+    features = list(features)
+    if len(features) != len(keyframes) - 1:
+        raise ValueError(f"{len(keyframes)} keyframes need {len(keyframes) - 1} sets of feature "
+                         f"pairs (one per segment), got {len(features)}.")
+    clean = []
+    for i, pair in enumerate(features):
+        fa, fb = (np.asarray(p, dtype=float).reshape(-1, 3) for p in pair)
+        if len(fa) != len(fb):
+            raise ValueError(f"Segment {i}: {len(fa)} feature points on keyframe {i} but "
+                             f"{len(fb)} on keyframe {i + 1}; every point needs a partner.")
+        if not (np.all(np.isfinite(fa)) and np.all(np.isfinite(fb))):
+            raise ValueError(f"Segment {i}: a feature point has a NaN or infinite coordinate.")
+        clean.append((fa, fb))
+    return keyframes, clean
+
+
 def animate(keyframes, features, *, resolution=48, weights=None, progress=None, cancel=None,
-            **options):
+            padding_cells=4, max_bytes=None, **options):
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
+
+    Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
+    refused before any work if it would not fit in memory), `sdf.mesh_to_sdf` per
+    keyframe, then `chain.animate_chain` (per segment: `solver.solve_map`,
+    trajectories, in-between level sets, and the template tracked through all frames).
 
     Parameters
     ----------
@@ -56,12 +102,72 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     features : sequence of (points_a, points_b) pairs, one per segment (keyframe i -> i+1);
         (N, 3) arrays in world units, row j of points_a pairs with row j of points_b.
     resolution : int, grid cells along the longest side of the keyframes' bounding box.
-    weights : dict with optional keys "volume", "rigidity", "levelset" (eq. 2.6).
+    weights : dict with optional keys "volume", "rigidity", "levelset" (the weights of
+        the three terms of eq. 2.6).
     progress : callable(fraction, message), optional.
     cancel : callable() -> bool, optional; when it returns True, `Cancelled` is raised.
+    padding_cells : int, empty cells around the keyframes' bounding box.
+    max_bytes : int, optional memory limit for the bake; default: 75% of physical memory.
+    **options : passed to `chain.animate_chain` (solver, trajectory and level-set options).
 
     Returns
     -------
     Animation
+
+    Raises
+    ------
+    ValueError
+        On input the user must fix (message says what), including
+        `gridfit.MemoryLimitError` when the resolution is too high for this machine.
+    Cancelled
+        When ``cancel()`` returned True.
     """
-    raise NotImplementedError("animate() lands with the in-between stage")
+    from .chain import animate_chain
+    from .gridfit import fit_grid
+    from .sdf import mesh_to_sdf
+
+    t0 = time.perf_counter()
+    rep = Reporter(progress, cancel)
+    keyframes, features = _check_inputs(keyframes, features)
+    opts = dict(options)
+    for key, value in (weights or {}).items():
+        if key not in _WEIGHT_NAMES:
+            raise ValueError(f"Unknown weight {key!r}; use {sorted(_WEIGHT_NAMES)}.")
+        opts[_WEIGHT_NAMES[key]] = float(value)
+    if max_bytes is None:
+        phys = _physical_memory()
+        max_bytes = int(0.75 * phys) if phys else None
+
+    rep(0.0, "Choosing the grid")
+    extra = np.concatenate([np.concatenate(pair) for pair in features]) if features else None
+    grid = fit_grid([np.asarray(kf.vertices, dtype=float).reshape(-1, 3) for kf in keyframes],
+                    resolution, padding_cells=padding_cells, extra_points=extra,
+                    max_bytes=max_bytes, n_keyframes=len(keyframes))
+    stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing, "sdf": []}
+
+    phis = []
+    n = len(keyframes)
+    for k, kf in enumerate(keyframes):
+        sub = rep.sub(0.15 * k / n, 0.15 * (k + 1) / n)
+        sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
+        sdf_stats = {}
+        try:
+            phi = mesh_to_sdf(kf.vertices, kf.faces, grid, progress=sub, cancel=cancel,
+                              stats=sdf_stats)
+        except ValueError as exc:
+            raise ValueError(f"Keyframe {k + 1} (frame {kf.frame}): {exc}") from exc
+        if not np.any(phi < 0):
+            raise ValueError(f"Keyframe {k + 1} (frame {kf.frame}) encloses no volume on the "
+                             f"{grid.shape} grid: close the mesh or raise the resolution.")
+        phis.append(phi)
+        stats["sdf"].append(sdf_stats)
+    stats["sdf_seconds"] = time.perf_counter() - t0
+
+    chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
+                          progress=rep.sub(0.15, 1.0), cancel=cancel, **opts)
+    stats.update(chain.stats)
+    stats["total_seconds"] = time.perf_counter() - t0
+    rep(1.0, "Done")
+    return Animation(frames=np.asarray(chain.frames, dtype=np.int64),
+                     vertices=np.asarray(chain.vertices, dtype=np.float32),
+                     faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats)

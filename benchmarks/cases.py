@@ -1,0 +1,259 @@
+"""Benchmark cases: analytic signed distance fields and paired feature points.
+
+Every case lives in the cube [-1, 1]^3 sampled with ``n`` nodes per axis
+(h = 2 / (n - 1)). A case is a list of keyframe fields (2, or 4 for the
+splash chain) plus, for every adjacent pair, feature points (N, 3) in A and
+their targets in B (row i pairs with row i), in world units.
+
+Fields are exact signed distances where that is cheap (spheres, boxes,
+capsules, planes). Unions use ``min``, which is exact outside the material
+and near the surface; it only underestimates depth far inside where two
+pieces overlap, which none of the metrics reads. The oblate spheroid is
+exact (closest point by a vectorised bisection on the Lagrange parameter).
+
+The rigid case also carries ``truth(points, s)``: the signed distance of the
+solid turned by ``s`` times the keyframe rotation about its centroid, with
+the centroid moved on the straight line (the ground truth of issue 4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from keyframe_implicit.core.grid import Grid
+
+__all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "rotation"]
+
+CASE_NAMES = ("rigid", "merge", "bend", "squash", "splash")
+
+
+@dataclass
+class Case:
+    """Keyframes, feature points and known facts of one benchmark case.
+
+    Attributes
+    ----------
+    name : str
+    grid : Grid
+    fields : list of ndarray, one signed distance grid per keyframe (negative inside).
+    features : list of (features_a, features_b), one pair of (N, 3) arrays per segment.
+    truth : callable(points (P, 3), s) -> signed distance, or None.
+    expected_components : list of int, connected components of each keyframe.
+    """
+
+    name: str
+    grid: Grid
+    fields: list
+    features: list
+    truth: object = None
+    expected_components: list = field(default_factory=list)
+
+
+def make_grid(n: int) -> Grid:
+    """The benchmark grid: ``n`` nodes per axis spanning [-1, 1]^3."""
+    if n < 8:
+        raise ValueError(f"grid size {n} is too small for the benchmark cases; use 16 or more.")
+    return Grid(origin=(-1.0, -1.0, -1.0), spacing=2.0 / (n - 1), shape=(n, n, n))
+
+
+# -- primitive signed distances (points (..., 3) -> (...)) -------------------
+def sd_sphere(p, centre, radius):
+    return np.linalg.norm(p - np.asarray(centre, float), axis=-1) - radius
+
+
+def sd_box(p, centre, half):
+    q = np.abs(p - np.asarray(centre, float)) - np.asarray(half, float)
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+    inside = np.minimum(np.max(q, axis=-1), 0.0)
+    return outside + inside
+
+
+def sd_capsule(p, a, b, radius):
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    ab = b - a
+    t = np.clip(((p - a) @ ab) / (ab @ ab), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1) - radius
+
+
+def sd_spheroid(p, centre, a, c, iterations=60):
+    """Exact signed distance to the spheroid x^2/a^2 + y^2/a^2 + z^2/c^2 = 1.
+
+    Reduced to the ellipse (rho, z) with semi-axes (a, c); the closest point is
+    q_i = e_i^2 u_i / (e_i^2 + t) with t the root of sum e_i^2 u_i^2 / (e_i^2 + t)^2 = 1
+    in (-min e^2, inf) (monotone there), found by bisection for all points at once.
+    """
+    d = p - np.asarray(centre, float)
+    rho = np.hypot(d[..., 0], d[..., 1])
+    z = np.abs(d[..., 2])
+    e2 = np.array([a * a, c * c])
+    u = np.stack([rho, z], axis=-1)
+    lo = np.full(rho.shape, -e2.min() * (1 - 1e-12))
+    hi = np.full(rho.shape, np.max(np.abs(u), axis=-1) * max(a, c) + e2.max())
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        f = np.sum(e2 * u * u / (e2 + mid[..., None]) ** 2, axis=-1) - 1.0
+        lo = np.where(f > 0, mid, lo)
+        hi = np.where(f > 0, hi, mid)
+    t = 0.5 * (lo + hi)
+    q = e2 * u / (e2 + t[..., None])
+    # guard the medial set (u along the minor axis): project radially onto the ellipse
+    scale = 1.0 / np.sqrt(np.maximum(np.sum(q * q / e2, axis=-1), 1e-300))
+    q = q * scale[..., None]
+    dist = np.linalg.norm(u - q, axis=-1)
+    inside = np.sum(u * u / e2, axis=-1) < 1.0
+    return np.where(inside, -dist, dist)
+
+
+def rotation(axis, angle):
+    """Rotation matrix (Rodrigues) about unit ``axis`` by ``angle`` radians."""
+    k = np.asarray(axis, float)
+    k = k / np.linalg.norm(k)
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * kx + (1 - np.cos(angle)) * kx @ kx
+
+
+# -- cases ---------------------------------------------------------------------
+# U-shaped solid: a base bar and two arms (the arms overlap the base for the
+# min-union; the centroid uses the non-overlapping split).
+_U_BASE = ((0.0, -0.2, 0.0), (0.38, 0.1, 0.14))
+_U_ARMS = [((-0.28, 0.12, 0.0), (0.1, 0.28, 0.14)), ((0.28, 0.12, 0.0), (0.1, 0.28, 0.14))]
+
+
+def _sd_u(p):
+    d = sd_box(p, *_U_BASE)
+    for c, hh in _U_ARMS:
+        d = np.minimum(d, sd_box(p, c, hh))
+    return d
+
+
+def _u_centroid():
+    parts = [(np.array(_U_BASE[0]), np.array(_U_BASE[1]))]
+    for c, hh in _U_ARMS:  # the arm above the base only (y from -0.1 to 0.4)
+        c = np.array(c)
+        hh = np.array(hh)
+        lo_y = _U_BASE[0][1] + _U_BASE[1][1]
+        top = c[1] + hh[1]
+        parts.append((np.array([c[0], 0.5 * (lo_y + top), c[2]]),
+                      np.array([hh[0], 0.5 * (top - lo_y), hh[2]])))
+    vols = np.array([np.prod(2 * hh) for _, hh in parts])
+    cents = np.array([c for c, _ in parts])
+    return (vols[:, None] * cents).sum(0) / vols.sum()
+
+
+RIGID_AXIS = (1.0, 2.0, 0.5)
+RIGID_ANGLE = np.pi / 2
+RIGID_SHIFT = np.array([0.15, -0.1, 0.2])
+
+
+def _rigid(grid):
+    x = grid.points()
+    c = _u_centroid()
+    R = rotation(RIGID_AXIS, RIGID_ANGLE)
+
+    def truth(p, s):
+        Rs = rotation(RIGID_AXIS, s * RIGID_ANGLE)
+        q = (np.asarray(p, float) - c - s * RIGID_SHIFT) @ Rs + c  # Rs^T (p - c - s t) + c
+        return _sd_u(q)
+
+    fa = np.array([[-0.3, 0.3, 0.0], [0.3, 0.3, 0.0], [-0.3, -0.2, 0.0], [0.3, -0.2, 0.0],
+                   [0.0, -0.2, 0.07], [0.0, -0.2, -0.07], [-0.28, 0.05, 0.07], [0.28, 0.05, -0.07]])
+    fb = (fa - c) @ R.T + c + RIGID_SHIFT
+    return Case("rigid", grid, [truth(x, 0.0), truth(x, 1.0)], [(fa, fb)], truth, [1, 1])
+
+
+def _merge(grid):
+    x = grid.points()
+    r = 0.3
+    R = r * 2 ** (1 / 3)  # one sphere of the same volume as the two
+    ca, cb = np.array([-0.42, 0, 0]), np.array([0.42, 0, 0])
+    phi_a = np.minimum(sd_sphere(x, ca, r), sd_sphere(x, cb, r))
+    phi_b = sd_sphere(x, (0, 0, 0), R)
+    off = 0.5 * r * np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]])
+    # each ball fills one half of the merged ball: its centre goes to the half-ball centroid
+    half = 3 * R / 8
+    fa = np.vstack([ca + off, cb + off])
+    fb = np.vstack([np.array([-half, 0, 0]) + off, np.array([half, 0, 0]) + off])
+    return Case("merge", grid, [phi_a, phi_b], [(fa, fb)], None, [2, 1])
+
+
+def _bend(grid):
+    x = grid.points()
+    L, r = 0.6, 0.12
+    phi_a = sd_capsule(x, (-L, 0, 0), (L, 0, 0), r)
+    phi_b = np.minimum(sd_capsule(x, (-L, 0, 0), (0, 0, 0), r),
+                       sd_capsule(x, (0, 0, 0), (0, L, 0), r))
+    fa = np.array([[-0.55, 0, 0], [-0.3, 0, 0.05], [-0.3, 0.05, 0], [-0.1, 0, 0],
+                   [0.1, 0, 0], [0.3, 0, 0.05], [0.3, 0.05, 0], [0.55, 0, 0]])
+    Rz = rotation((0, 0, 1), np.pi / 2)
+    right = fa[:, 0] > 0
+    fb = fa.copy()
+    fb[right] = fa[right] @ Rz.T  # the right half turns 90 deg about the joint (origin)
+    return Case("bend", grid, [phi_a, phi_b], [(fa, fb)], None, [1, 1])
+
+
+def _squash(grid):
+    x = grid.points()
+    r = 0.45
+    c = 0.6 * r
+    a = r / np.sqrt(0.6)  # a^2 c = r^3: equal volume
+    phi_a = sd_sphere(x, (0, 0, 0), r)
+    phi_b = sd_spheroid(x, (0, 0, 0), a, c)
+    fa = 0.5 * r * np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                            dtype=float)
+    fb = fa * np.array([a / r, a / r, c / r])
+    return Case("squash", grid, [phi_a, phi_b], [(fa, fb)], None, [1, 1])
+
+
+def _splash(grid):
+    """Droplet above a pool -> touching -> merged bump -> flat pool (4 keyframes).
+
+    The bump is a spherical cap of the droplet's volume on the pool; the last
+    pool is raised by droplet volume / pool area, so total volume is constant
+    (up to the grid's resolution of the keyframes themselves).
+    """
+    x = grid.points()
+    rd = 0.18
+    vd = 4 / 3 * np.pi * rd ** 3
+    half = np.array([0.7, 0.7, 0.2])
+    pool_c = np.array([0.0, 0.0, -0.6])
+    top = pool_c[2] + half[2]  # -0.4
+
+    def pool(raise_by=0.0):
+        c = pool_c + np.array([0, 0, raise_by / 2])
+        return sd_box(x, c, half + np.array([0, 0, raise_by / 2]))
+
+    k0 = np.minimum(pool(), sd_sphere(x, (0, 0, top + 0.45), rd))
+    k1 = np.minimum(pool(), sd_sphere(x, (0, 0, top + rd - 0.02), rd))
+    # cap of height hc on a sphere of radius Rc with volume vd: pi hc^2 (3 Rc - hc) / 3
+    hc = 0.16
+    Rc = (3 * vd / (np.pi * hc ** 2) + hc) / 3
+    cap = np.maximum(sd_sphere(x, (0, 0, top + hc - Rc), Rc), -(x[..., 2] - top))
+    k2 = np.minimum(pool(), cap)
+    k3 = pool(vd / (4 * half[0] * half[1]))
+    corners = np.array([[-0.5, -0.5, -0.6], [0.5, -0.5, -0.6], [0.5, 0.5, -0.6], [-0.5, 0.5, -0.6]])
+    drop = lambda z: np.array([[0, 0, z], [0.09, 0, z], [0, 0.09, z], [0, 0, z + 0.09]])  # noqa: E731
+    capz = top + 0.05
+    lay = top + 0.5 * vd / (4 * half[0] * half[1])
+    segs = [
+        (np.vstack([corners, drop(top + 0.45)]), np.vstack([corners, drop(top + rd - 0.02)])),
+        (np.vstack([corners, drop(top + rd - 0.02)]),
+         np.vstack([corners, np.array([[0, 0, capz], [0.2, 0, capz - 0.02], [0, 0.2, capz - 0.02],
+                                       [0, 0, capz + 0.07]])])),
+        (np.vstack([corners, np.array([[0, 0, capz], [0.2, 0, capz - 0.02], [0, 0.2, capz - 0.02],
+                                       [0, 0, capz + 0.07]])]),
+         np.vstack([corners, np.array([[0, 0, lay], [0.35, 0, lay], [0, 0.35, lay], [0, 0, lay + 0.005]])])),
+    ]
+    return Case("splash", grid, [k0, k1, k2, k3], segs, None, [2, 1, 1, 1])
+
+
+_BUILDERS = {"rigid": _rigid, "merge": _merge, "bend": _bend, "squash": _squash, "splash": _splash}
+
+
+def make_case(name: str, n: int) -> Case:
+    """Build case ``name`` (one of `CASE_NAMES`) on the ``n``^3 benchmark grid."""
+    if name not in _BUILDERS:
+        raise ValueError(f"unknown case {name!r}; choose one of {', '.join(CASE_NAMES)}.")
+    return _BUILDERS[name](make_grid(n))

@@ -1,0 +1,106 @@
+"""Command line: ``python -m keyframe_implicit {bake,demo} ...`` (needs the bpy module).
+
+``bake SCENE.blend --out OUT.blend [--resolution N]``
+    Open SCENE.blend, bake its Keyframe Implicit setup (blocking, same code as
+    the Bake button) and save the result to OUT.blend. Exit status 0 on
+    success, 1 when the bake fails (the message says why and what to do),
+    2 on bad arguments.
+``demo ...``
+    Forwarded to ``keyframe_implicit.demo.main(argv)``.
+
+With a real Blender the same bake is::
+
+    blender -b SCENE.blend --python-expr "import bpy; bpy.ops.keyframe_implicit.bake()"
+
+(with the extension enabled; add ``bpy.ops.wm.save_mainfile()`` to keep it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def _parser():
+    p = argparse.ArgumentParser(prog="python -m keyframe_implicit",
+                                description="Keyframe Animation of Implicit Models, headless.")
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("bake", help="bake a .blend file's setup and save the result")
+    b.add_argument("scene", help="input .blend with a Keyframe Implicit setup")
+    b.add_argument("--out", required=True, help="where to save the baked .blend")
+    b.add_argument("--resolution", type=int, default=0,
+                   help="grid resolution for this run (default: the scene's setting)")
+    sub.add_parser("demo", help="run the demo (arguments are passed on)", add_help=False)
+    return p
+
+
+def bake_file(scene_path, out_path, resolution=0, log=print):
+    """Open ``scene_path``, bake every scene that has keyframes, save to ``out_path``.
+
+    Raises ValueError with a user-facing message on failure.
+    """
+    import bpy
+
+    from . import register
+    from .blender import bake
+
+    if not os.path.isfile(scene_path):
+        raise ValueError(f"No such file: {scene_path!r}: give the path of a .blend file.")
+    if resolution < 0:
+        raise ValueError(f"--resolution must be positive, got {resolution}.")
+    out_dir = os.path.dirname(os.path.abspath(out_path))
+    if not os.path.isdir(out_dir):
+        raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
+    register()
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(scene_path), load_ui=False)
+    scenes = [s for s in bpy.data.scenes if len(s.keyframe_implicit.keyframes)]
+    if not scenes:
+        raise ValueError(f"{scene_path!r} has no Keyframe Implicit setup: add keyframes in the "
+                         "sidebar (View3D > Sidebar > Keyframe Implicit) and save it.")
+    for scene in scenes:
+        window = bpy.context.window
+        if window is not None:
+            window.scene = scene
+        depsgraph = scene.view_layers[0].depsgraph if window is None else None
+        if depsgraph is not None:
+            depsgraph.update()
+        last = [-1]
+
+        def report(job, fraction, message, scene=scene):
+            pct = int(100 * fraction)
+            if pct >= last[0] + 10 or pct == 100:
+                last[0] = pct
+                log(f"[{scene.name}] {pct:3d}% {message}")
+
+        obj = bake.bake_scene(scene, resolution, depsgraph, on_progress=report)
+        n = len(obj.data.shape_keys.key_blocks) - 1
+        log(f"[{scene.name}] baked '{obj.name}': {n} frames, {len(obj.data.vertices)} vertices")
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(out_path), copy=True)
+    log(f"saved {out_path}")
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "demo":
+        from . import demo  # written separately; imported only when asked for
+
+        return demo.main(argv[1:])
+    args = _parser().parse_args(argv)
+    try:
+        bake_file(args.scene, args.out, args.resolution)
+    except ImportError as exc:
+        print(f"error: {exc}: the bake needs the bpy module (pip install bpy) or a real Blender.",
+              file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: BLE001 - every failure becomes a message and exit 1
+        from .core.progress import Cancelled
+
+        kind = "" if isinstance(exc, (ValueError, Cancelled)) else f"{type(exc).__name__}: "
+        print(f"error: bake failed: {kind}{exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

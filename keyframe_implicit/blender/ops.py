@@ -1,0 +1,375 @@
+"""Operators (thin: the logic lives in features, bake, output, validate)."""
+
+import bpy
+from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
+
+from ..core.progress import Cancelled
+from . import bake, features, scene_io, validate
+
+_OPTS = {"REGISTER", "UNDO"}
+
+
+def _settings(context):
+    return context.scene.keyframe_implicit
+
+
+class KFI_OT_add_keyframe(bpy.types.Operator):
+    """Add a mesh object as a keyframe on a timeline frame"""
+
+    bl_idname = "keyframe_implicit.add_keyframe"
+    bl_label = "Add Keyframe"
+    bl_options = _OPTS
+
+    object_name: StringProperty(name="Object", default="",
+                                description="Mesh object to add (empty: the active object)")
+    frame: IntProperty(name="Frame", default=-1, description="Timeline frame (-1: the current frame)")
+
+    def execute(self, context):
+        settings = _settings(context)
+        name = self.object_name or (context.active_object.name if context.active_object else "")
+        obj = context.scene.objects.get(name) if name else None
+        if obj is None:
+            self.report({"ERROR"}, "No object to add: make a mesh object active "
+                                   "(or pass object_name) and try again.")
+            return {"CANCELLED"}
+        if obj.type != "MESH":
+            self.report({"ERROR"}, f"'{obj.name}' is a {obj.type.lower()}, not a mesh: "
+                                   "pick a mesh object.")
+            return {"CANCELLED"}
+        frame = context.scene.frame_current if self.frame < 0 else self.frame
+        if any(kf.frame == frame for kf in settings.keyframes):
+            self.report({"ERROR"}, f"Frame {frame} already has a keyframe: change the current "
+                                   "frame (or pass frame=...) first.")
+            return {"CANCELLED"}
+        # keep the list ordered by frame
+        index = sum(1 for kf in settings.keyframes if kf.frame < frame)
+        item = settings.keyframes.add()
+        item.object = obj
+        item.frame = frame
+        last = len(settings.keyframes) - 1
+        if index != last:
+            settings.keyframes.move(last, index)
+        settings.active_keyframe_index = index
+        self.report({"INFO"}, f"Keyframe {index}: '{obj.name}' on frame {frame}.")
+        return {"FINISHED"}
+
+
+class KFI_OT_remove_keyframe(bpy.types.Operator):
+    """Remove a keyframe from the list (its feature pairs are deleted)"""
+
+    bl_idname = "keyframe_implicit.remove_keyframe"
+    bl_label = "Remove Keyframe"
+    bl_options = _OPTS
+
+    index: IntProperty(name="Index", default=-1, description="Keyframe to remove (-1: the active one)")
+
+    def execute(self, context):
+        settings = _settings(context)
+        n = len(settings.keyframes)
+        index = settings.active_keyframe_index if self.index < 0 else self.index
+        if not 0 <= index < n:
+            self.report({"ERROR"}, f"No keyframe {index}: there are {n} (0..{n - 1}).")
+            return {"CANCELLED"}
+        gone = features.on_keyframe_removed(context.scene, index, n)
+        settings.keyframes.remove(index)
+        settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
+        msg = f"Removed keyframe {index}."
+        if gone:
+            msg += f" Deleted {gone} feature pair(s) that used it."
+        self.report({"INFO"}, msg)
+        return {"FINISHED"}
+
+
+class KFI_OT_move_keyframe(bpy.types.Operator):
+    """Move a keyframe up or down in the list (its frame is swapped so the order stays by frame)"""
+
+    bl_idname = "keyframe_implicit.move_keyframe"
+    bl_label = "Move Keyframe"
+    bl_options = _OPTS
+
+    index: IntProperty(name="Index", default=-1, description="Keyframe to move (-1: the active one)")
+    direction: EnumProperty(name="Direction", items=(("UP", "Up", ""), ("DOWN", "Down", "")))
+
+    def execute(self, context):
+        settings = _settings(context)
+        n = len(settings.keyframes)
+        index = settings.active_keyframe_index if self.index < 0 else self.index
+        other = index - 1 if self.direction == "UP" else index + 1
+        if not (0 <= index < n and 0 <= other < n):
+            self.report({"WARNING"}, "Cannot move further in that direction.")
+            return {"CANCELLED"}
+        a, b = settings.keyframes[index], settings.keyframes[other]
+        a.frame, b.frame = b.frame, a.frame
+        settings.keyframes.move(index, other)
+        settings.active_keyframe_index = other
+        self.report({"INFO"}, "Moved; check the feature pairs of the segments around it.")
+        return {"FINISHED"}
+
+
+class KFI_OT_add_feature_pair(bpy.types.Operator):
+    """Add a pair of feature points (two Empties) between keyframe i and i+1"""
+
+    bl_idname = "keyframe_implicit.add_feature_pair"
+    bl_label = "Add Feature Pair"
+    bl_options = _OPTS
+
+    segment: IntProperty(name="Segment", default=0, min=0,
+                         description="The pair lies between keyframe 'segment' and 'segment + 1'")
+    location_a: FloatVectorProperty(name="Location A", subtype="TRANSLATION", size=3,
+                                    description="World position on keyframe i (default: 3D cursor)")
+    location_b: FloatVectorProperty(name="Location B", subtype="TRANSLATION", size=3,
+                                    description="World position on keyframe i+1 (default: 3D cursor)")
+    name: StringProperty(name="Name", default="", description="Optional label shown in the names")
+
+    def execute(self, context):
+        cursor = tuple(context.scene.cursor.location)
+        for prop in ("location_a", "location_b"):
+            if not self.properties.is_property_set(prop):
+                setattr(self, prop, cursor)  # shown (and kept) in the redo panel
+        try:
+            pid = features.create_pair(context.scene, _settings(context), self.segment,
+                                       tuple(self.location_a), tuple(self.location_b), self.name)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Added feature pair {pid}: move 'KFI {pid} A' onto keyframe "
+                              f"{self.segment} and 'KFI {pid} B' onto keyframe {self.segment + 1}.")
+        return {"FINISHED"}
+
+
+class KFI_OT_pair_selected(bpy.types.Operator):
+    """Make the two selected Empties one feature pair (the active one goes on the later keyframe)"""
+
+    bl_idname = "keyframe_implicit.pair_selected"
+    bl_label = "Pair Selected"
+    bl_options = _OPTS
+
+    segment: IntProperty(name="Segment", default=-1,
+                         description="Segment when the Empties are not parented to keyframe objects "
+                                     "(-1: from their parents)")
+
+    def execute(self, context):
+        chosen = [o for o in context.selected_objects if o.type == "EMPTY"]
+        if len(chosen) != 2:
+            self.report({"ERROR"}, f"{len(chosen)} Empties selected: select exactly two "
+                                   "(the active one on the later keyframe).")
+            return {"CANCELLED"}
+        active = context.active_object if context.active_object in chosen else chosen[1]
+        first = chosen[0] if chosen[0] != active else chosen[1]
+        try:
+            pid = features.pair_empties(context.scene, _settings(context), first, active, self.segment)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Paired as feature pair {pid}.")
+        return {"FINISHED"}
+
+
+class KFI_OT_remove_feature_pair(bpy.types.Operator):
+    """Delete both Empties of a feature pair"""
+
+    bl_idname = "keyframe_implicit.remove_feature_pair"
+    bl_label = "Remove Feature Pair"
+    bl_options = _OPTS
+
+    pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
+
+    def invoke(self, context, event):
+        return _invoke_with_pair(self, context)
+
+    def execute(self, context):
+        _resolve_pair(self, context)
+        n = features.remove_pair(context.scene, self.pair)
+        if not n:
+            self.report({"ERROR"}, f"No feature pair {self.pair!r}: see the pairs in the sidebar.")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Removed feature pair {self.pair}.")
+        return {"FINISHED"}
+
+
+class KFI_OT_select_pair(bpy.types.Operator):
+    """Select both Empties of a feature pair"""
+
+    bl_idname = "keyframe_implicit.select_pair"
+    bl_label = "Select Pair"
+    bl_options = _OPTS
+
+    pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
+
+    def invoke(self, context, event):
+        return _invoke_with_pair(self, context)
+
+    def execute(self, context):
+        _resolve_pair(self, context)
+        try:
+            features.select_pair(context.view_layer, context.scene, self.pair)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+def _resolve_pair(op, context):
+    """No pair id given (menu, F3, script): take the active feature Empty's pair."""
+    if not op.pair and features.is_feature(context.active_object):
+        op.pair = str(context.active_object[features.PAIR])
+    return bool(op.pair)
+
+
+def _invoke_with_pair(op, context):
+    """From a menu or F3: the active feature Empty's pair, else ask for the id."""
+    if not _resolve_pair(op, context):
+        return context.window_manager.invoke_props_dialog(op)
+    return op.execute(context)
+
+
+class KFI_MT_menu(bpy.types.Menu):
+    """Object > Keyframe Implicit: every operator (this also puts them in F3 menu search)."""
+
+    bl_idname = "KFI_MT_menu"
+    bl_label = "Keyframe Implicit"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator("keyframe_implicit.add_keyframe")
+        layout.operator("keyframe_implicit.remove_keyframe")
+        layout.operator("keyframe_implicit.move_keyframe", text="Move Keyframe Up").direction = "UP"
+        layout.operator("keyframe_implicit.move_keyframe", text="Move Keyframe Down").direction = "DOWN"
+        layout.separator()
+        layout.operator("keyframe_implicit.add_feature_pair")
+        layout.operator("keyframe_implicit.pair_selected")
+        layout.operator("keyframe_implicit.select_pair")
+        layout.operator("keyframe_implicit.remove_feature_pair")
+        layout.separator()
+        layout.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
+
+
+def menu_func(self, context):
+    self.layout.menu(KFI_MT_menu.bl_idname)
+
+
+_running = []  # the BakeJob of the modal bake in progress (at most one)
+
+
+class KFI_OT_bake(bpy.types.Operator):
+    """Bake the keyframes into one mesh with a shape key per frame (ESC cancels)"""
+
+    bl_idname = "keyframe_implicit.bake"
+    bl_label = "Bake"
+    bl_options = _OPTS
+
+    resolution: IntProperty(name="Resolution", default=0, min=0,
+                            description="Grid resolution for this run (0: the scene setting)")
+
+    _job = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        if _running:
+            cls.poll_message_set("A bake is already running (ESC cancels it).")
+            return False
+        return context.scene is not None
+
+    def _hints(self, context):
+        for p in validate.problems(context.scene):
+            if p.level == validate.WARNING:
+                self.report({"WARNING"}, p.message)
+
+    def execute(self, context):
+        try:
+            obj = bake.bake_scene(context.scene, self.resolution,
+                                  context.evaluated_depsgraph_get())
+        except Cancelled as exc:
+            self.report({"WARNING"}, str(exc))
+            return {"CANCELLED"}
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        except Exception as exc:  # the core failed: tell the user, leave the scene as it was
+            self.report({"ERROR"}, f"Bake failed ({type(exc).__name__}: {exc}); the scene is unchanged.")
+            return {"CANCELLED"}
+        self._hints(context)
+        self.report({"INFO"}, f"Baked '{obj.name}': {len(obj.data.shape_keys.key_blocks) - 1} frames.")
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if context.window is None:
+            return self.execute(context)
+        try:
+            inputs = scene_io.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._job = bake.BakeJob(inputs)
+        _running.append(self._job)
+        self._job.start()
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        self._status(context, "Baking: starting (ESC to cancel)")
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, text):
+        if context.workspace is not None:
+            context.workspace.status_text_set(text)
+        if context.area is not None:
+            context.area.tag_redraw()
+
+    def _finish(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        self._status(context, None)
+        if self._job in _running:
+            _running.remove(self._job)
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC" and event.value == "PRESS":
+            job.cancel()
+            self._status(context, "Baking: cancelling...")
+            return {"RUNNING_MODAL"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        fraction, message = job.status()
+        context.window_manager.progress_update(int(100 * fraction))
+        if not job.finished:
+            self._status(context, f"Baking {100 * fraction:.0f}%: {message} (ESC to cancel)")
+            return {"RUNNING_MODAL"}
+        self._finish(context)
+        if job.state == bake.CANCELLED:
+            self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
+            return {"CANCELLED"}
+        if job.state == bake.FAILED:
+            self.report({"ERROR"}, f"Bake failed: {job.error_message()}; the scene is unchanged.")
+            return {"CANCELLED"}
+        try:
+            obj = job.apply(context.scene)
+        except Exception as exc:
+            self.report({"ERROR"}, f"Writing the result failed: {exc}; the scene is unchanged.")
+            return {"CANCELLED"}
+        self._hints(context)
+        self.report({"INFO"}, f"Baked '{obj.name}' in {job.seconds:.1f} s.")
+        return {"FINISHED"}
+
+    def cancel(self, context):  # window closed / file loaded while running
+        if self._job is not None:
+            self._job.cancel()
+        self._finish(context)
+
+
+classes = (
+    KFI_OT_add_keyframe,
+    KFI_OT_remove_keyframe,
+    KFI_OT_move_keyframe,
+    KFI_OT_add_feature_pair,
+    KFI_OT_pair_selected,
+    KFI_OT_remove_feature_pair,
+    KFI_OT_select_pair,
+    KFI_OT_bake,
+    KFI_MT_menu,
+)

@@ -1,0 +1,590 @@
+"""Volume map between two keyframes: constrained Gauss-Newton (thesis sec. 2.3-2.5).
+
+`solve_map` minimises eq. 2.6 (terms in `keyframe_implicit.core.terms`, cells
+in `keyframe_implicit.core.elements`) subject to the feature constraints of
+eq. 2.8 / 2.14-2.20 (`keyframe_implicit.core.constraints`), starting from the
+RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.rbf`).
+
+Algorithm
+---------
+* Coarse to fine: the grid is coarsened by 2 while the coarse level keeps at
+  least ``coarse_nodes`` (17) nodes per side (e.g. 65 -> 33 -> 17). Each level
+  solves for a correction of the (fine) RBF map; the correction is prolonged
+  multilinearly to the next level, and the constraints are re-imposed exactly.
+* Gauss-Newton (eq. 2.11-2.13) on the reduced unknowns of the constraint
+  null space (eq. 2.16 by elimination rather than a KKT system). Energy,
+  gradient and the Gauss-Newton Hessian are assembled per element in closed
+  form straight into a fixed 3**d-neighbour block stencil (no Jacobian is
+  formed), then handed to scipy as a block-sparse (BSR) matrix.
+* Linear solve: projected conjugate gradients with a d x d block-Jacobi
+  preconditioner at a loose relative tolerance (``cg_tolerance`` = 1e-2),
+  plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
+  unpinned rigid modes stay bounded.
+* Safeguard (PAPER-NOTES section 4): backtracking line search on the true
+  energy (Armijo) that also rejects any step increasing the number of folded
+  material cells (det F <= 0 at any quadrature point).
+* Stop when an accepted step lowers the energy by less than ``tolerance``
+  (relative, 1 %) or after ``max_iterations`` per level.
+
+Default weights
+---------------
+``volume_weight=30, rigidity_weight=1, levelset_weight=10`` (the thesis
+uses no weights). The material is nearly incompressible: with equal weights
+the optimiser trades volume for rigidity -- sphere -> equal-volume ellipsoid
+at 28^3 had only 95.7 % of the cells with det F in [0.8, 1.25] (volume weight
+1), 100 % with 10 and 30; the 2D merge below had 95.5 % with 10 and 99.4 %
+with 30. ``levelset_weight`` 1 left 0.7 % of the sphere's material mapped
+outside the ellipsoid, 10 none.
+
+Integration region (PAPER-NOTES section 2)
+------------------------------------------
+Cells whose centre is inside A's material (phi_a < 0) have weight 1; cells
+within ``band_cells`` cells outside it have weight ``band_weight``; the feature
+points' cells are always solved. Nodes outside the region carry a smooth
+extension of the solved correction (never NaN). Measured on the 2D merge case
+(two discs of radius 0.16 at +-0.18 -> one disc of the same area, 48^2 grid,
+4 boundary features per disc), band_cells = 3 (see
+``benchmarks/bench_solver.py --region``):
+
+    ===========  ========  ============  ===========  ============  =========
+    band_weight  min detF  detF in       A mapped     B uncovered   rigidity
+                           [0.8, 1.25]   > h/2 out    (> h from     term
+                                         of B         mapped A)
+    ===========  ========  ============  ===========  ============  =========
+    0            0.025     99.4 %        0.0 %        2.1 %         0.121
+    0.1          0.651     99.4 %        0.0 %        1.2 %         0.192
+    1            0.636     99.2 %        0.0 %        1.5 %         0.387
+    ===========  ========  ============  ===========  ============  =========
+
+Without a band (0) the nodes on the material boundary are held by nothing
+but their inner cells and the map nearly folds there (min det F 0.025); a
+full-weight band (1) makes the empty gap between the discs resist the merge
+(rigidity doubles, coverage and det F range get worse). Default:
+``band_weight = 0.1``, ``band_cells = 3``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy import ndimage
+
+from . import elements
+from .constraints import FeatureConstraints
+from .grid import Grid
+from .progress import Reporter
+from .rbf import initial_map
+from .sampling import sample, cell_weights
+from .terms import TERMS, ElementBatch, NodeBatch, heaviside
+
+__all__ = ["MapResult", "solve_map", "DEFAULTS"]
+
+#: Default options of `solve_map` (besides the term weights).
+DEFAULTS = dict(
+    band_weight=0.1,
+    feature_radius=None,
+    coarse_nodes=17,
+    cg_tolerance=1e-2,
+    cg_max_iterations=300,
+    damping=1e-6,
+    chunk_elements=2000,
+    extension_passes=8,
+    initial=None,
+)
+
+
+@dataclass
+class MapResult:
+    """Result of `solve_map`.
+
+    mapped : ndarray, grid.shape + (d,)
+        y(x) for every node (the smooth extension outside ``region``).
+    stats : dict
+        ``iterations`` (finest level), ``levels`` (per-level dicts), ``history``
+        (per finest-level iteration: energy and each term), ``terms`` (final
+        value of each weighted term), ``max_abs_det_minus_1``, ``min_det``
+        (material cells, all quadrature points), ``feature_residual``
+        (world units) and ``feature_residual_h`` (in grid spacings),
+        ``seconds`` (per stage), ``active_nodes``, ``unknowns``,
+        ``patch_features`` / ``hard_features`` (constraint kinds).
+    grid : `Grid`
+    region : bool array (grid.shape), the solved nodes of the finest level.
+    material : bool array (grid.shape), phi_a < 0.
+    components : int array (grid.shape), labels of A's material components.
+    """
+
+    mapped: np.ndarray
+    stats: dict
+    grid: Grid
+    region: np.ndarray
+    material: np.ndarray
+    components: np.ndarray = field(default=None)
+
+
+# ----------------------------------------------------------------------------
+# input checks
+# ----------------------------------------------------------------------------
+def _check_inputs(phi_a, phi_b, grid, features_a, features_b):
+    if not isinstance(grid, Grid):
+        raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
+    d = grid.dim
+    out = []
+    for name, phi in (("phi_a", phi_a), ("phi_b", phi_b)):
+        arr = np.asarray(phi, dtype=float)
+        if arr.shape != grid.shape:
+            raise ValueError(f"{name} has shape {arr.shape} but the grid has shape {grid.shape}; "
+                             "sample both keyframes on the grid passed to solve_map.")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} contains NaN or infinite values; resample that keyframe "
+                             "(is its mesh closed and inside the grid?).")
+        if not np.any(arr < 0):
+            raise ValueError(f"{name} has no negative value: that keyframe is empty on this grid. "
+                             "Check the mesh is closed and lies inside the grid box.")
+        out.append(arr)
+    feats = []
+    for name, f in (("features_a", features_a), ("features_b", features_b)):
+        arr = np.asarray(f if f is not None else np.zeros((0, d)), dtype=float)
+        if arr.size == 0:
+            arr = arr.reshape(0, d)
+        if arr.ndim != 2 or arr.shape[1] != d:
+            raise ValueError(f"{name} must be an (N, {d}) array of points for a {d}D grid, "
+                             f"got shape {arr.shape}.")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} contains NaN or infinite coordinates; remove those points.")
+        inside = grid.contains(arr)
+        if not np.all(inside):
+            i = int(np.flatnonzero(~inside)[0])
+            raise ValueError(f"{name}[{i}] = {arr[i].tolist()} lies outside the grid box "
+                             f"[{grid.origin.tolist()}, {grid.upper.tolist()}]; move it inside or "
+                             "enlarge the grid.")
+        feats.append(arr)
+    if len(feats[0]) != len(feats[1]):
+        raise ValueError(f"features_a has {len(feats[0])} points but features_b has {len(feats[1])}; "
+                         "row i of features_a must pair with row i of features_b.")
+    xa = feats[0]
+    if len(xa) > 1:
+        u, inv, cnt = np.unique(np.round(xa / (1e-9 * grid.spacing)), axis=0, return_inverse=True,
+                                return_counts=True)
+        if np.any(cnt > 1):
+            raise ValueError("features_a contains the same point twice; remove the duplicate pair.")
+    return out[0], out[1], feats[0], feats[1]
+
+
+# ----------------------------------------------------------------------------
+# one level
+# ----------------------------------------------------------------------------
+class _Level:
+    """Region, elements, stencil and constraints of one grid level."""
+
+    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, band_cells, band_weight, radius):
+        d = grid.dim
+        self.grid, self.d = grid, d
+        self.phi_b = phi_b
+        h = grid.spacing
+        self.eps = 1.5 * h  # eq. 2.7
+        cshape = tuple(n - 1 for n in grid.shape)
+        cs = elements.corners(d)
+        centre = np.zeros(cshape)
+        for c in cs:
+            centre += phi_a[tuple(slice(int(o), int(o) + n) for o, n in zip(c, cshape))]
+        centre /= len(cs)
+        mat = centre < 0
+        band = (~mat) & (centre < band_cells * h) if (band_weight > 0 and band_cells > 0) else np.zeros_like(mat)
+        weight = np.where(mat, 1.0, np.where(band, band_weight, 0.0))
+        forced = np.zeros(cshape, dtype=bool)
+        if len(xa):
+            flat, _ = cell_weights(grid, xa)
+            base = np.stack(np.unravel_index(flat[:, 0], grid.shape), axis=-1)
+            forced[tuple(base.T)] = True
+        act_cell = mat | band | forced
+        cells = np.argwhere(act_cell)  # (E, d)
+        self.cell_weight = weight[act_cell]
+        self.cell_material = mat[act_cell]
+        self.material_cells = mat
+        node_idx = cells[:, None, :] + cs[None, :, :]
+        flat_nodes = np.ravel_multi_index(tuple(node_idx[..., a] for a in range(d)), grid.shape)
+        active = np.unique(flat_nodes)
+        self.active = active
+        self.elem = np.searchsorted(active, flat_nodes)  # (E, K)
+        self.n = len(active)
+        self.gauss = elements.quadrature(d, h, "gauss")
+        self.centre = elements.quadrature(d, h, "centre")
+        K = len(cs)
+        self.node_weight = np.zeros(self.n)
+        for c in range(K):
+            self.node_weight += np.bincount(self.elem[:, c], weights=self.cell_weight * h ** d / K,
+                                            minlength=self.n)
+        self.h_phi = heaviside(phi_a.reshape(-1)[active], self.eps)
+        # 3**d neighbour stencil
+        offs = np.array(list(np.ndindex(*(3,) * d))) - 1  # lexicographic -> sorted columns
+        self.offsets = offs
+        lookup = np.full(grid.size, -1, dtype=np.int64)
+        lookup[active] = np.arange(self.n)
+        idx = np.stack(np.unravel_index(active, grid.shape), axis=-1)
+        nbr = np.full((self.n, len(offs)), -1, dtype=np.int64)
+        for o, off in enumerate(offs):
+            q = idx + off
+            ok = np.all((q >= 0) & (q < np.asarray(grid.shape)), axis=1)
+            nbr[ok, o] = lookup[np.ravel_multi_index(tuple(q[ok].T), grid.shape)]
+        self.nbr = nbr
+        self.centre_off = int(np.flatnonzero(np.all(offs == 0, axis=1))[0])
+        code = {tuple(o): i for i, o in enumerate(offs.tolist())}
+        self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
+                                  for c1 in range(K)])
+        # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
+        # its block stays zero, so the stencil array is the BSR data without a copy
+        own = np.broadcast_to(np.arange(self.n)[:, None], nbr.shape)
+        self.bsr_indices = np.where(nbr >= 0, nbr, own).reshape(-1)
+        self.bsr_indptr = np.arange(self.n + 1) * len(offs)
+        self.cons = FeatureConstraints(grid, active, xa, yb, radius)
+        self.x = grid.to_world(idx)
+
+    # -- energy ----------------------------------------------------------------
+    def evaluate(self, y, weights, chunk, hessian=True):
+        """Total energy, per-term energies, node gradient (n, d), stencil Hessian."""
+        d, K = self.d, self.elem.shape[1]
+        energies = {}
+        grad = np.zeros((self.n, d))
+        Hs = np.zeros((self.n, len(self.offsets), d, d)) if hessian else None
+        el_terms = [t for t in TERMS if t.kind == "element"]
+        for t in TERMS:
+            energies[t.name] = 0.0
+        for s in range(0, len(self.elem), chunk):
+            el = self.elem[s:s + chunk]
+            batch = ElementBatch(y[el], self.cell_weight[s:s + chunk], self.gauss, self.centre)
+            g_sum, h_sum = None, None
+            for t in el_terms:
+                w = weights[t.name]
+                if w == 0:
+                    continue
+                tv = t.function(batch, hessian=hessian)
+                energies[t.name] += w * tv.energy
+                g_sum = w * tv.grad if g_sum is None else g_sum + w * tv.grad
+                if hessian:
+                    h_sum = w * tv.hess if h_sum is None else h_sum + w * tv.hess
+            if g_sum is None:
+                continue
+            for c in range(K):
+                grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
+                if hessian:
+                    Hs[el[:, c][:, None], self.pair_off[c][None, :]] += h_sum[:, c]
+        for t in TERMS:
+            if t.kind != "node" or weights[t.name] == 0:
+                continue
+            w = weights[t.name]
+            tv = t.function(NodeBatch(y, self.node_weight, self.h_phi, self.phi_b, self.grid, self.eps),
+                            hessian=hessian)
+            energies[t.name] += w * tv.energy
+            grad += w * tv.grad
+            if hessian:
+                Hs[:, self.centre_off] += w * tv.hess
+        return sum(energies.values()), energies, grad, Hs
+
+    def det_stats(self, y, chunk):
+        """min det F over every quadrature point, and centre det F, of the material cells."""
+        el_all = self.elem[self.cell_material]
+        G = np.concatenate([self.gauss.G, self.centre.G])
+        mins, centres = [], []
+        for s in range(0, len(el_all), chunk):
+            F = elements.deformation_gradient(y[el_all[s:s + chunk]], G)
+            det = elements.determinant(F)
+            mins.append(det.min(axis=1))
+            centres.append(det[:, -1])
+        if not mins:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate(mins), np.concatenate(centres)
+
+    def bsr(self, Hs):
+        d = self.d
+        data = Hs.reshape(-1, d, d)
+        return sp.bsr_matrix((data, self.bsr_indices, self.bsr_indptr), shape=(self.n * d, self.n * d),
+                             copy=False)
+
+
+def _pcg(apply_A, b, precond, project, tol, maxiter):
+    """Projected preconditioned CG for A x = b on the range of ``project``."""
+    x = np.zeros_like(b)
+    r = project(b.copy())
+    bn = np.linalg.norm(r)
+    if bn == 0:
+        return x, 0
+    z = project(precond(r))
+    p = z.copy()
+    rz = r @ z
+    it = 0
+    for it in range(1, maxiter + 1):
+        Ap = project(apply_A(p))
+        pAp = p @ Ap
+        if pAp <= 0:
+            break
+        alpha = rz / pAp
+        x += alpha * p
+        r -= alpha * Ap
+        if np.linalg.norm(r) <= tol * bn:
+            break
+        z = project(precond(r))
+        rz_new = r @ z
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, it
+
+
+def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep, timing):
+    """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history."""
+    cons = level.cons
+    chunk = int(opts["chunk_elements"])
+    t0 = time.perf_counter()
+    E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
+    timing["assembly"] += time.perf_counter() - t0
+    mind, _ = level.det_stats(y, chunk)
+    folded = int(np.sum(mind <= 0))
+    history = [dict(energy=E, **terms)]
+    it = 0
+    cg_total = 0
+    for it in range(1, max_iterations + 1):
+        rep((it - 1) / max_iterations, f"Gauss-Newton iteration {it}")
+        t0 = time.perf_counter()
+        d = level.d
+        diag = Hs[:, level.centre_off]
+        mu = opts["damping"] * max(float(np.mean(np.trace(diag, axis1=1, axis2=2))) / d, 1e-300)
+        Hs[:, level.centre_off] += mu * np.eye(d)
+        H = level.bsr(Hs)
+        precond = cons.block_preconditioner(Hs[:, level.centre_off])
+
+        def apply_A(z):
+            return cons.reduce((H @ cons.expand(z).reshape(-1)).reshape(-1, d))
+
+        b = -cons.reduce(g)
+        z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]))
+        cg_total += ncg
+        dy = cons.expand(cons.project(z))
+        timing["linear solve"] += time.perf_counter() - t0
+        slope = float(np.sum(g * dy))
+        if slope >= 0:
+            break
+        t0 = time.perf_counter()
+        alpha, accepted = 1.0, False
+        while alpha > 1e-4:
+            y_new = y + alpha * dy
+            E_new, terms_new, _, _ = level.evaluate(y_new, weights, chunk, hessian=False)
+            if E_new <= E + 1e-4 * alpha * slope:
+                mind_new, _ = level.det_stats(y_new, chunk)
+                folded_new = int(np.sum(mind_new <= 0))
+                if folded_new <= folded:
+                    accepted = True
+                    break
+            alpha *= 0.5
+        timing["line search"] += time.perf_counter() - t0
+        if not accepted:
+            break
+        rel = (E - E_new) / max(E, 1e-300)
+        y, folded = y_new, folded_new
+        history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **terms_new))
+        E = E_new
+        if rel < tolerance or it == max_iterations:
+            break
+        t0 = time.perf_counter()
+        E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
+        timing["assembly"] += time.perf_counter() - t0
+    return y, history, len(history) - 1, cg_total
+
+
+def _extend(full, known, passes):
+    """Fill nodes where ``known`` is False smoothly from the known ones (nearest + smoothing)."""
+    if np.all(known):
+        return full
+    _, idx = ndimage.distance_transform_edt(~known, return_indices=True)
+    out = full[tuple(idx)]
+    unknown = ~known
+    d = full.shape[-1]
+    for _ in range(passes):
+        for j in range(d):
+            sm = ndimage.uniform_filter(out[..., j], size=3, mode="nearest")
+            out[..., j][unknown] = sm[unknown]
+    return out
+
+
+def _levels(grid: Grid, coarse_nodes: int):
+    grids = [grid]
+    while True:
+        g = grids[-1]
+        shape = tuple(int(np.ceil((n - 1) / 2)) + 1 for n in g.shape)
+        if min(shape) < coarse_nodes:
+            break
+        grids.append(Grid(g.origin, 2 * g.spacing, shape))
+    return grids[::-1]
+
+
+# ----------------------------------------------------------------------------
+# public entry point
+# ----------------------------------------------------------------------------
+def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0, rigidity_weight=1.0,
+              levelset_weight=10.0, max_iterations=20, tolerance=1e-2, band_cells=3, progress=None,
+              cancel=None, **opts) -> MapResult:
+    """Map keyframe A's grid nodes onto keyframe B (thesis chapter 2).
+
+    Parameters
+    ----------
+    phi_a, phi_b : ndarray, grid.shape
+        Signed distances of keyframes A ("initial", Phi) and B ("final", Psi),
+        negative inside, world units.
+    grid : `Grid`
+    features_a, features_b : (N, d) array_like
+        Feature points x'_i of A and their targets y'_i in B (row i pairs with
+        row i), world units, inside the grid box. N may be 0.
+    volume_weight, rigidity_weight, levelset_weight : float
+        Weights of the three terms of eq. 2.6 (`keyframe_implicit.core.terms`).
+    max_iterations : int
+        Gauss-Newton iterations per level at most.
+    tolerance : float
+        Stop a level when an iteration lowers the energy by less than this
+        fraction.
+    band_cells : float
+        Width (cells) of the band outside A's material solved with weight
+        ``band_weight``.
+    progress, cancel : callables, see `keyframe_implicit.core.progress`.
+    **opts
+        ``band_weight`` (0.1), ``feature_radius`` (world units; default 4 % of
+        the largest grid extent, never less than one cell diagonal) -- see
+        `keyframe_implicit.core.constraints`; ``coarse_nodes`` (17, nodes per
+        side of the coarsest level; a huge value disables coarse-to-fine),
+        ``cg_tolerance`` (1e-2), ``cg_max_iterations`` (300), ``damping``
+        (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
+        ``extension_passes`` (8), ``initial`` (an array grid.shape + (d,) to
+        start from instead of the RBF map; the constraints are re-imposed),
+        and the weight of any extra term registered
+        in `keyframe_implicit.core.terms.TERMS`.
+
+    Returns
+    -------
+    MapResult
+
+    Raises
+    ------
+    ValueError
+        Bad input (shapes, NaN, empty keyframe, feature points outside the
+        grid or unpaired, unknown option).
+    keyframe_implicit.core.Cancelled
+        When ``cancel()`` returned True.
+    """
+    t_start = time.perf_counter()
+    phi_a, phi_b, xa, yb = _check_inputs(phi_a, phi_b, grid, features_a, features_b)
+    weight_opts = {"volume_weight": volume_weight, "rigidity_weight": rigidity_weight,
+                   "levelset_weight": levelset_weight}
+    extra = {t.weight_option for t in TERMS} - set(weight_opts)
+    options = dict(DEFAULTS)
+    for k, v in opts.items():
+        if k in options:
+            options[k] = v
+        elif k in extra:
+            weight_opts[k] = v
+        else:
+            raise ValueError(f"unknown option {k!r} for solve_map; known options: "
+                             f"{sorted(set(options) | extra)}.")
+    for t in TERMS:
+        weight_opts.setdefault(t.weight_option, 0.0)
+    weights = {}
+    for t in TERMS:
+        w = float(weight_opts[t.weight_option])
+        if not np.isfinite(w) or w < 0:
+            raise ValueError(f"{t.weight_option} must be a finite number >= 0, got {w}.")
+        weights[t.name] = w
+    if int(max_iterations) < 0:
+        raise ValueError("max_iterations must be >= 0.")
+    d = grid.dim
+    band_weight = float(options["band_weight"])
+    radius = options["feature_radius"]
+    if radius is None:
+        radius = 0.04 * float(np.max(grid.upper - grid.origin))
+    rep = Reporter(progress, cancel)
+    timing = {"initial map": 0.0, "setup": 0.0, "assembly": 0.0, "linear solve": 0.0,
+              "line search": 0.0, "extension": 0.0}
+
+    t0 = time.perf_counter()
+    rep(0.0, "Initial map (radial basis functions)")
+    init = initial_map(phi_a, phi_b, grid, xa, yb)
+    y0 = init.mapped
+    if options["initial"] is not None:
+        y0 = np.asarray(options["initial"], dtype=float)
+        if y0.shape != grid.shape + (d,) or not np.all(np.isfinite(y0)):
+            raise ValueError(f"initial must be a finite array of shape {grid.shape + (d,)} "
+                             "(y(x) of every node), e.g. the .mapped of an earlier solve.")
+    timing["initial map"] = time.perf_counter() - t0
+    disp0 = y0 - grid.points()
+
+    grids = _levels(grid, int(options["coarse_nodes"]))
+    nlev = len(grids)
+    # work per level grows ~2**d per refinement: give progress slices accordingly
+    cost = np.array([2.0 ** (d * i) for i in range(nlev)])
+    edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
+    corr_prev, grid_prev = None, None
+    level_stats = []
+    for li, g in enumerate(grids):
+        lrep = rep.sub(edges[li], edges[li + 1])
+        t0 = time.perf_counter()
+        fine = li == nlev - 1
+        if fine:
+            pa, pb = phi_a, phi_b
+            base = y0
+        else:
+            pts = g.points()
+            pa = sample(phi_a, grid, pts, outside="distance")
+            pb = sample(phi_b, grid, pts, outside="distance")
+            base = pts + sample(disp0, grid, pts)
+        if corr_prev is not None:
+            y_start_full = base + sample(corr_prev, grid_prev, g.points())
+        else:
+            y_start_full = base.copy()
+        if not np.any(pa < 0):
+            continue  # material too thin for this coarse level
+        rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing)
+        level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad)
+        y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
+        timing["setup"] += time.perf_counter() - t0
+        y, history, iters, cg_total = _solve_level(level, y, weights, options, int(max_iterations),
+                                                   float(tolerance), lrep, timing)
+        t0 = time.perf_counter()
+        full = y_start_full.reshape(-1, d).copy()
+        full[level.active] = y
+        known = np.zeros(g.size, dtype=bool)
+        known[level.active] = True
+        corr = (full - base.reshape(-1, d)).reshape(g.shape + (d,))
+        corr = _extend(corr, known.reshape(g.shape), int(options["extension_passes"]))
+        timing["extension"] += time.perf_counter() - t0
+        level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
+                                iterations=iters, cg_iterations=cg_total, history=history))
+        corr_prev, grid_prev = corr, g
+        if fine:
+            break
+    mapped = y0 + corr_prev
+    # finest-level figures
+    mind, cdet = level.det_stats(y, int(options["chunk_elements"]))
+    E, terms, _, _ = level.evaluate(y, weights, int(options["chunk_elements"]), hessian=False)
+    res = level.cons.residual(y)
+    rep(1.0, "Volume map done")
+    stats = dict(
+        iterations=level_stats[-1]["iterations"],
+        cg_iterations=level_stats[-1]["cg_iterations"],
+        history=level_stats[-1]["history"],
+        levels=level_stats,
+        energy=E,
+        terms=terms,
+        weights=dict(weights),
+        min_det=float(mind.min()) if len(mind) else 1.0,
+        max_abs_det_minus_1=float(np.max(np.abs(cdet - 1))) if len(cdet) else 0.0,
+        feature_residual=float(res.max()) if len(res) else 0.0,
+        feature_residual_h=float(res.max() / grid.spacing) if len(res) else 0.0,
+        active_nodes=level.n,
+        unknowns=level.cons.size,
+        patch_features=int(np.sum(level.cons.is_patch)),
+        hard_features=int(len(level.cons.hard)),
+        initial_methods=list(init.methods),
+        seconds=dict(timing, total=time.perf_counter() - t_start),
+    )
+    region = np.zeros(grid.size, dtype=bool)
+    region[level.active] = True
+    return MapResult(mapped=mapped, stats=stats, grid=grid, region=region.reshape(grid.shape),
+                     material=phi_a < 0, components=init.components)

@@ -1,0 +1,252 @@
+"""One mesh tracked through all in-between frames (PAPER-NOTES section 7).
+
+Marching cubes gives a different mesh on every frame; a Blender shape key
+needs the same vertices on every frame. So one template -- the surface of
+keyframe A (marching cubes of the level set at s = 0) -- is carried along
+the as-rigid-as-possible trajectories to each frame and then pulled onto
+that frame's zero level set by a few projection steps
+
+    p <- p - phi(p) n / (n . grad phi(p))
+
+with multilinear sampling of the frame's field, n the unit normal from central
+differences over one cell (for a distance field this is p - phi grad/|grad|^2
+with a gradient that stays reliable near ridges); each step is limited to one
+cell. Vertex count and faces never change, so vertices keep their identity
+(UVs, colours, motion blur, morph-target export).
+
+The template cannot grow new parts: where a frame's own surface has pieces
+that no template vertex reaches (a merge neck stretches triangles; a part of
+B with no counterpart in A), their area is measured and reported
+(``stats["uncovered_area"]``) rather than hidden.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .progress import Reporter
+from .sampling import sample, sample_with_gradient
+from .surface import extract_surface, mesh_area
+
+__all__ = ["track_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
+
+
+class TemplateTrack:
+    """Result of `track_template`.
+
+    Attributes
+    ----------
+    times : (n,) float array, the s of every frame.
+    vertices : (n, V, d) float array, template vertices on every frame.
+    faces : (F, 3) int array (3D triangles) or (E, 2) segments (2D loops), the same on every frame.
+    stats : dict with per-frame lists ``max_abs_phi`` / ``mean_abs_phi`` (world units, after
+        projection), ``uncovered_area`` / ``uncovered_fraction`` (when coverage is measured)
+        and ``seconds``.
+    """
+
+    def __init__(self, times, vertices, faces, stats):
+        self.times = times
+        self.vertices = vertices
+        self.faces = faces
+        self.stats = stats
+
+
+def project_to_zero_set(points, levelset, grid, steps=3, tol=0.01):
+    """Pull points onto the zero set of a grid field (Newton steps along the normal).
+
+    Each step moves a point along the unit normal n (central differences of the
+    field over one cell) by phi / (n . grad phi), at most one cell. Points
+    still farther than ``tol`` cells from the zero set then get a bracketed
+    root search (regula falsi) along their normal, within 1.5 cells; the
+    sign change nearest to the point is taken.
+
+    Parameters
+    ----------
+    points : (P, d) array, world units.
+    levelset : ndarray, grid.shape
+    grid : Grid
+    steps : int
+
+    Returns
+    -------
+    (P, d) array of projected points and (P,) array of |phi| at them.
+    """
+    p = np.array(points, dtype=float, copy=True)
+    h = grid.spacing
+    for _ in range(int(steps)):
+        phi, g = sample_with_gradient(levelset, grid, p, outside="distance")
+        n = _normals(levelset, grid, p)
+        # Newton along n with the exact slope of the multilinear field, kept away from zero
+        slope = np.maximum(np.einsum("pd,pd->p", n, g), 0.3)
+        step = np.clip(phi / slope, -h, h)
+        p -= step[:, None] * n
+    # where the gradient jumps between cells (sharp features, ridges) Newton can cycle:
+    # finish those points with a bracketed root search along the normal
+    phi = sample(levelset, grid, p, outside="distance")
+    bad = np.flatnonzero(np.abs(phi) > tol * h)
+    if bad.size:
+        p[bad] = _line_search(levelset, grid, p[bad], _normals(levelset, grid, p[bad]))
+    phi = sample(levelset, grid, p, outside="distance")
+    return p, np.abs(phi)
+
+
+def _normals(levelset, grid, p):
+    """Unit normals from central differences over one cell (smooth across cell faces)."""
+    h = grid.spacing
+    eye = h * np.eye(grid.dim)
+    probes = sample(levelset, grid, p[:, None, :] + np.concatenate([eye, -eye])[None],
+                    outside="distance")
+    n = (probes[:, :grid.dim] - probes[:, grid.dim:]) / (2 * h)
+    nn = np.linalg.norm(n, axis=1)
+    return np.where(nn[:, None] > 1e-12, n / np.maximum(nn, 1e-12)[:, None], 0.0)
+
+
+def _line_search(levelset, grid, p, n, reach=1.5, samples=13, iterations=8):
+    """Root of phi(p - t n) for t in [-reach, reach] cells nearest t = 0 (regula falsi)."""
+    h = grid.spacing
+    ts = np.linspace(-reach * h, reach * h, samples)
+    vals = sample(levelset, grid, p[:, None, :] - ts[None, :, None] * n[:, None, :],
+                  outside="distance")  # (P, samples)
+    change = np.signbit(vals[:, :-1]) != np.signbit(vals[:, 1:])
+    mid = np.abs(0.5 * (ts[:-1] + ts[1:]))
+    score = np.where(change, mid[None], np.inf)
+    k = np.argmin(score, axis=1)
+    found = np.isfinite(score[np.arange(len(p)), k])
+    a, b = ts[k], ts[k + 1]
+    fa, fb = vals[np.arange(len(p)), k], vals[np.arange(len(p)), k + 1]
+    for _ in range(iterations):  # Illinois regula falsi, vectorised over points
+        denom = np.where(fb != fa, fb - fa, 1.0)
+        c = np.where(fb != fa, b - fb * (b - a) / denom, 0.5 * (a + b))
+        fc = sample(levelset, grid, p - c[:, None] * n, outside="distance")
+        same = np.signbit(fc) == np.signbit(fb)
+        a = np.where(same, a, b)
+        fa = np.where(same, 0.5 * fa, fb)
+        b, fb = c, fc
+    t = np.where(found, b, 0.0)
+    return p - t[:, None] * n
+
+
+def _template_samples(vertices, faces):
+    """Points covering a template: vertices, edge midpoints and face centroids."""
+    if faces.shape[1] == 2:
+        return np.concatenate([vertices, 0.5 * (vertices[faces[:, 0]] + vertices[faces[:, 1]])])
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    return np.concatenate([vertices, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a),
+                           (a + b + c) / 3.0])
+
+
+def uncovered_area(levelset, grid, vertices, faces, tol=None):
+    """Area (3D) or length (2D) of a frame's own zero set that the template does not reach.
+
+    The frame's surface is extracted (marching cubes / contours); a piece of it
+    counts as uncovered when its centre is farther than ``tol`` (default one
+    cell) from every sample of the template (vertices, edge midpoints,
+    centroids).
+
+    Returns
+    -------
+    uncovered, total : floats
+    """
+    from scipy.spatial import cKDTree
+
+    tol = grid.spacing if tol is None else float(tol)
+    surf = extract_surface(levelset, grid)
+    if grid.dim == 3:
+        V, F = surf
+        if len(F) == 0:
+            return 0.0, 0.0
+        centres = V[F].mean(axis=1)
+        size = mesh_area(V, F, per_face=True)
+    else:
+        if not surf:
+            return 0.0, 0.0
+        segs_a = np.concatenate(surf)
+        segs_b = np.concatenate([np.roll(loop, -1, axis=0) for loop in surf])
+        centres = 0.5 * (segs_a + segs_b)
+        size = np.linalg.norm(segs_b - segs_a, axis=1)
+    if len(vertices) == 0:
+        return float(size.sum()), float(size.sum())
+    tree = cKDTree(_template_samples(vertices, faces))
+    dist, _ = tree.query(centres, workers=-1)
+    return float(size[dist > tol].sum()), float(size.sum())
+
+
+def _initial_template(levelset, grid):
+    surf = extract_surface(levelset, grid)
+    if grid.dim == 3:
+        return surf
+    verts, segs, start = [], [], 0
+    for loop in surf:
+        m = len(loop)
+        verts.append(loop)
+        idx = np.arange(m) + start
+        segs.append(np.stack([idx, np.roll(idx, -1)], axis=1))
+        start += m
+    if not verts:
+        return np.zeros((0, 2)), np.zeros((0, 2), dtype=np.int64)
+    return np.concatenate(verts), np.concatenate(segs)
+
+
+def track_template(inb, times, *, template=None, projection_steps=4, coverage=True,
+                   progress=None, cancel=None):
+    """Carry one template mesh through the in-betweens of one keyframe pair.
+
+    Parameters
+    ----------
+    inb : Inbetween
+        The keyframe pair's in-betweens (`levelset.Inbetween`).
+    times : sequence of float in [0, 1]
+        Normalised times s of the frames wanted (e.g. ``np.linspace(0, 1, 24)``).
+    template : (vertices, faces), optional
+        The mesh at s = 0 (world units; it should lie on keyframe A's
+        surface). Default: marching cubes (3D) / contours (2D) of the level
+        set at s = 0.
+    projection_steps : int
+        Projection steps onto each frame's zero set.
+    coverage : bool
+        Also measure the area of each frame's surface the template misses
+        (costs one marching cubes per frame).
+    progress, cancel : callables, optional (`progress.Reporter`).
+
+    Returns
+    -------
+    TemplateTrack
+    """
+    rep = Reporter(progress, cancel)
+    times = np.asarray(times, dtype=float).reshape(-1)
+    if times.size == 0:
+        raise ValueError("times is empty: pass at least one s in [0, 1].")
+    if np.any((times < 0) | (times > 1)) or not np.all(np.isfinite(times)):
+        raise ValueError("times must lie in [0, 1] (normalised time between the two keyframes).")
+    grid = inb.grid
+    t0 = time.perf_counter()
+    if template is None:
+        verts0, faces = _initial_template(inb.levelset(0.0), grid)
+    else:
+        verts0 = np.asarray(template[0], dtype=float)
+        faces = np.asarray(template[1], dtype=np.int64)
+        if verts0.ndim != 2 or verts0.shape[1] != grid.dim:
+            raise ValueError(f"template vertices must have shape (V, {grid.dim}), "
+                             f"got {verts0.shape}.")
+    out = np.empty((times.size,) + verts0.shape)
+    stats = {"max_abs_phi": [], "mean_abs_phi": [], "uncovered_area": [],
+             "uncovered_fraction": [], "vertices": int(len(verts0)), "faces": int(len(faces))}
+    for k, s in enumerate(times):  # loop over frames
+        ls = inb.levelset(s)
+        p = inb.trajectory(verts0, s) if len(verts0) else verts0.copy()
+        if len(p):
+            p, err = project_to_zero_set(p, ls, grid, projection_steps)
+        else:
+            err = np.zeros(0)
+        out[k] = p
+        stats["max_abs_phi"].append(float(err.max()) if err.size else 0.0)
+        stats["mean_abs_phi"].append(float(err.mean()) if err.size else 0.0)
+        if coverage:
+            unc, tot = uncovered_area(ls, grid, p, faces)
+            stats["uncovered_area"].append(unc)
+            stats["uncovered_fraction"].append(unc / tot if tot > 0 else 0.0)
+        rep((k + 1) / times.size, f"template frame {k + 1}/{times.size}")
+    stats["seconds"] = time.perf_counter() - t0
+    return TemplateTrack(times, out, faces, stats)

@@ -1,0 +1,223 @@
+"""The terms of the objective, eq. 2.6 -- one function per term.
+
+    f(y) = w_vol * int (det F - 1)^2                      `volume_term`
+         + w_rig * int ||F^T F - I||_F^2                  `rigidity_term`
+         + w_ls  * int (H(Phi(x)) - H(Psi(y(x))))^2       `levelset_term`
+
+with F = dy/dx (discretised in `keyframe_implicit.core.elements`), H the
+smeared Heaviside of eq. 2.7 (middle case -eps <= phi <= eps as corrected in
+PAPER-NOTES section 2, eps = 1.5 h) and the weights given to `solve_map` as
+``volume_weight``, ``rigidity_weight``, ``levelset_weight``.
+
+Every term returns a `TermValue`: its energy (the weighted integral, world
+units h**d per cell), its gradient and its Gauss-Newton Hessian blocks
+``2 J^T J`` in closed form (no Jacobian matrix is ever formed). Each term is
+a sum of squared residuals ``r``: energy ``sum w r^2``, gradient ``2 w J^T r``.
+
+Two kinds of term exist:
+
+``"element"``
+    takes an `ElementBatch` (corner positions of E cells) and returns the
+    gradient per element ``(E, 2**d, d)`` and the Hessian blocks
+    ``(E, 2**d, 2**d, d, d)`` (block [c, c'] couples corners c and c');
+``"node"``
+    takes a `NodeBatch` (the mapped nodes) and returns the gradient ``(n, d)``
+    and diagonal Hessian blocks ``(n, d, d)`` (nodal quadrature: each node
+    carries the lumped volume of the weighted cells around it).
+
+Adding a fourth term
+--------------------
+Write ``def my_term(batch, hessian=True) -> TermValue`` for one of the two
+kinds (see `volume_term` for the pattern: residual, its derivative w.r.t. the
+corner positions, then energy / gradient / ``2 w J J^T``) and append
+``Term("my", "my_weight", "element", my_term)`` to `TERMS`. `solve_map` then
+accepts ``my_weight=...``, assembles the term into the Gauss-Newton system and
+reports its value per iteration in ``stats["terms"]``; nothing else changes.
+Rigid motions must cost nothing if the term is physical.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .elements import Quadrature, cofactor, deformation_gradient, determinant
+from .sampling import sample_with_gradient
+
+__all__ = ["TermValue", "ElementBatch", "NodeBatch", "Term", "TERMS", "heaviside",
+           "heaviside_derivative", "volume_term", "rigidity_term", "levelset_term"]
+
+
+@dataclass
+class TermValue:
+    """Energy, gradient and Gauss-Newton Hessian blocks of one term (unweighted by the user weight)."""
+
+    energy: float
+    grad: np.ndarray | None
+    hess: np.ndarray | None
+
+
+@dataclass
+class ElementBatch:
+    """E cells of the solved region.
+
+    Y : (E, 2**d, d) mapped corner positions.
+    weight : (E,) region weight of each cell (1 in A's material, less in the band).
+    gauss, centre : `Quadrature` rules of `keyframe_implicit.core.elements`.
+    """
+
+    Y: np.ndarray
+    weight: np.ndarray
+    gauss: Quadrature
+    centre: Quadrature
+
+
+@dataclass
+class NodeBatch:
+    """The mapped nodes of the solved region.
+
+    y : (n, d) mapped positions y(x).
+    weight : (n,) lumped volume (region weight * h**d) of each node.
+    h_phi : (n,) H(Phi(x)) at the node (constant during the solve).
+    psi : ndarray, Psi on ``grid`` (keyframe B's signed distance).
+    grid : `Grid` of ``psi``.
+    eps : float, the smearing width of eq. 2.7.
+    """
+
+    y: np.ndarray
+    weight: np.ndarray
+    h_phi: np.ndarray
+    psi: np.ndarray
+    grid: object
+    eps: float
+
+
+@dataclass(frozen=True)
+class Term:
+    """Registry entry: name, option name of its weight, kind ("element"/"node"), function."""
+
+    name: str
+    weight_option: str
+    kind: str
+    function: Callable
+
+
+def heaviside(phi, eps):
+    """Smeared Heaviside H of eq. 2.7 (0 inside below -eps, 1 outside above eps)."""
+    phi = np.asarray(phi, dtype=float)
+    mid = 0.5 + phi / (2 * eps) + np.sin(np.pi * phi / eps) / (2 * np.pi)
+    return np.where(phi < -eps, 0.0, np.where(phi > eps, 1.0, mid))
+
+
+def heaviside_derivative(phi, eps):
+    """dH/dphi of eq. 2.7: (1 + cos(pi phi / eps)) / (2 eps) on |phi| <= eps, else 0."""
+    phi = np.asarray(phi, dtype=float)
+    mid = (1.0 + np.cos(np.pi * phi / eps)) / (2 * eps)
+    return np.where(np.abs(phi) <= eps, mid, 0.0)
+
+
+def volume_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
+    """Volume term of eq. 2.6, (det F - 1)^2 at the cell centre.
+
+    Residual r_e = det F_e - 1 with F_e at the cell centre; its derivative
+    w.r.t. corner c, coordinate j is ``(cof F G)[j, c]`` (cof = cofactor,
+    d det F / dF). Zero for every rigid motion (det R = 1).
+    """
+    G = batch.centre.G  # (1, d, K)
+    vol = batch.centre.weights[0]
+    F = deformation_gradient(batch.Y, G)[:, 0]  # (E, d, d)
+    r = determinant(F) - 1.0
+    w = batch.weight * vol
+    energy = float(np.sum(w * r * r))
+    J = (cofactor(F) @ G[0]).transpose(0, 2, 1)  # (E, K, d): dr / dY[c, j]
+    grad = (2.0 * w * r)[:, None, None] * J
+    hess = None
+    if hessian:
+        Js = np.sqrt(2.0 * w)[:, None, None] * J
+        hess = Js[:, :, None, :, None] * Js[:, None, :, None, :]  # (E, c, c', j, j')
+    return TermValue(energy, grad, hess)
+
+
+def rigidity_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
+    """Rigidity term of eq. 2.6, ||F^T F - I||_F^2 at the 2**d Gauss points.
+
+    With R = F^T F - I (symmetric) and B = F G (d x 2**d):
+    gradient ``4 (F R G)[j, c]`` per Gauss point, and the Gauss-Newton block
+    ``2 J^T J = 4 ( (G^T G)[c, c'] (F F^T)[j, j'] + B[j', c] B[j, c'] )``.
+    Zero for every rigid motion (F^T F = I); the Gauss points see the
+    hourglass modes that the cell centre misses (see `elements`).
+    """
+    G = batch.gauss.G  # (Q, d, K)
+    qw = batch.gauss.weights  # (Q,)
+    F = deformation_gradient(batch.Y, G)  # (E, Q, d, d)
+    E, Q, d = F.shape[0], F.shape[1], F.shape[-1]
+    nK = G.shape[2]
+    Ft = F.swapaxes(-1, -2)
+    R = Ft @ F - np.eye(d)
+    w = batch.weight[:, None] * qw[None, :]  # (E, Q)
+    energy = float(np.sum(w * np.sum(R * R, axis=(-1, -2))))
+    FRG = (F @ R) @ G[None]  # (E, Q, d, K)
+    grad = 4.0 * np.einsum("eq,eqjc->ecj", w, FRG)
+    hess = None
+    if hessian:
+        Kq = (G.swapaxes(1, 2) @ G).reshape(Q, nK * nK)  # G^T G per Gauss point
+        S = (w[:, :, None, None] * (F @ Ft)).reshape(E, Q, d * d)
+        # sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
+        hess = (Kq.T[None] @ S).reshape(E, nK, nK, d, d)
+        # sum_q w B[j', c] B[j, c']: Gram matrix over q of V[(c, j')] = sqrt(w) B[j', c]
+        B = F @ G[None]  # (E, Q, d, K)
+        V = (np.sqrt(w)[:, :, None, None] * B).transpose(0, 3, 2, 1).reshape(E, nK * d, Q)
+        t2 = (V @ V.transpose(0, 2, 1)).reshape(E, nK, d, nK, d)  # (e, c, j', c', j)
+        hess += t2.transpose(0, 1, 3, 4, 2)
+        hess *= 4.0
+    return TermValue(energy, grad, hess)
+
+
+def levelset_term(batch: NodeBatch, hessian: bool = True) -> TermValue:
+    """Level-set term of eq. 2.6, (H(Phi(x)) - H(Psi(y(x))))^2 at the nodes.
+
+    Psi is read at the off-grid mapped positions y with
+    `keyframe_implicit.core.sampling.sample_with_gradient` (multilinear
+    interpolation, piecewise-constant gradient; outside the grid it grows as
+    the distance to the box, so far points stay "outside"). Residual
+    r = H(Phi) - H(Psi(y)), derivative ``-H'(Psi) grad Psi``.
+    """
+    psi, gpsi = _sample_sdf(batch.psi, batch.grid, batch.y)
+    r = batch.h_phi - heaviside(psi, batch.eps)
+    w = batch.weight
+    energy = float(np.sum(w * r * r))
+    J = -heaviside_derivative(psi, batch.eps)[:, None] * gpsi  # (n, d)
+    grad = (2.0 * w * r)[:, None] * J
+    hess = None
+    if hessian:
+        hess = (2.0 * w)[:, None, None] * J[:, :, None] * J[:, None, :]
+    return TermValue(energy, grad, hess)
+
+
+def _sample_sdf(psi, grid, y):
+    """Multilinear Psi and its gradient at y; outside the grid box Psi grows as the distance to it.
+
+    (Same convention as ``sample_with_gradient(..., outside="distance")``, but
+    the outward slope is only added for points truly outside the box, so
+    rounding noise inside the box cannot add a spurious unit vector.)
+    """
+    value, grad = sample_with_gradient(psi, grid, y, outside="clamp")
+    clamped = np.clip(y, grid.origin, grid.upper)
+    off = y - clamped
+    dist = np.linalg.norm(off, axis=-1)
+    out = dist > 1e-9 * grid.spacing
+    if np.any(out):
+        value = value + np.where(out, dist, 0.0)
+        grad = np.where(off != 0, 0.0, grad)  # the clamped interpolant is flat across the box face
+        grad = grad + np.where(out[:, None], off / np.where(out, dist, 1.0)[:, None], 0.0)
+    return value, grad
+
+
+#: The terms of eq. 2.6 in evaluation order. Append a `Term` to add one.
+TERMS = (
+    Term("volume", "volume_weight", "element", volume_term),
+    Term("rigidity", "rigidity_weight", "element", rigidity_term),
+    Term("levelset", "levelset_weight", "node", levelset_term),
+)

@@ -1,0 +1,439 @@
+"""As-rigid-as-possible trajectories from a volume map (thesis section 3.1, PAPER-NOTES section 5).
+
+Given the map y(x) on every grid node, `Trajectories` gives each node a path
+x(s), s in [0, 1], with x(0) = x and x(1) = y(x) exactly.
+
+Two forms are implemented:
+
+``method="global"`` (default) — the shape interpolation of Alexa, Cohen-Or and
+Levin (2000), the "stronger reading" of PAPER-NOTES section 5:
+
+1. every active cell gets one deformation gradient F_c (least-squares fit of
+   the map to the cell's edges, i.e. the mean of its parallel edge
+   differences) and its polar decomposition F_c = R_c S_c;
+2. at time s the target gradient is F_c(s) = R_c^s ((1 - s) I + s S_c), where
+   R_c^s turns by the fraction s of R_c's angle about its axis (log map /
+   rotation vector);
+3. node positions Y(s) minimise  sum_c w_c sum_{edges (i, j) of c} |Y_j - Y_i - F_c(s) (x_j - x_i)|^2,
+   a Poisson problem whose matrix (a weighted graph Laplacian of the grid
+   edges) does not depend on s: it is factored ONCE (`scipy.sparse.linalg.splu`)
+   and every frame costs one back-substitution. Each connected component's
+   translation is fixed by putting the centroid of its material on the
+   straight path (1 - s) x_bar + s y_bar;
+4. the residual r = y - Y(1) is added linearly, x(s) = Y(s) + s r, so the path
+   ends exactly at y (eq. 3.1's last term).
+
+Rigid maps are reproduced exactly (F_c = R, S = I: Y(s) is the rotation by s of
+the whole body about its centroid); articulated maps keep each part rigid and
+the parts joined, because every edge is shared by neighbouring cells.
+
+The region is the material of keyframe A (Phi < 0) dilated by ``band`` cells.
+Cells touching the material have weight 1, pure band cells ``band_weight``,
+so that empty space keeps the trajectories regular without resisting merges.
+Outside the band every node follows the body formula below (the thesis's eq.
+3.1 with the rotation of its whole component) and the two are blended
+smoothly over the outer half of the band, so every node has a continuous path.
+
+``method="local"`` — the thesis's per-node formula (eq. 3.1 as read in
+PAPER-NOTES section 5):
+    x(s) = x_bar + s (y_bar - x_bar) + R_n^s (x - x_bar) + s r,
+    r = y - [y_bar + R_n (x - x_bar)],
+with x_bar, y_bar the centroids of the node's component before and after the
+map and R_n the best rotation of the node's grid neighbourhood (polar
+decomposition of the central-difference gradient, the closed form of
+appendix A / Horn). Kept for comparison: it separates articulated parts at the
+joint half-way (see tests/core/test_trajectory.py).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import scipy.sparse as sp
+from scipy import ndimage
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import splu
+
+from .grid import Grid
+from .sampling import sample
+
+__all__ = ["Trajectories", "polar", "rotation_log", "rotation_exp"]
+
+
+# ----------------------------------------------------------------------------
+# small batched linear algebra
+# ----------------------------------------------------------------------------
+def polar(F):
+    """Polar decomposition F = R S of a batch of d x d matrices (d = 2 or 3).
+
+    R is a proper rotation (det R = +1) and S = R^T F is symmetric. For
+    reflecting F (det F < 0) the closest rotation is taken and S gets one
+    negative eigenvalue.
+
+    Parameters
+    ----------
+    F : ndarray, shape (..., d, d)
+
+    Returns
+    -------
+    R, S : ndarrays, shape (..., d, d)
+    """
+    F = np.asarray(F, dtype=float)
+    U, sig, Vt = np.linalg.svd(F)
+    det = np.linalg.det(U @ Vt)
+    U = U.copy()
+    U[..., :, -1] *= np.where(det < 0, -1.0, 1.0)[..., None]
+    R = U @ Vt
+    S = np.swapaxes(R, -1, -2) @ F
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    return R, S
+
+
+def rotation_log(R):
+    """Rotation vector (3D: axis * angle, (..., 3)) or angle (2D: (...,)) of rotations R.
+
+    The angle lies in [0, pi]; at exactly pi the axis sign is arbitrary.
+    """
+    R = np.asarray(R, dtype=float)
+    if R.shape[-1] == 2:
+        return np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    from scipy.spatial.transform import Rotation
+
+    flat = R.reshape(-1, 3, 3)
+    if flat.shape[0] == 0:
+        return np.zeros(R.shape[:-2] + (3,))
+    return Rotation.from_matrix(flat).as_rotvec().reshape(R.shape[:-2] + (3,))
+
+
+def rotation_exp(v, d):
+    """Rotation matrices (..., d, d) from rotation vectors (3D) or angles (2D)."""
+    v = np.asarray(v, dtype=float)
+    if d == 2:
+        c, s = np.cos(v), np.sin(v)
+        return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+    from scipy.spatial.transform import Rotation
+
+    flat = v.reshape(-1, 3)
+    if flat.shape[0] == 0:
+        return np.zeros(v.shape[:-1] + (3, 3))
+    return Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
+
+
+def _rigid_fit(x, y):
+    """Centroids and best rotation (Kabsch / Horn, appendix A) mapping points x onto y."""
+    xb = x.mean(axis=0)
+    yb = y.mean(axis=0)
+    H = (y - yb).T @ (x - xb)
+    R, _ = polar(H[None])
+    return xb, yb, R[0]
+
+
+def _smoothstep(t):
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+# ----------------------------------------------------------------------------
+class Trajectories:
+    """As-rigid-as-possible node paths x(s) from x to the map y(x) (section 3.1).
+
+    Parameters
+    ----------
+    grid : Grid
+    mapped : ndarray, shape grid.shape + (d,)
+        y(x) for every node, world units.
+    material : bool ndarray, shape grid.shape
+        Keyframe A's material (Phi < 0).
+    components : int ndarray, shape grid.shape, optional
+        Labels 1..k of A's material components (0 outside). Computed with
+        `scipy.ndimage.label` (face connectivity) when omitted.
+    method : {"global", "local"}
+        Poisson-based ARAP interpolation (default) or the thesis's per-node
+        formula; see the module docstring.
+    band : float
+        Width in cells of the band around the material solved with the
+        material (global method). Must be >= 1.
+    band_weight : float
+        Weight of cells that do not touch the material, in (0, 1].
+
+    Attributes
+    ----------
+    stats : dict
+        ``active_nodes``, ``active_cells``, ``components``, ``factor_seconds``,
+        ``factor_nnz`` (global method).
+    """
+
+    def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
+                 band=4.0, band_weight=0.1):
+        import time
+
+        if not isinstance(grid, Grid):
+            raise ValueError("grid must be a keyframe_implicit.core.Grid.")
+        d = grid.dim
+        y = np.asarray(mapped, dtype=float)
+        if y.shape != grid.shape + (d,):
+            raise ValueError(f"mapped has shape {y.shape}; expected grid.shape + (d,) = "
+                             f"{grid.shape + (d,)} (one mapped position per node).")
+        if not np.all(np.isfinite(y)):
+            raise ValueError("mapped contains NaN or infinite positions; the map must be finite.")
+        mat = np.asarray(material, dtype=bool)
+        if mat.shape != grid.shape:
+            raise ValueError(f"material has shape {mat.shape}; expected grid shape {grid.shape}.")
+        if not mat.any():
+            raise ValueError("material is empty: keyframe A has no node with Phi < 0; "
+                             "check the sign convention (negative inside) and the grid.")
+        if method not in ("global", "local"):
+            raise ValueError(f'method must be "global" or "local", got {method!r}.')
+        if not band >= 1:
+            raise ValueError(f"band must be at least 1 cell, got {band}.")
+        if not 0 < band_weight <= 1:
+            raise ValueError(f"band_weight must lie in (0, 1], got {band_weight}.")
+        if components is None:
+            components, _ = ndimage.label(mat)
+        components = np.asarray(components)
+        if components.shape != grid.shape:
+            raise ValueError(f"components has shape {components.shape}; expected {grid.shape}.")
+        components = np.where(mat, components, 0).astype(np.int64)
+
+        self.grid = grid
+        self.method = method
+        self.band = float(band)
+        self.band_weight = float(band_weight)
+        self.dim = d
+        self._x = grid.points().reshape(-1, d)
+        self._y = y.reshape(-1, d)
+        self.material = mat
+        self.stats = {"method": method}
+        self._cache = (None, None)
+
+        # distance (cells) to the material, and the nearest material node of every node
+        dist, inds = ndimage.distance_transform_edt(~mat, return_indices=True)
+        nearest = np.ravel_multi_index(tuple(inds), grid.shape).reshape(-1)
+        self._dist = dist.reshape(-1)
+        self._nearest = nearest
+
+        # body (component) rigid motion: centroids and best rotation, per material component
+        labels = np.unique(components[mat])
+        lab_flat = components.reshape(-1)
+        self._body_label = lab_flat[nearest]  # every node -> component of nearest material
+        self._bodies = {}
+        for lab in labels:
+            sel = lab_flat == lab
+            xb, yb, R = _rigid_fit(self._x[sel], self._y[sel])
+            self._bodies[int(lab)] = (xb, yb, R, rotation_log(R[None])[0])
+        self.stats["components"] = len(labels)
+
+        if method == "local":
+            self._init_local()
+        else:
+            t0 = time.perf_counter()
+            self._init_global()
+            self.stats["factor_seconds"] = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------
+    def _body_arrays(self, nodes):
+        """x_bar, y_bar, R, rotation vector of the body of each node (arrays over nodes)."""
+        lab = self._body_label[nodes]
+        d = self.dim
+        xb = np.empty((nodes.size, d))
+        yb = np.empty((nodes.size, d))
+        R = np.empty((nodes.size, d, d))
+        rv = np.empty((nodes.size,) + ((3,) if d == 3 else ()))
+        for key, (x0, y0, R0, v0) in self._bodies.items():
+            m = lab == key
+            xb[m], yb[m], R[m], rv[m] = x0, y0, R0, v0
+        return xb, yb, R, rv
+
+    def _init_local(self):
+        d = self.dim
+        grid = self.grid
+        y = self._y.reshape(grid.shape + (d,))
+        # central-difference gradient of the map = best-fit of the 2d-neighbour stencil
+        J = np.stack(np.gradient(y, grid.spacing, axis=tuple(range(d))), axis=-1)  # dy_i/dx_a
+        R, _ = polar(J.reshape(-1, d, d))
+        self._local_R = R
+        self._local_rv = rotation_log(R)
+        nodes = np.arange(grid.size)
+        self._ext = self._body_arrays(nodes)
+
+    def _init_global(self):
+        grid, d, h = self.grid, self.dim, self.grid.spacing
+        shape = np.asarray(grid.shape)
+        corners = np.array(list(itertools.product((0, 1), repeat=d)))  # (2^d, d)
+        strides = np.array([int(np.prod(shape[a + 1:])) for a in range(d)])
+        corner_off = corners @ strides
+
+        active_node = self._dist <= self.band
+        an = active_node.reshape(grid.shape)
+        # active cells: all corners active
+        cell_ok = np.ones(tuple(shape - 1), dtype=bool)
+        touch = np.zeros(tuple(shape - 1), dtype=bool)
+        for c in corners:
+            sl = tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))
+            cell_ok &= an[sl]
+            touch |= self.material[sl]
+        cell_idx = np.flatnonzero(cell_ok)
+        base = np.ravel_multi_index(np.unravel_index(cell_idx, tuple(shape - 1)), grid.shape)
+        cnodes = base[:, None] + corner_off[None, :]  # (nc, 2^d) flat node indices
+        w_cell = np.where(touch.reshape(-1)[cell_idx], 1.0, self.band_weight)
+        nc = cell_idx.size
+        if nc == 0:
+            raise ValueError("no active cell: the material is thinner than one cell; "
+                             "use a finer grid.")
+
+        nodes = np.unique(cnodes)
+        local = np.full(grid.size, -1, dtype=np.int64)
+        local[nodes] = np.arange(nodes.size)
+        lc = local[cnodes]
+        n = nodes.size
+
+        # per-cell edges (i -> j along axis a); target of each edge is h * F_c[:, a]
+        rows_i, rows_j, col, wts = [], [], [], []
+        for a in range(d):
+            lo = np.flatnonzero(corners[:, a] == 0)
+            for k in lo:
+                hi = int(np.flatnonzero(np.all(corners == corners[k] + np.eye(d, dtype=int)[a],
+                                               axis=1))[0])
+                rows_i.append(lc[:, k])
+                rows_j.append(lc[:, hi])
+                col.append(np.arange(nc) * d + a)
+                wts.append(w_cell)
+        ei = np.concatenate(rows_i)
+        ej = np.concatenate(rows_j)
+        ec = np.concatenate(col)
+        ew = np.concatenate(wts)
+        ne = ei.size
+        Dm = sp.csr_matrix((np.concatenate([-np.ones(ne), np.ones(ne)]),
+                            (np.concatenate([np.arange(ne)] * 2), np.concatenate([ei, ej]))),
+                           shape=(ne, n))
+        DtW = (Dm.T @ sp.diags(ew)).tocsr()
+        L = (DtW @ Dm).tocsr()
+        # rhs = B @ T, T rows = (cell, axis) targets h F_c(s)[:, a]
+        E = sp.csr_matrix((np.ones(ne), (np.arange(ne), ec)), shape=(ne, nc * d))
+        self._B = (DtW @ E).tocsr()
+
+        ncomp, comp = connected_components(L, directed=False)
+        pinned = np.zeros(n, dtype=bool)
+        pinned[np.unique(comp, return_index=True)[1]] = True
+        free = np.flatnonzero(~pinned)
+        self._free = free
+        Lr = L[free][:, free].tocsc()
+        self._lu = splu(Lr, permc_spec="MMD_AT_PLUS_A")
+        self.stats["factor_nnz"] = int(self._lu.L.nnz + self._lu.U.nnz)
+
+        # per-cell F (mean of parallel edge differences) and its polar decomposition
+        yc = self._y[cnodes]  # (nc, 2^d, d)
+        F = np.empty((nc, d, d))
+        for a in range(d):
+            lo = np.flatnonzero(corners[:, a] == 0)
+            hi = [int(np.flatnonzero(np.all(corners == corners[k] + np.eye(d, dtype=int)[a],
+                                            axis=1))[0]) for k in lo]
+            F[:, :, a] = (yc[:, hi] - yc[:, lo]).mean(axis=1) / h
+        R, S = polar(F)
+        self._cell_rv = rotation_log(R)
+        self._cell_S = S
+        self.stats["folded_cells"] = int(np.sum(np.linalg.det(F) <= 0))
+
+        # centroid constraint per component of the active graph: material nodes of it
+        mat_local = self.material.reshape(-1)[nodes]
+        self._comp = comp
+        self._ncomp = ncomp
+        xa = self._x[nodes]
+        ya = self._y[nodes]
+        self._xbar = np.zeros((ncomp, d))
+        self._ybar = np.zeros((ncomp, d))
+        cw = np.where(mat_local, 1.0, 0.0)
+        for c in range(ncomp):  # components are few
+            m = comp == c
+            wsel = cw[m] if cw[m].sum() > 0 else np.ones(m.sum())
+            self._xbar[c] = (wsel[:, None] * xa[m]).sum(0) / wsel.sum()
+            self._ybar[c] = (wsel[:, None] * ya[m]).sum(0) / wsel.sum()
+        self._cw = cw
+        self._nodes = nodes
+        self._ncells = nc
+        self.stats["active_nodes"] = int(n)
+        self.stats["active_cells"] = int(nc)
+        self.stats["active_components"] = int(ncomp)
+
+        # residual so that x(1) = y exactly
+        Y1 = self._poisson(1.0)
+        self._resid = ya - Y1
+        self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
+
+        # blend of the Poisson paths with the body formula over the outer half of the band
+        dl = self._dist[nodes]
+        self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.band) / (0.5 * self.band))
+        self._ext = self._body_arrays(np.arange(grid.size))
+
+    def _poisson(self, s):
+        """Poisson positions Y(s) of the active nodes (before the residual)."""
+        d = self.dim
+        Rs = rotation_exp(s * self._cell_rv, d)
+        Fs = Rs @ ((1.0 - s) * np.eye(d) + s * self._cell_S)
+        T = self.grid.spacing * np.swapaxes(Fs, 1, 2).reshape(-1, d)  # row (cell, a) = h F[:, a]
+        rhs = self._B @ T
+        Y = np.zeros((self._nodes.size, d))
+        Y[self._free] = self._lu.solve(np.ascontiguousarray(rhs[self._free]))
+        # fix each component's translation: material centroid on the straight path
+        target = (1.0 - s) * self._xbar + s * self._ybar
+        cw = self._cw
+        for c in range(self._ncomp):
+            m = self._comp == c
+            wsel = cw[m] if cw[m].sum() > 0 else np.ones(m.sum())
+            cen = (wsel[:, None] * Y[m]).sum(0) / wsel.sum()
+            Y[m] += target[c] - cen
+        return Y
+
+    def _body_path(self, s, nodes=None):
+        """Eq. 3.1 with the rotation of the whole body (component) of each node."""
+        xb, yb, R, rv = self._ext
+        x, y = self._x, self._y
+        if nodes is not None:
+            xb, yb, R, rv, x, y = xb[nodes], yb[nodes], R[nodes], rv[nodes], x[nodes], y[nodes]
+        return self._formula(s, x, y, xb, yb, R, rv)
+
+    def _formula(self, s, x, y, xb, yb, R, rv):
+        d = self.dim
+        Rs = rotation_exp(s * rv, d)
+        rel = x - xb
+        r = y - yb - np.einsum("nij,nj->ni", R, rel)
+        return xb + s * (yb - xb) + np.einsum("nij,nj->ni", Rs, rel) + s * r
+
+    # ------------------------------------------------------------------
+    def positions(self, s):
+        """Positions x(s) of every grid node, array of shape grid.shape + (d,)."""
+        s = float(s)
+        if not 0.0 <= s <= 1.0:
+            raise ValueError(f"time s must lie in [0, 1], got {s}.")
+        if self._cache[0] == s:
+            return self._cache[1]
+        grid, d = self.grid, self.dim
+        if s == 0.0:
+            out = self._x.copy()
+        elif s == 1.0:
+            out = self._y.copy()
+        elif self.method == "local":
+            xb, yb, _, _ = self._ext
+            out = self._formula(s, self._x, self._y, xb, yb, self._local_R, self._local_rv)
+        else:
+            out = self._body_path(s)
+            Y = self._poisson(s) + s * self._resid
+            w = self._wblend[:, None]
+            out[self._nodes] = w * Y + (1.0 - w) * out[self._nodes]
+        out = out.reshape(grid.shape + (d,))
+        self._cache = (s, out)
+        return out
+
+    def __call__(self, points, s):
+        """Positions at time s of points given at time 0 ((P, d) -> (P, d)).
+
+        Multilinear interpolation of the node trajectories; points outside the
+        grid are clamped to it (their displacement is that of the boundary).
+        """
+        p = np.asarray(points, dtype=float)
+        if p.ndim != 2 or p.shape[1] != self.dim:
+            raise ValueError(f"points must have shape (P, {self.dim}), got {p.shape}.")
+        X = self.positions(s)
+        disp = X - self.grid.points()
+        return p + sample(disp, self.grid, p)

@@ -1,0 +1,91 @@
+#!/usr/bin/env bash
+# Test the extension in a real `blender -b`: Debian trixie's blender package
+# (Blender 4.3, Python 3.13, numpy 2.2) in a chroot. Needs root (debootstrap, chroot).
+#
+#   scripts/blender_chroot.sh [pytest args]     # default: -q tests
+#
+# 1. Makes the chroot once, or reuses it: $KFI_CHROOT (default
+#    /var/cache/keyframe_implicit/trixie, outside the clone): debootstrap --variant=minbase
+#    trixie, then apt-get install --no-install-recommends blender python3-numpy python3-pytest
+#    (numpy is what Blender's own builds bundle; Debian packages it separately).
+#    No scipy or scikit-image in the chroot: those come from the zip's wheels.
+# 2. Builds the linux-x64 zip (scripts/build_extension.py, with the project venv).
+# 3. Copies the checkout and the zip into the chroot, with a fresh HOME (an empty Blender
+#    profile), installs the zip with Blender's own
+#      blender --command extension install-file -r user_default -e ZIP
+#    and checks in a normal start-up that the add-on is enabled and scipy/scikit-image load
+#    from the unpacked cp313 wheels.
+# 4. Runs the tests in that Blender through tests/blender_runner.py; scipy and scikit-image
+#    come from the extension's wheels there too (Blender puts their site-packages on sys.path).
+# Exit status: non-zero on any failure, else pytest's.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+CHROOT="${KFI_CHROOT:-/var/cache/keyframe_implicit/trixie}"
+PACKAGES="blender python3-numpy python3-pytest"
+MIRROR="${KFI_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
+log() { echo "[blender_chroot] $*" >&2; }
+
+if [ "$(id -u)" != 0 ]; then
+  log "needs root (debootstrap and chroot); run it as root or with sudo."
+  exit 2
+fi
+
+# ---- 1. the chroot -------------------------------------------------------------------
+stamp="$CHROOT/.kfi-stamp"
+if [ ! -x "$CHROOT/usr/bin/blender" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$PACKAGES" ]; then
+  t0=$(date +%s)
+  log "making the trixie chroot in $CHROOT (first run: ~1-2 min, ~1.7 GB)"
+  command -v debootstrap >/dev/null || { apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null; }
+  rm -rf "$CHROOT.tmp"
+  mkdir -p "$(dirname "$CHROOT")"
+  debootstrap --variant=minbase trixie "$CHROOT.tmp" "$MIRROR" >/dev/null
+  chroot "$CHROOT.tmp" apt-get install -y -qq --no-install-recommends $PACKAGES >/dev/null
+  chroot "$CHROOT.tmp" apt-get clean
+  echo "$PACKAGES" > "$CHROOT.tmp/.kfi-stamp"
+  rm -rf "$CHROOT"
+  mv "$CHROOT.tmp" "$CHROOT"
+  log "chroot ready in $(( $(date +%s) - t0 )) s"
+fi
+
+# ---- 2. the zip ----------------------------------------------------------------------
+run="$(mktemp -d "$CHROOT/tmp/kfi-run.XXXXXX")"
+inside="/tmp/$(basename "$run")"
+trap 'rm -rf "$run"' EXIT
+(
+  source "$ROOT/scripts/env.sh"
+  cd "$ROOT"
+  python scripts/build_extension.py --platform linux-x64 --out "$run/dist" --build-dir "$run/build" >&2
+)
+zip_name="$(cd "$run/dist" && ls keyframe_implicit-*-linux_x64.zip)"
+
+# ---- 3. install with Blender's own CLI ---------------------------------------------------
+mkdir -p "$run/src" "$run/home"
+tar -C "$ROOT" --exclude=./.git --exclude=./dist --exclude=./build --exclude=./out \
+    --exclude='__pycache__' --exclude='.pytest_cache' -cf - . | tar -C "$run/src" -xf -
+in_chroot() {
+  chroot "$CHROOT" /usr/bin/env -i HOME="$inside/home" PATH=/usr/sbin:/usr/bin:/sbin:/bin \
+    LANG=C.UTF-8 KFI_EXTENSION_ZIP="$inside/dist/$zip_name" "$@"
+}
+log "$(in_chroot blender --version 2>/dev/null | head -1), installing $zip_name"
+in_chroot blender --command extension install-file -r user_default -e "$inside/dist/$zip_name"
+in_chroot blender -b --python-exit-code 1 --python-expr '
+import sys, bpy, addon_utils
+name = "bl_ext.user_default.keyframe_implicit"
+assert name in bpy.context.preferences.addons, "extension not enabled after install-file"
+import numpy, scipy, skimage, skimage.measure
+ext = bpy.utils.user_resource("EXTENSIONS")
+for m in (scipy, skimage):
+    assert m.__file__.startswith(ext), (m.__name__, m.__file__, "not from the extension wheels")
+print("[blender_chroot] enabled:", name, "| Python", sys.version.split()[0], "| numpy", numpy.__version__,
+      "| scipy", scipy.__version__, "| scikit-image", skimage.__version__, "(from the zip wheels)")
+' 2>&1 | grep -E '^\[blender_chroot\]|Error|error' >&2
+
+# ---- 4. the tests in that Blender --------------------------------------------------------
+set +e
+[ $# -gt 0 ] || set -- -q tests
+in_chroot /bin/sh -c 'cd "$0" && exec blender -b --factory-startup --python-exit-code 1 \
+  -P tests/blender_runner.py -- -p no:cacheprovider "$@"' "$inside/src" "$@"
+code=$?
+set -e
+log "pytest exit code in Blender: $code"
+exit $code

@@ -1,0 +1,119 @@
+"""Fixtures for the Blender-side tests (bpy module or a real ``blender -b``).
+
+Every test gets an empty factory scene with the add-on registered from the
+checkout; helpers build keyframe scenes through the add-on's operators.
+"""
+
+import hashlib
+
+import bpy
+import numpy as np
+import pytest
+
+import keyframe_implicit
+
+# Low grid resolution keeps the real core fast; figures in the assertions are
+# relative to the grid spacing h the bake used.
+RES = 20
+
+
+@pytest.fixture
+def scene():
+    keyframe_implicit.unregister()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    keyframe_implicit.register()
+    yield bpy.context.scene
+    keyframe_implicit.unregister()
+
+
+def add_sphere(name, location, radius=1.0):
+    """A UV sphere made with Blender's own operator (becomes the active object)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=radius,
+                                         location=location)
+    obj = bpy.context.active_object
+    obj.name = name
+    obj.data.name = name
+    return obj
+
+
+def sphere_points(center, radius):
+    """Four feature points on a sphere (poles, +y, -x side)."""
+    c = np.asarray(center, float)
+    dirs = np.array([[0, 0, 1], [0, 0, -1], [0, 1, 0], [-1, 0, 0]], float)
+    return c + radius * dirs
+
+
+def build_spheres(specs, *, pairs=True):
+    """Keyframes from (name, center, radius, frame) through the operators only; returns objects."""
+    objs = []
+    for name, center, radius, frame in specs:
+        obj = add_sphere(name, center, radius)
+        bpy.context.scene.frame_set(frame)
+        assert bpy.ops.keyframe_implicit.add_keyframe() == {"FINISHED"}
+        objs.append(obj)
+    if pairs:
+        for seg in range(len(specs) - 1):
+            pa = sphere_points(specs[seg][1], specs[seg][2])
+            pb = sphere_points(specs[seg + 1][1], specs[seg + 1][2])
+            for a, b in zip(pa, pb):
+                assert bpy.ops.keyframe_implicit.add_feature_pair(
+                    segment=seg, location_a=tuple(a), location_b=tuple(b)) == {"FINISHED"}
+    bpy.context.scene.frame_set(specs[0][3])
+    return objs
+
+
+def mesh_hash(mesh):
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return hashlib.sha256(co.tobytes()).hexdigest()
+
+
+def snapshot():
+    """Names of every data-block kind a bake may create, plus hashes of all meshes' vertices."""
+    d = bpy.data
+    return {
+        "objects": sorted(o.name for o in d.objects),
+        "meshes": sorted(m.name for m in d.meshes),
+        "collections": sorted(c.name for c in d.collections),
+        "actions": sorted(a.name for a in d.actions),
+        "shape_keys": sorted(k.name for k in d.shape_keys),
+        "materials": sorted(m.name for m in d.materials),
+        "mesh_hashes": {m.name: mesh_hash(m) for m in d.meshes},
+        "matrices": {o.name: tuple(map(tuple, o.matrix_world)) for o in d.objects},
+        "output": (bpy.context.scene.keyframe_implicit.output_object.name
+                   if bpy.context.scene.keyframe_implicit.output_object else None),
+    }
+
+
+def evaluated_arrays(obj):
+    """World-space vertices and triangles of ``obj`` as evaluated on the current frame."""
+    dg = bpy.context.evaluated_depsgraph_get()
+    ob = obj.evaluated_get(dg)
+    me = ob.to_mesh()
+    try:
+        me.calc_loop_triangles()
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tri)
+    finally:
+        ob.to_mesh_clear()
+    m = np.array(ob.matrix_world)
+    return co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3], tri.reshape(-1, 3)
+
+
+def volume(verts, tris):
+    """Enclosed volume of a closed triangle mesh (divergence theorem)."""
+    a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+@pytest.fixture
+def kfi():
+    """The helpers above, for test modules (conftest modules are not importable by name)."""
+    import types
+
+    return types.SimpleNamespace(
+        RES=RES, add_sphere=add_sphere, sphere_points=sphere_points, build_spheres=build_spheres,
+        mesh_hash=mesh_hash, snapshot=snapshot, evaluated_arrays=evaluated_arrays, volume=volume,
+    )

@@ -1,0 +1,138 @@
+"""The example scenes in assets/: they open, are set up for the add-on, match their script, bake."""
+
+import importlib.util
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ASSETS = os.path.join(ROOT, "assets")
+SCENES = ("rigid", "merge", "bend", "splash", "suzanne")
+BAKE_RESOLUTION = 16
+
+
+def _make_assets():
+    spec = importlib.util.spec_from_file_location("kfi_make_assets",
+                                                  os.path.join(ASSETS, "make_assets.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _open(name):
+    import keyframe_implicit
+
+    path = os.path.join(ASSETS, f"{name}.blend")
+    assert os.path.exists(path), f"{path} missing: run python assets/make_assets.py"
+    bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
+    if not hasattr(bpy.types.Scene, "keyframe_implicit"):
+        keyframe_implicit.register()
+    return bpy.context.scene
+
+
+def _world_vertices(obj):
+    co = np.empty(len(obj.data.vertices) * 3)
+    obj.data.vertices.foreach_get("co", co)
+    m = np.array(obj.matrix_world)
+    return co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+
+
+def _pairs(scene):
+    """pair id -> {"A": empty, "B": empty}, and pair id -> segment."""
+    pairs, segs = {}, {}
+    for obj in scene.objects:
+        if obj.type == "EMPTY" and "kfi_pair" in obj.keys():
+            pid = str(obj["kfi_pair"])
+            side = str(obj["kfi_side"])
+            assert side in ("A", "B"), (obj.name, side)
+            assert side not in pairs.setdefault(pid, {}), f"two {side} sides for pair {pid}"
+            pairs[pid][side] = obj
+            segs.setdefault(pid, int(obj["kfi_segment"]))
+            assert segs[pid] == int(obj["kfi_segment"]), f"pair {pid} spans two segments"
+    return pairs, segs
+
+
+def test_asset_folder_is_small():
+    total = sum(os.path.getsize(os.path.join(ASSETS, f)) for f in os.listdir(ASSETS))
+    assert total < 5 * 1024 * 1024, f"assets/ is {total / 1e6:.1f} MB; keep it a few MB"
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_asset_is_set_up_for_the_add_on(name):
+    scene = _open(name)
+    keys = scene.keyframe_implicit.keyframes
+    assert len(keys) >= 2
+    frames = [k.frame for k in keys]
+    assert all(b > a for a, b in zip(frames, frames[1:])), frames
+    assert (scene.frame_start, scene.frame_end) == (frames[0], frames[-1])
+    objs = [k.object for k in keys]
+    assert all(o is not None and o.type == "MESH" and len(o.data.polygons) > 100 for o in objs)
+    assert objs[0].active_material is not None, "keyframe A carries the material the bake copies"
+    assert scene.camera is not None
+
+    pairs, segs = _pairs(scene)
+    for seg in range(len(keys) - 1):
+        ids = [p for p, s in segs.items() if s == seg]
+        assert len(ids) >= 4, f"segment {seg} has {len(ids)} pairs"
+        for pid in ids:
+            assert set(pairs[pid]) == {"A", "B"}, f"pair {pid} is missing a side"
+            a, b = pairs[pid]["A"], pairs[pid]["B"]
+            assert a.parent == objs[seg] and b.parent == objs[seg + 1], pid
+            # each Empty sits on or inside its keyframe's bounding box (not at the origin by mistake)
+            for empty, obj in ((a, objs[seg]), (b, objs[seg + 1])):
+                v = _world_vertices(obj)
+                p = np.array(empty.matrix_world.translation)
+                assert np.all(p >= v.min(0) - 0.05) and np.all(p <= v.max(0) + 0.05), (pid, p)
+    assert not [p for p, s in segs.items() if s >= len(keys) - 1], "pair on a segment that does not exist"
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_asset_matches_its_script(name):
+    """assets/NAME.blend is what assets/make_assets.py builds now (rebuild after changing it)."""
+    scene = _open(name)
+    saved_v = [_world_vertices(k.object) for k in scene.keyframe_implicit.keyframes]
+    saved_p = sorted((str(o["kfi_pair"]), str(o["kfi_side"]), tuple(np.round(o.matrix_world.translation, 4)))
+                     for o in scene.objects if "kfi_pair" in o.keys())
+    _make_assets().build(name)
+    scene = bpy.context.scene
+    built_v = [_world_vertices(k.object) for k in scene.keyframe_implicit.keyframes]
+    built_p = sorted((str(o["kfi_pair"]), str(o["kfi_side"]), tuple(np.round(o.matrix_world.translation, 4)))
+                     for o in scene.objects if "kfi_pair" in o.keys())
+    assert len(saved_v) == len(built_v)
+    for a, b in zip(saved_v, built_v):
+        assert a.shape == b.shape and np.allclose(a, b, atol=1e-5)
+    assert saved_p == built_p
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_asset_bakes_at_low_resolution(name):
+    scene = _open(name)
+    keys = scene.keyframe_implicit.keyframes
+    objs = [k.object for k in keys]
+    frames = [k.frame for k in keys]
+    result = bpy.ops.keyframe_implicit.bake(resolution=BAKE_RESOLUTION)
+    assert "FINISHED" in result
+    out = scene.keyframe_implicit.output_object
+    assert out is not None and out not in objs
+    blocks = out.data.shape_keys.key_blocks
+    assert len(blocks) == 1 + frames[-1] - frames[0] + 1  # Basis + one per frame
+    # on every keyframe's frame the baked shape fills that keyframe's box (within ~2 cells)
+    extent = np.ptp(np.vstack([_world_vertices(o) for o in objs]), axis=0).max()
+    h = extent / BAKE_RESOLUTION
+    dg = bpy.context.evaluated_depsgraph_get()
+    for obj, f in zip(objs, frames):
+        scene.frame_set(f)
+        ev = out.evaluated_get(dg)
+        m = ev.to_mesh()
+        try:
+            co = np.empty(len(m.vertices) * 3)
+            m.vertices.foreach_get("co", co)
+        finally:
+            ev.to_mesh_clear()
+        mw = np.array(out.matrix_world)
+        co = co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]
+        ref = _world_vertices(obj)
+        assert np.allclose(co.min(0), ref.min(0), atol=2.5 * h), (f, co.min(0), ref.min(0))
+        assert np.allclose(co.max(0), ref.max(0), atol=2.5 * h), (f, co.max(0), ref.max(0))

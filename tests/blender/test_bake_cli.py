@@ -1,0 +1,46 @@
+"""Headless CLI: ``python -m keyframe_implicit bake SCENE --out OUT [--resolution N]``."""
+
+import os
+import subprocess
+import sys
+
+import bpy
+
+from keyframe_implicit import __main__ as cli
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def test_cli_bakes_a_saved_scene(scene, kfi, tmp_path):
+    kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (1.5, 0, 0), 1, 4)])
+    src = tmp_path / "setup.blend"
+    out = tmp_path / "baked.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(src))
+    lines = []
+    cli.bake_file(str(src), str(out), kfi.RES, log=lines.append)
+    assert out.is_file()
+    assert any("baked 'KFI Animation': 4 frames" in line for line in lines)
+    bpy.ops.wm.open_mainfile(filepath=str(out))
+    result = bpy.context.scene.keyframe_implicit.output_object
+    assert result is not None and len(result.data.shape_keys.key_blocks) == 5
+    assert result["kfi_resolution"] == kfi.RES
+
+
+def test_cli_main_reports_setup_errors(scene, tmp_path, capsys):
+    src = tmp_path / "empty.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(src))
+    assert cli.main(["bake", str(src), "--out", str(tmp_path / "o.blend")]) == 1
+    err = capsys.readouterr().err
+    assert "has no Keyframe Implicit setup" in err and "sidebar" in err
+    assert not (tmp_path / "o.blend").exists()
+
+
+def test_cli_subprocess_missing_file_exits_nonzero(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "keyframe_implicit", "bake",
+                           str(tmp_path / "nope.blend"), "--out", str(tmp_path / "o.blend")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1
+    assert "No such file" in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "keyframe_implicit", "bake"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "--out" in proc.stderr

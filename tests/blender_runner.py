@@ -1,0 +1,77 @@
+"""Run the test suite inside a real Blender.
+
+Usage (from anywhere; arguments after ``--`` go to pytest, default ``tests``)::
+
+    blender -b --factory-startup --python-exit-code 1 -P tests/blender_runner.py -- -q tests/blender
+
+What this runner does to Blender's Python, and nothing more:
+
+- puts the checkout's root first on ``sys.path`` so the tests import this
+  checkout's ``keyframe_implicit`` (the add-on itself never changes ``sys.path``);
+- makes ``pytest`` importable if Blender's Python lacks it: from
+  ``$KFI_PYTEST_DIR`` if set, else by ``pip install --target`` into
+  ``~/.cache/keyframe_implicit/pytest-py3XX`` once (Blender's official builds bundle
+  pip; distribution builds can use their ``python3-pytest`` package instead).
+
+scipy and scikit-image must be importable in that Blender, as for the add-on:
+the simplest way is to install the extension zip first
+(``blender --command extension install-file -r user_default -e ZIP``), whose
+wheels Blender unpacks into the user extensions' ``site-packages`` and puts on
+``sys.path`` at startup, even with ``--factory-startup``.
+
+The process exits with pytest's exit code (5 when no test was collected).
+"""
+
+import os
+import pathlib
+import subprocess
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _ensure_pytest():
+    try:
+        import pytest  # noqa: F401
+        return
+    except ImportError:
+        pass
+    target = os.environ.get("KFI_PYTEST_DIR") or str(
+        pathlib.Path.home() / ".cache" / "keyframe_implicit"
+        / f"pytest-py{sys.version_info[0]}{sys.version_info[1]}")
+    if target not in sys.path:
+        sys.path.append(target)
+    try:
+        import pytest  # noqa: F401
+        return
+    except ImportError:
+        pass
+    print(f"[blender_runner] installing pytest into {target} with Blender's Python", flush=True)
+    python = sys.executable
+    proc = subprocess.run([python, "-m", "pip", "install", "--quiet", "--target", target, "pytest>=7"])
+    if proc.returncode != 0:
+        raise SystemExit(
+            f"[blender_runner] pytest is not importable in this Blender and '{python} -m pip install "
+            f"--target {target} pytest' failed; install pytest for Blender's Python "
+            "(e.g. the python3-pytest package of a distribution Blender) or set KFI_PYTEST_DIR.")
+    import importlib
+    importlib.invalidate_caches()
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    sys.path.insert(0, str(ROOT))
+    _ensure_pytest()
+    import bpy
+    import pytest
+
+    print(f"[blender_runner] Blender {bpy.app.version_string} ({bpy.app.binary_path}), "
+          f"Python {sys.version.split()[0]}, checkout {ROOT}", flush=True)
+    os.chdir(ROOT)
+    code = int(pytest.main(argv or ["tests"]))
+    # Blender exits with the code given to sys.exit from a -P script.
+    sys.exit(code)
+
+
+if __name__ == "__main__":
+    main()

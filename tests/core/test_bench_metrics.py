@@ -1,0 +1,100 @@
+"""The comparison benchmark's metric functions, checked on analytic cases.
+
+Each assertion would fail if the metric were wrong (volume formula, component
+labelling, drift definition, surface distance in h, feature error in h).
+"""
+
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core.grid import Grid
+
+_BENCH = pathlib.Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(f"_bench_{name}", _BENCH / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+metrics = _load("metrics")
+
+
+@pytest.fixture(scope="module")
+def grid():
+    return Grid(origin=(-1.0, -1.0, -1.0), spacing=2.0 / 47, shape=(48, 48, 48))
+
+
+def sphere(grid, centre, r):
+    return np.linalg.norm(grid.points() - np.asarray(centre, float), axis=-1) - r
+
+
+def test_volume_of_sphere_within_one_percent(grid):
+    for r in (0.3, 0.5):
+        v = metrics.volume(sphere(grid, (0.01, -0.02, 0.03), r), grid)
+        assert abs(v / (4 / 3 * np.pi * r ** 3) - 1) < 0.01
+
+
+def test_volume_is_not_fooled_by_a_scaled_field(grid):
+    # 3 * SDF has the same zero set; a plain ramp on phi / h would be off by the gradient
+    phi = sphere(grid, (0, 0, 0), 0.4)
+    assert abs(metrics.volume(3 * phi, grid) / metrics.volume(phi, grid) - 1) < 0.005
+
+
+def test_components(grid):
+    two = np.minimum(sphere(grid, (-0.5, 0, 0), 0.25), sphere(grid, (0.5, 0, 0), 0.25))
+    assert metrics.components(two) == 2
+    assert metrics.components(sphere(grid, (0, 0, 0), 0.4)) == 1
+    assert metrics.components(np.ones(grid.shape)) == 0
+
+
+def test_volume_drift_of_blend_of_separated_spheres_is_positive(grid):
+    # a sphere moved apart: the blend (1-s) A + s B shrinks in between; the true motion does not
+    times = np.linspace(0, 1, 9)
+    a = sphere(grid, (-0.4, 0, 0), 0.3)
+    b = sphere(grid, (0.4, 0, 0), 0.3)
+    blend = [metrics.volume((1 - s) * a + s * b, grid) for s in times]
+    moved = [metrics.volume(sphere(grid, (-0.4 + 0.8 * s, 0, 0), 0.3), grid) for s in times]
+    assert metrics.volume_drift(blend, times) > 0.2
+    assert metrics.volume_drift(moved, times) < 0.01
+
+
+def test_volume_drift_is_relative_to_the_linear_volume():
+    times = np.array([0.0, 0.5, 1.0])
+    assert metrics.volume_drift([1.0, 1.5, 2.0], times) == pytest.approx(0.0)
+    assert metrics.volume_drift([1.0, 1.2, 2.0], times) == pytest.approx(0.3 / 1.5)
+    # against the keyframes' own volumes: an end frame that lost half of B is charged
+    assert metrics.volume_drift([1.0, 1.0, 1.0], times, (1.0, 2.0)) == pytest.approx(0.5)
+
+
+def test_spurious_components():
+    assert metrics.spurious_components([2, 2, 1, 1], 2, 1) == 0
+    assert metrics.spurious_components([2, 3, 1, 1], 2, 1) == 1
+    assert metrics.spurious_components([1, 0, 1], 1, 1) == 1  # vanished material counts
+
+
+def test_surface_error_in_grid_spacings(grid):
+    h = grid.spacing
+    phi = sphere(grid, (0, 0, 0), 0.4)
+    mean, mx = metrics.surface_error(phi, grid, lambda p: np.linalg.norm(p, axis=-1) - 0.4)
+    assert mean < 0.05 and mx < 0.1
+    mean, mx = metrics.surface_error(phi, grid, lambda p: np.linalg.norm(p, axis=-1) - (0.4 + h))
+    assert 0.9 < mean < 1.1
+    # a grid reference gives the same answer
+    mean_g, _ = metrics.surface_error(phi, grid, sphere(grid, (0, 0, 0), 0.4 + h))
+    assert 0.9 < mean_g < 1.1
+    assert np.isnan(metrics.surface_error(np.ones(grid.shape), grid, phi)[0])
+
+
+def test_feature_error_in_grid_spacings(grid):
+    t = np.array([0.1, -0.05, 0.2])
+    mapped = grid.points() + t
+    fa = np.array([[0.1, 0.2, 0.3], [-0.33, 0.01, 0.5]])
+    assert np.all(metrics.feature_error(mapped, grid, fa, fa + t) < 1e-9)
+    err = metrics.feature_error(mapped, grid, fa, fa + t + np.array([grid.spacing, 0, 0]))
+    assert np.allclose(err, 1.0)

@@ -1,0 +1,142 @@
+"""In-between level sets (thesis sec. 3.2, eq. 3.2-3.4; PAPER-NOTES sec. 6)."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from inbetween_cases import bend_case, merge_case, rigid_case, rigid_expected, l_shape
+from keyframe_implicit.core.levelset import Inbetween
+from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core.surface import extract_surface, loop_area, mesh_volume
+
+
+def volume(levelset, grid):
+    surf = extract_surface(levelset, grid)
+    if grid.dim == 3:
+        return mesh_volume(*surf)
+    return sum(loop_area(loop) for loop in surf)
+
+
+def mesh_centroid(V, F):
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    vol = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
+    return (vol[:, None] * (a + b + c) / 4.0).sum(0) / vol.sum()
+
+
+def components(levelset):
+    return ndimage.label(levelset < 0)[1]
+
+
+@pytest.fixture(scope="module")
+def rigid():
+    grid, phi_a, phi_b, mapped, info = rigid_case(n=36)
+    return grid, phi_a, phi_b, mapped, info, Inbetween.from_map(phi_a, phi_b, grid, mapped)
+
+
+def test_rigid_rotation_in_betweens_are_the_turned_solid(rigid):
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    h = grid.spacing
+    VA, FA = extract_surface(ib.levelset(0.0), grid)
+    vol_a = mesh_volume(VA, FA)
+    cen_a = mesh_centroid(VA, FA)
+    for s in (0.25, 0.5, 0.75):
+        V, F = extract_surface(ib.levelset(s), grid)
+        err = np.abs(rigid_expected(V, s, info)) / h
+        assert err.mean() <= 0.3 and err.max() <= 1.0, (s, err.mean(), err.max())
+        assert abs(mesh_volume(V, F) / vol_a - 1) <= 0.01
+        # centroid on the straight line from A's to B's
+        assert np.linalg.norm(mesh_centroid(V, F) - (cen_a + s * info["t"])) <= 0.2 * h
+
+
+def test_plain_blend_of_distance_fields_shrinks_the_same_rotation(rigid):
+    # the failure the method exists to avoid: the check above must be able to see it
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    h = grid.spacing
+    vol_a = volume(phi_a, grid)
+    blend = 0.5 * phi_a + 0.5 * phi_b
+    V, F = extract_surface(blend, grid)
+    assert mesh_volume(V, F) < 0.8 * vol_a
+    assert np.abs(rigid_expected(V, 0.5, info)).mean() / h > 0.3
+    ours = volume(ib.levelset(0.5), grid)
+    assert abs(ours / vol_a - 1) <= 0.01
+
+
+def test_keyframe_ends_match_a_and_b(rigid):
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    h = grid.spacing
+    V0, _ = extract_surface(ib.levelset(0.0), grid)
+    V1, _ = extract_surface(ib.levelset(1.0), grid)
+    assert np.abs(l_shape(V0)).mean() <= 0.25 * h
+    assert np.abs(rigid_expected(V1, 1.0, info)).mean() <= 0.25 * h
+
+
+def test_far_field_stays_outside(rigid):
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    for s in (0.0, 0.4, 1.0):
+        ls = ib.levelset(s)
+        assert np.all(np.isfinite(ls))
+        far = np.abs(rigid_expected(grid.points(), s, info)) > 6 * grid.spacing
+        outside = far & (rigid_expected(grid.points(), s, info) > 0)
+        assert np.all(ls[outside] >= ib.outside_value - 1e-12)
+        assert ls.max() == pytest.approx(ib.outside_value)
+
+
+def test_inverse_lookup_beats_inverse_distance_weights(rigid):
+    # the measurement behind the default: the thesis's eq. 3.2-3.3 smears the zero set
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    idw = Inbetween.from_map(phi_a, phi_b, grid, mapped, resample="idw")
+    errs = {}
+    for name, obj in (("splat", ib), ("idw", idw)):
+        V, _ = extract_surface(obj.levelset(0.5), grid)
+        errs[name] = np.abs(rigid_expected(V, 0.5, info)).mean()
+    assert errs["splat"] < 0.6 * errs["idw"]
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_merge_two_balls_into_one_body(d):
+    grid, phi_a, phi_b, mapped, _ = merge_case(d=d, n=40 if d == 2 else 36, gap=0.12,
+                                               overlap=0.04)
+    ib = Inbetween.from_map(phi_a, phi_b, grid, mapped)
+    counts, vols = [], []
+    for s in np.linspace(0.0, 1.0, 13):
+        ls = ib.levelset(s)
+        counts.append(components(ls))
+        vols.append(volume(ls, grid))
+    assert counts[0] == 2 and counts[-1] == 1
+    assert 1 <= min(counts) and max(counts) <= 2
+    assert counts == sorted(counts, reverse=True)  # merges once, never splits back
+    vols = np.array(vols)
+    assert np.abs(vols / vols[0] - 1).max() <= 0.02
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_articulated_rod_keeps_its_halves_and_stays_one_piece(d):
+    grid, phi_a, phi_b, mapped, info = bend_case(d=d, n=40 if d == 2 else 32)
+    ib = Inbetween.from_map(phi_a, phi_b, grid, mapped)
+    h = grid.spacing
+    pts = np.stack([info["tip_a"], info["joint"], info["tip_b"]])
+    ex = np.eye(d)[0] * info["radius"]
+    caps = np.stack([info["tip_a"] - ex, info["tip_b"] + ex])
+    for s in np.linspace(0.0, 1.0, 9):
+        q = ib.trajectory(pts, s)
+        assert abs(np.linalg.norm(q[1] - q[0]) / info["left"] - 1) <= 0.02
+        assert abs(np.linalg.norm(q[2] - q[1]) / info["half"] - 1) <= 0.02
+        ls = ib.levelset(s)
+        assert components(ls) == 1
+        # the moved ends of the rod (its caps' poles) lie on the in-between's surface
+        ends = sample(ls, grid, ib.trajectory(caps, s))
+        assert np.all(np.abs(ends) <= 0.3 * h), (s, ends / h)
+    # half-way the right half has turned 45 degrees about the joint
+    q = ib.trajectory(pts, 0.5)
+    v = q[2] - q[1]
+    assert abs(np.degrees(np.arctan2(v[1], v[0])) - 45.0) <= 2.0
+
+
+def test_from_map_refuses_bad_input(rigid):
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    with pytest.raises(ValueError, match="phi_b"):
+        Inbetween.from_map(phi_a, phi_b[:-1], grid, mapped)
+    with pytest.raises(ValueError, match="resample"):
+        Inbetween.from_map(phi_a, phi_b, grid, mapped, resample="nearest")
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        ib.levelset(-0.1)

@@ -1,0 +1,106 @@
+"""End to end through `animate`: meshes + feature points + frames -> one tracked mesh per frame."""
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core import Animation, Cancelled, Keyframe, animate, mesh_to_sdf
+from keyframe_implicit.core.sampling import sample
+
+
+def uv_sphere(center, radius, n=24):
+    """Closed, outward-wound UV sphere (triangles)."""
+    th = np.linspace(0, np.pi, n + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, 2 * n, endpoint=False)
+    t, p = np.meshgrid(th, ph, indexing="ij")
+    ring = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
+    v = np.vstack([[0, 0, 1], ring, [0, 0, -1]]) * radius + center
+    m = 2 * n
+    idx = lambda r, c: 1 + r * m + (c % m)
+    faces = []
+    c = np.arange(m)
+    faces.append(np.stack([np.zeros(m, int), idx(0, c), idx(0, c + 1)], 1))
+    for r in range(n - 2):
+        a, b, cc, d = idx(r, c), idx(r, c + 1), idx(r + 1, c), idx(r + 1, c + 1)
+        faces += [np.stack([a, cc, b], 1), np.stack([b, cc, d], 1)]
+    last = len(v) - 1
+    faces.append(np.stack([np.full(m, last), idx(n - 2, c + 1), idx(n - 2, c)], 1))
+    return v, np.vstack(faces)
+
+
+def _sphere_features(center, radius, rot=np.eye(3), offset=np.zeros(3)):
+    dirs = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0.6, -0.8]])
+    a = center + 0.7 * radius * dirs
+    b = (a - center) @ rot.T + center + offset
+    return a, b
+
+
+def rotation(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def test_translated_sphere_every_frame_on_its_surface_and_keyframes_matched():
+    r = 0.3
+    va, fa = uv_sphere(np.zeros(3), r)
+    off = np.array([0.4, 0.1, -0.2])
+    R = rotation([0.3, 1.0, 0.2], np.deg2rad(50))
+    vb = va @ R.T + off  # same sphere, rotated and moved: every in-between is that sphere
+    pa, pb = _sphere_features(np.zeros(3), r, R, off)
+    seen = []
+    anim = animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 9)], [(pa, pb)], resolution=24,
+                   progress=lambda f, m: seen.append(f))
+    assert isinstance(anim, Animation)
+    assert anim.frames.tolist() == list(range(1, 10))
+    assert anim.vertices.shape[0] == 9 and anim.vertices.shape[2] == 3
+    assert anim.faces.ndim == 2 and anim.faces.shape[1] == 3
+    assert np.all(np.diff(seen) >= -1e-12) and seen[-1] == pytest.approx(1.0)
+    h = anim.grid.spacing
+    for i, f in enumerate(anim.frames):
+        s = (f - 1) / 8.0
+        centre = s * off
+        dist = np.abs(np.linalg.norm(anim.vertices[i] - centre, axis=1) - r)
+        assert dist.mean() <= 0.25 * h, (f, dist.mean() / h)
+    # keyframe ends lie on the keyframe meshes' own distance grids
+    phi_b = mesh_to_sdf(vb, fa, anim.grid)
+    assert np.abs(sample(phi_b, anim.grid, anim.vertices[-1])).mean() <= 0.25 * h
+
+
+def test_three_keyframes_one_template_through_all_frames():
+    r = 0.25
+    v0, f0 = uv_sphere(np.zeros(3), r, n=16)
+    o1, o2 = np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.3, 0.0])
+    feats = [_sphere_features(np.zeros(3), r, offset=o1),
+             _sphere_features(o1, r, offset=o2 - o1)]
+    anim = animate([Keyframe(v0, f0, 0), Keyframe(v0 + o1, f0, 4), Keyframe(v0 + o2, f0, 8)],
+                   feats, resolution=20)
+    assert anim.frames.tolist() == list(range(0, 9))
+    h = anim.grid.spacing
+    mid = np.abs(np.linalg.norm(anim.vertices[4] - o1, axis=1) - r)
+    assert mid.mean() <= 0.25 * h
+
+
+def test_bad_input_says_what_to_fix():
+    v, f = uv_sphere(np.zeros(3), 0.3, n=8)
+    with pytest.raises(ValueError, match="at least two keyframes"):
+        animate([Keyframe(v, f, 1)], [])
+    with pytest.raises(ValueError, match="strictly increasing"):
+        animate([Keyframe(v, f, 5), Keyframe(v, f, 5)], [(np.zeros((4, 3)), np.zeros((4, 3)))])
+    with pytest.raises(ValueError, match="partner"):
+        animate([Keyframe(v, f, 1), Keyframe(v, f, 5)], [(np.zeros((4, 3)), np.zeros((3, 3)))])
+    with pytest.raises(ValueError, match="Unknown weight"):
+        animate([Keyframe(v, f, 1), Keyframe(v, f, 5)], [(np.zeros((4, 3)), np.zeros((4, 3)))],
+                weights={"inertia": 1.0})
+
+
+def test_cancel_raises_cancelled():
+    v, f = uv_sphere(np.zeros(3), 0.3, n=8)
+    pa, pb = _sphere_features(np.zeros(3), 0.3)
+    calls = []
+
+    def cancel():
+        calls.append(1)
+        return len(calls) > 2
+
+    with pytest.raises(Cancelled):
+        animate([Keyframe(v, f, 1), Keyframe(v, f, 5)], [(pa, pb)], resolution=16, cancel=cancel)

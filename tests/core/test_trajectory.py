@@ -1,0 +1,89 @@
+"""As-rigid-as-possible trajectories (thesis sec. 3.1, PAPER-NOTES sec. 5)."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from inbetween_cases import bend_case, rigid_case
+from keyframe_implicit.core.grid import Grid
+from keyframe_implicit.core.trajectory import Trajectories, polar, rotation_exp, rotation_log
+
+
+def test_polar_decomposition_and_rotation_log_roundtrip():
+    rng = np.random.default_rng(0)
+    F = rng.normal(size=(50, 3, 3)) + 2 * np.eye(3)
+    R, S = polar(F)
+    np.testing.assert_allclose(R @ S, F, atol=1e-10)
+    np.testing.assert_allclose(np.swapaxes(R, 1, 2) @ R, np.broadcast_to(np.eye(3), R.shape),
+                               atol=1e-10)
+    assert np.all(np.linalg.det(R) > 0.999)
+    np.testing.assert_allclose(S, np.swapaxes(S, 1, 2), atol=1e-10)
+    v = rng.normal(size=(20, 3))
+    v *= (rng.uniform(0.1, 3.0, 20) / np.linalg.norm(v, axis=1))[:, None]
+    np.testing.assert_allclose(rotation_log(rotation_exp(v, 3)), v, atol=1e-9)
+    ang = rng.uniform(-3.0, 3.0, 20)
+    np.testing.assert_allclose(rotation_log(rotation_exp(ang, 2)), ang, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["global", "local"])
+def test_rigid_map_gives_exact_circular_arcs(method):
+    grid, phi_a, _, mapped, info = rigid_case(n=20)
+    mat = phi_a < 0
+    traj = Trajectories(grid, mapped, mat, method=method)
+    x = grid.points()[mat]
+    cbar = x.mean(axis=0)  # the trajectories use the centroid of the material nodes
+    ybar = mapped[mat].mean(axis=0)
+    for s in (0.0, 0.3, 0.5, 0.8, 1.0):
+        Rs = Rotation.from_rotvec(s * info["angle"] * np.array([1.0, 2.0, 0.5])
+                                  / np.linalg.norm([1.0, 2.0, 0.5])).as_matrix()
+        expect = cbar + s * (ybar - cbar) + (x - cbar) @ Rs.T
+        np.testing.assert_allclose(traj.positions(s)[mat], expect, atol=1e-9)
+
+
+def test_paths_end_exactly_at_the_map_for_a_non_rigid_map():
+    grid, phi_a, _, mapped, _ = bend_case(d=2, n=30)
+    traj = Trajectories(grid, mapped, phi_a < 0)
+    np.testing.assert_array_equal(traj.positions(0.0), grid.points())
+    np.testing.assert_array_equal(traj.positions(1.0), mapped)
+    # and the paths are continuous in s: small steps in time give small moves
+    a = traj.positions(0.5)
+    b = traj.positions(0.5 + 1e-3)
+    assert np.abs(b - a).max() < 4e-3  # speed < 4 world units per unit s on this box
+
+
+def _joint_span(method, s):
+    grid, phi_a, _, mapped, info = bend_case(d=2, n=40, half=0.45, left=0.9)
+    traj = Trajectories(grid, mapped, phi_a < 0, method=method)
+    b = info["blend"] + 0.03
+    q = traj(np.array([[-b, 0.0], [b, 0.0]]), s)
+    th = s * np.pi / 2
+    ideal = np.linalg.norm(np.array([-b, 0.0]) - np.array([b * np.cos(th), b * np.sin(th)]))
+    return np.linalg.norm(q[1] - q[0]) / ideal
+
+
+def test_global_form_keeps_the_joint_closed_where_the_per_node_formula_opens_it():
+    # joint 0.2 away from the rod's centroid: the thesis's per-node formula turns the
+    # right part about the centroid, not about the joint, and the joint gapes half-way
+    for s in (0.25, 0.5, 0.75):
+        assert _joint_span("global", s) < 1.03
+    assert _joint_span("local", 0.5) > 1.12
+
+
+def test_bad_input_is_refused_with_a_message():
+    grid = Grid((0.0, 0.0), 0.1, (8, 8))
+    mat = np.zeros((8, 8), bool)
+    mat[3:5, 3:5] = True
+    good = grid.points()
+    with pytest.raises(ValueError, match="mapped"):
+        Trajectories(grid, good[:-1], mat)
+    bad = good.copy()
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        Trajectories(grid, bad, mat)
+    with pytest.raises(ValueError, match="empty"):
+        Trajectories(grid, good, np.zeros((8, 8), bool))
+    with pytest.raises(ValueError, match="method"):
+        Trajectories(grid, good, mat, method="straight")
+    traj = Trajectories(grid, good, mat)
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        traj.positions(1.5)
