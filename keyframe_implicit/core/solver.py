@@ -86,7 +86,7 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 DEFAULTS = dict(
     band_weight=0.1,
     feature_radius=None,
-    coarse_nodes=17,
+    coarse_nodes=24,
     cg_tolerance=1e-2,
     cg_max_iterations=300,
     damping=1e-6,
@@ -254,17 +254,22 @@ class _Level:
             energies[t.name] = 0.0
         for s in range(0, len(self.elem), chunk):
             el = self.elem[s:s + chunk]
-            batch = ElementBatch(y[el], self.cell_weight[s:s + chunk], self.gauss, self.centre)
+            Y = y[el]
             g_sum, h_sum = None, None
             for t in el_terms:
                 w = weights[t.name]
                 if w == 0:
                     continue
+                # the user weight rides on the cell weights: the term returns weighted values
+                batch = ElementBatch(Y, w * self.cell_weight[s:s + chunk], self.gauss, self.centre)
                 tv = t.function(batch, hessian=hessian)
-                energies[t.name] += w * tv.energy
-                g_sum = w * tv.grad if g_sum is None else g_sum + w * tv.grad
-                if hessian:
-                    h_sum = w * tv.hess if h_sum is None else h_sum + w * tv.hess
+                energies[t.name] += tv.energy
+                if g_sum is None:
+                    g_sum, h_sum = tv.grad, tv.hess
+                else:
+                    g_sum += tv.grad
+                    if hessian:
+                        h_sum += tv.hess
             if g_sum is None:
                 continue
             for c in range(K):
@@ -449,7 +454,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
     **opts
         ``band_weight`` (0.1), ``feature_radius`` (world units; default 4 % of
         the largest grid extent, never less than one cell diagonal) -- see
-        `keyframe_implicit.core.constraints`; ``coarse_nodes`` (17, nodes per
+        `keyframe_implicit.core.constraints`; ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
         ``cg_tolerance`` (1e-2), ``cg_max_iterations`` (300), ``damping``
         (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
