@@ -17,7 +17,9 @@ Algorithm
   form straight into a fixed 3**d-neighbour block stencil (no Jacobian is
   formed), then handed to scipy as a block-sparse (BSR) matrix.
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
-  preconditioner at a loose relative tolerance (``cg_tolerance`` = 1e-2),
+  preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2;
+  at 64^3 it needs 35 % fewer CG iterations than 1e-2 for the same final
+  energy and GN iteration count),
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
   unpinned rigid modes stay bounded.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
@@ -87,7 +89,7 @@ DEFAULTS = dict(
     band_weight=0.1,
     feature_radius=None,
     coarse_nodes=24,
-    cg_tolerance=1e-2,
+    cg_tolerance=3e-2,
     cg_max_iterations=300,
     damping=1e-6,
     chunk_elements=2000,
@@ -234,6 +236,11 @@ class _Level:
         code = {tuple(o): i for i, o in enumerate(offs.tolist())}
         self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
                                   for c1 in range(K)])
+        # the Hessian is symmetric: scatter only blocks with offset >= 0 (lexicographic), then
+        # mirror: H[p, -o] = H[p + o, o]^T
+        self.upper_pairs = [np.flatnonzero(self.pair_off[c] >= self.centre_off) for c in range(K)]
+        self.lower = np.arange(self.centre_off)
+        self.mirror = len(offs) - 1 - self.lower  # index of -o for each lower offset o
         # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
         # its block stays zero, so the stencil array is the BSR data without a copy
         own = np.broadcast_to(np.arange(self.n)[:, None], nbr.shape)
@@ -275,7 +282,13 @@ class _Level:
             for c in range(K):
                 grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
                 if hessian:
-                    Hs[el[:, c][:, None], self.pair_off[c][None, :]] += h_sum[:, c]
+                    up = self.upper_pairs[c]
+                    Hs[el[:, c][:, None], self.pair_off[c, up][None, :]] += h_sum[:, c, up]
+        if hessian:
+            nb = self.nbr[:, self.lower]  # (n, 13): neighbour p + o for the lower offsets o
+            ok = nb >= 0
+            Hs[:, self.lower] = np.where(ok[:, :, None, None],
+                                         Hs[np.where(ok, nb, 0), self.mirror[None, :]].swapaxes(-1, -2), 0.0)
         for t in TERMS:
             if t.kind != "node" or weights[t.name] == 0:
                 continue
@@ -456,7 +469,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
         the largest grid extent, never less than one cell diagonal) -- see
         `keyframe_implicit.core.constraints`; ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
-        ``cg_tolerance`` (1e-2), ``cg_max_iterations`` (300), ``damping``
+        ``cg_tolerance`` (3e-2), ``cg_max_iterations`` (300), ``damping``
         (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
         ``extension_passes`` (8), ``initial`` (an array grid.shape + (d,) to
         start from instead of the RBF map; the constraints are re-imposed),
