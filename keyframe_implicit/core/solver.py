@@ -322,8 +322,11 @@ class _Level:
                              copy=False)
 
 
-def _pcg(apply_A, b, precond, project, tol, maxiter):
-    """Projected preconditioned CG for A x = b on the range of ``project``."""
+def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
+    """Projected preconditioned CG for A x = b on the range of ``project``.
+
+    ``check`` (optional) is called every 25 iterations (cancellation).
+    """
     x = np.zeros_like(b)
     r = project(b.copy())
     bn = np.linalg.norm(r)
@@ -334,6 +337,8 @@ def _pcg(apply_A, b, precond, project, tol, maxiter):
     rz = r @ z
     it = 0
     for it in range(1, maxiter + 1):
+        if check is not None and it % 25 == 0:
+            check()
         Ap = project(apply_A(p))
         pAp = p @ Ap
         if pAp <= 0:
@@ -376,7 +381,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             return cons.reduce((H @ cons.expand(z).reshape(-1)).reshape(-1, d))
 
         b = -cons.reduce(g)
-        z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]))
+        z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]),
+                       rep.check)
         cg_total += ncg
         dy = cons.expand(cons.project(z))
         timing["linear solve"] += time.perf_counter() - t0
@@ -386,6 +392,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         t0 = time.perf_counter()
         alpha, accepted = 1.0, False
         while alpha > 1e-4:
+            rep.check()
             y_new = y + alpha * dy
             E_new, terms_new, _, _ = level.evaluate(y_new, weights, chunk, hessian=False)
             if E_new <= E + 1e-4 * alpha * slope:
@@ -466,7 +473,8 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
     progress, cancel : callables, see `keyframe_implicit.core.progress`.
     **opts
         ``band_weight`` (0.1), ``feature_radius`` (world units; default 4 % of
-        the largest grid extent, never less than one cell diagonal) -- see
+        the largest grid extent, never less than one cell diagonal; 0 gives
+        plain hard constraints on each feature's cell) -- see
         `keyframe_implicit.core.constraints`; ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
         ``cg_tolerance`` (3e-2), ``cg_max_iterations`` (300), ``damping``
@@ -558,7 +566,8 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
             y_start_full = base.copy()
         if not np.any(pa < 0):
             continue  # material too thin for this coarse level
-        rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing)
+        # a patch must hold its feature's cell; feature_radius=0 asks for plain hard constraints
+        rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing) if radius > 0 else 0.0
         level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad)
         y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
         timing["setup"] += time.perf_counter() - t0
