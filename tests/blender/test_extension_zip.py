@@ -31,8 +31,12 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
-#: Bake resolution for the installed add-on (low: this checks the zip, not the method).
+#: Bake by the installed add-on: two equal spheres, BAKE_CENTERS apart, on BAKE_FRAMES,
+#: at a low resolution (this checks the zip, not the method).
 BAKE_RESOLUTION = 16
+BAKE_RADIUS = 1.0
+BAKE_CENTERS = ((-1.2, 0.0, 0.0), (1.2, 0.0, 0.0))
+BAKE_FRAMES = (1, 4)
 
 
 @pytest.fixture(scope="module")
@@ -204,6 +208,12 @@ def test_zip_installs_enables_and_runs_in_isolated_profile(linux_zip, tmp_path):
     assert abs(r["edt_corner"] - r["edt_expected"]) < 1e-9, r
     assert r["mc_faces"] > 100 and abs(r["mc_mean_radius"] - 10.0) < 0.3, r
     assert r["toplevel_keyframe_implicit"] is False, r
+    # The installed add-on bakes: one shape key per frame plus the Basis, and on the
+    # first and last frame the output lies on that keyframe's sphere.
+    assert r["bake"] == ["FINISHED"] and r["bake_outputs"] == 1, r
+    assert r["bake_keys"] == BAKE_FRAMES[1] - BAKE_FRAMES[0] + 2, r
+    for err in r["bake_surface_error"]:
+        assert err < 0.05 * BAKE_RADIUS, r
 
 
 # ----------------------------------------------------------------------------
@@ -261,8 +271,49 @@ def _child(zip_path, result_file):  # pragma: no cover - runs in a subprocess
     verts, faces, _, _ = skimage.measure.marching_cubes(np.sqrt(x * x + y * y + z * z) - 10.0, 0.0)
     r["mc_faces"] = int(len(faces))
     r["mc_mean_radius"] = float(np.linalg.norm(verts - 16.0, axis=1).mean())
+    r.update(_child_bake(bpy, np))
     r["toplevel_keyframe_implicit"] = "keyframe_implicit" in sys.modules
     pathlib.Path(result_file).write_text(json.dumps(r, indent=1))
+
+
+def _child_bake(bpy, np):  # pragma: no cover - runs in a subprocess
+    """Two spheres set up and baked through the installed add-on's operators only."""
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj)
+    scene = bpy.context.scene
+    dirs = np.array([[0, 0, 1], [0, 0, -1], [0, 1, 0], [0, -1, 0]], float)
+    for center, frame in zip(BAKE_CENTERS, BAKE_FRAMES):
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=BAKE_RADIUS,
+                                             location=center)
+        scene.frame_set(frame)
+        bpy.ops.keyframe_implicit.add_keyframe()
+    pa, pb = (np.asarray(c) + BAKE_RADIUS * dirs for c in BAKE_CENTERS)
+    for a, b in zip(pa, pb):
+        bpy.ops.keyframe_implicit.add_feature_pair(segment=0, location_a=tuple(a), location_b=tuple(b))
+    before = set(bpy.data.objects)
+    try:
+        res = sorted(bpy.ops.keyframe_implicit.bake(resolution=BAKE_RESOLUTION))
+    except RuntimeError as exc:  # the operator reported an error
+        res = [str(exc)]
+    out = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
+    r = {"bake": res, "bake_outputs": len(out)}
+    if len(out) != 1 or out[0].data.shape_keys is None:
+        r.update(bake_keys=0, bake_surface_error=[])
+        return r
+    obj = out[0]
+    r["bake_keys"] = len(obj.data.shape_keys.key_blocks)
+    errors = []
+    for center, frame in zip(BAKE_CENTERS, BAKE_FRAMES):
+        scene.frame_set(frame)
+        ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        mesh = ev.to_mesh()
+        co = np.empty(len(mesh.vertices) * 3)
+        mesh.vertices.foreach_get("co", co)
+        ev.to_mesh_clear()
+        world = co.reshape(-1, 3) @ np.array(obj.matrix_world)[:3, :3].T + np.array(obj.matrix_world)[:3, 3]
+        errors.append(float(np.abs(np.linalg.norm(world - np.asarray(center), axis=1) - BAKE_RADIUS).mean()))
+    r["bake_surface_error"] = errors
+    return r
 
 
 if __name__ == "__main__":
