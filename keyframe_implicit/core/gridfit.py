@@ -130,7 +130,8 @@ def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, m
             a, b = 2, resolution - 1  # binary search over resolutions (a handful of steps)
             while a <= b:
                 m = (a + b) // 2
-                if estimate_memory(_grid_for(lo, hi, m, padding_cells), **memory_options)["peak"] <= max_bytes:
+                g = _grid_for(lo, hi, m, padding_cells)
+                if estimate_memory(g, **memory_options)["peak"] <= max_bytes:
                     fits, a = m, m + 1
                 else:
                     b = m - 1

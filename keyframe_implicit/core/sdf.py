@@ -254,31 +254,27 @@ class _Triangles:
         dist2 = np.where(inside, pn * pn, dist2)
         return np.sqrt(np.maximum(dist2, 0.0))
 
-
-def _closest_point_method(self, p, t):
-    """Closest point on triangles t (P,) to points p (P, 3) (same regions as `distance`)."""
-    a = np.stack([self.a[i][t] for i in range(3)], axis=1)
-    e0 = np.stack([self.e0[i][t] for i in range(3)], axis=1)
-    e1 = np.stack([self.e1[i][t] for i in range(3)], axis=1)
-    v = p - a
-    dv0, dv1 = _dot(v, e0), _dot(v, e1)
-    d00, d01, d11 = self.d00[t], self.d01[t], self.d11[t]
-    u = (d11 * dv0 - d01 * dv1) * self.inv[t]
-    w = (d00 * dv1 - d01 * dv0) * self.inv[t]
-    inside = (u >= 0) & (w >= 0) & (u + w <= 1)
-    best = a + u[:, None] * e0 + w[:, None] * e1
-    bd = np.where(inside, 0.0, np.inf)
-    for s0, e in ((a, e0), (a, e1), (a + e0, e1 - e0)):  # the three edges
-        tt = np.clip(_dot(p - s0, e) / _dot(e, e), 0.0, 1.0)
-        q = s0 + tt[:, None] * e
-        dq = _dot(p - q, p - q)
-        use = ~inside & (dq < bd)
-        best[use] = q[use]
-        bd = np.where(use, dq, bd)
-    return best
-
-
-_Triangles.closest_point = _closest_point_method
+    def closest_point(self, p, t):
+        """Closest point on triangles t (P,) to points p (P, 3) (same regions as `distance`)."""
+        a = np.stack([self.a[i][t] for i in range(3)], axis=1)
+        e0 = np.stack([self.e0[i][t] for i in range(3)], axis=1)
+        e1 = np.stack([self.e1[i][t] for i in range(3)], axis=1)
+        v = p - a
+        dv0, dv1 = _dot(v, e0), _dot(v, e1)
+        d00, d01, d11 = self.d00[t], self.d01[t], self.d11[t]
+        u = (d11 * dv0 - d01 * dv1) * self.inv[t]
+        w = (d00 * dv1 - d01 * dv0) * self.inv[t]
+        inside = (u >= 0) & (w >= 0) & (u + w <= 1)
+        best = a + u[:, None] * e0 + w[:, None] * e1
+        bd = np.where(inside, 0.0, np.inf)
+        for s0, e in ((a, e0), (a, e1), (a + e0, e1 - e0)):  # the three edges
+            tt = np.clip(_dot(p - s0, e) / _dot(e, e), 0.0, 1.0)
+            q = s0 + tt[:, None] * e
+            dq = _dot(p - q, p - q)
+            use = ~inside & (dq < bd)
+            best[use] = q[use]
+            bd = np.where(use, dq, bd)
+        return best
 
 
 def point_triangle_distance(p, a, b, c):
@@ -836,7 +832,7 @@ def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
     loops = list(loops)
     if not loops:
         raise ValueError("no loops given; pass one or more (M, 2) arrays of polygon corners.")
-    seg_a, seg_b, seg_loop = [], [], []
+    seg_a, seg_b = [], []
     for i, lp in enumerate(loops):  # a handful of loops
         p = _check_vertices(lp, dim=2)
         if len(p) > 1 and np.array_equal(p[0], p[-1]):
@@ -847,7 +843,6 @@ def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
         good = np.any(p != q, axis=1)
         seg_a.append(p[good])
         seg_b.append(q[good])
-        seg_loop.append(np.full(int(good.sum()), i))
     A, B = np.concatenate(seg_a), np.concatenate(seg_b)
     dist = _segments_distance(grid, A, B)
     inside = _crossing_rule(grid, A, B, rule)
