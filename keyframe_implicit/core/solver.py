@@ -435,6 +435,33 @@ def _extend(full, known, passes):
     return out
 
 
+def _prolong(field, shape):
+    """Multilinear prolongation from a level of spacing 2h onto the nested level of spacing h.
+
+    Coarse node k sits on fine node 2k (same origin), so per axis fine 2k takes
+    coarse k and fine 2k+1 the mean of coarse k and k+1; the result is cropped
+    to ``shape``. Equal to multilinear sampling, without per-point work.
+    """
+    out = np.asarray(field, dtype=float)
+    for a, n in enumerate(shape):
+        m = out.shape[a]
+        up = np.empty(out.shape[:a] + (2 * m - 1,) + out.shape[a + 1:])
+        even = [slice(None)] * out.ndim
+        odd = [slice(None)] * out.ndim
+        even[a] = slice(0, None, 2)
+        odd[a] = slice(1, None, 2)
+        lo = [slice(None)] * out.ndim
+        hi = [slice(None)] * out.ndim
+        lo[a] = slice(0, m - 1)
+        hi[a] = slice(1, m)
+        up[tuple(even)] = out
+        up[tuple(odd)] = 0.5 * (out[tuple(lo)] + out[tuple(hi)])
+        crop = [slice(None)] * out.ndim
+        crop[a] = slice(0, n)
+        out = up[tuple(crop)]
+    return out
+
+
 def _levels(grid: Grid, coarse_nodes: int):
     grids = [grid]
     while True:
@@ -564,7 +591,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
             pb = sample(phi_b, grid, pts, outside="distance")
             base = pts + sample(disp0, grid, pts)
         if corr_prev is not None:
-            y_start_full = base + sample(corr_prev, grid_prev, g.points())
+            y_start_full = base + _prolong(corr_prev, g.shape)
         else:
             y_start_full = base.copy()
         if not np.any(pa < 0):
