@@ -244,6 +244,10 @@ class _Level:
         self.upper_pairs = [np.flatnonzero(self.pair_off[c] >= self.centre_off) for c in range(K)]
         self.lower = np.arange(self.centre_off)
         self.mirror = len(offs) - 1 - self.lower  # index of -o for each lower offset o
+        rows, cols = np.nonzero(nbr[:, self.lower] >= 0)
+        self.mirror_dst = rows * len(offs) + self.lower[cols]  # flat (node, offset) targets
+        self.mirror_src = nbr[rows, self.lower[cols]] * len(offs) + self.mirror[cols]
+        self.transpose_dd = np.arange(d * d).reshape(d, d).T.reshape(-1)
         # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
         # its block stays zero, so the stencil array is the BSR data without a copy
         own = np.broadcast_to(np.arange(self.n)[:, None], nbr.shape)
@@ -288,10 +292,8 @@ class _Level:
                     up = self.upper_pairs[c]
                     Hs[el[:, c][:, None], self.pair_off[c, up][None, :]] += h_sum[:, c, up]
         if hessian:
-            nb = self.nbr[:, self.lower]  # (n, 13): neighbour p + o for the lower offsets o
-            ok = nb >= 0
-            Hs[:, self.lower] = np.where(ok[:, :, None, None],
-                                         Hs[np.where(ok, nb, 0), self.mirror[None, :]].swapaxes(-1, -2), 0.0)
+            flat = Hs.reshape(-1, d * d)
+            flat[self.mirror_dst] = flat[self.mirror_src][:, self.transpose_dd]
         for t in TERMS:
             if t.kind != "node" or weights[t.name] == 0:
                 continue
