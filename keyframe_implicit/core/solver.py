@@ -242,6 +242,9 @@ class _Level:
         # the Hessian is symmetric: scatter only blocks with offset >= 0 (lexicographic), then
         # mirror: H[p, -o] = H[p + o, o]^T
         self.upper_pairs = [np.flatnonzero(self.pair_off[c] >= self.centre_off) for c in range(K)]
+        # flat (node, offset) target of every upper block of every element, per corner c
+        self.upper_flat = [self.elem[:, c][:, None] * len(offs) + self.pair_off[c, up][None, :]
+                           for c, up in enumerate(self.upper_pairs)]
         self.lower = np.arange(self.centre_off)
         self.mirror = len(offs) - 1 - self.lower  # index of -o for each lower offset o
         rows, cols = np.nonzero(nbr[:, self.lower] >= 0)
@@ -286,11 +289,13 @@ class _Level:
                         h_sum += tv.hess
             if g_sum is None:
                 continue
+            if hessian:
+                flat = Hs.reshape(-1, d * d)
+                h_sum = h_sum.reshape(len(el), K, K, d * d)
             for c in range(K):
                 grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
-                if hessian:
-                    up = self.upper_pairs[c]
-                    Hs[el[:, c][:, None], self.pair_off[c, up][None, :]] += h_sum[:, c, up]
+                if hessian:  # so are the (node, offset) targets of one corner's blocks
+                    flat[self.upper_flat[c][s:s + chunk]] += h_sum[:, c, self.upper_pairs[c]]
         if hessian:
             flat = Hs.reshape(-1, d * d)
             flat[self.mirror_dst] = flat[self.mirror_src][:, self.transpose_dd]
