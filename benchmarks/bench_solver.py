@@ -11,6 +11,7 @@ the input grids).
     python benchmarks/bench_solver.py                 # 32 48 64 96 128
     python benchmarks/bench_solver.py --sizes 32 64
     python benchmarks/bench_solver.py --region        # 2D merge, band weight 0 / 0.1 / 1
+    python benchmarks/bench_solver.py --features --sizes 64 128   # det F near features
 
 Each size runs in its own process so that peak memory is per size.
 Targets (2-core machine): 32^3 <= 1 s, 64^3 <= 5 s, 96^3 <= 25 s,
@@ -112,10 +113,34 @@ def region_measure(n=48):
               f"{res.stats['terms']['levelset']:>13.4f} {res.stats['terms']['rigidity']:>9.4f} {sec:>5.2f}")
 
 
+def feature_measure(sizes):
+    """min det F near the feature points: affine patches (default) vs plain hard constraints."""
+    print("sphere -> ellipsoid, min det F over material cells within 0.1 of a feature point")
+    print(f"{'n':>4} {'patch (default)':>15} {'hard (feature_radius=0)':>23}")
+    for n in sizes:
+        g, phi_a, phi_b, fa, fb = sphere_case(n)
+        h = g.spacing
+        cs = elements.corners(3)
+        cshape = (n - 1,) * 3
+        centre = sum(phi_a[tuple(slice(o, o + m) for o, m in zip(cc, cshape))] for cc in cs) / 8
+        base = np.argwhere(centre < 0)
+        near = np.min(np.linalg.norm(g.to_world(base + 0.5)[:, None] - fa[None], axis=-1), axis=1) < 0.1
+        nodes = base[near][:, None, :] + cs[None]
+        G = np.concatenate([elements.quadrature(3, h, "gauss").G, elements.quadrature(3, h, "centre").G])
+        row = []
+        for radius in (None, 0.0):
+            res = solve_map(phi_a, phi_b, g, fa, fb, feature_radius=radius)
+            Y = res.mapped[tuple(nodes[..., a] for a in range(3))]
+            row.append(elements.determinant(elements.deformation_gradient(Y, G)).min())
+        print(f"{n:>4} {row[0]:>15.3f} {row[1]:>23.3f}", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[32, 48, 64, 96, 128])
     ap.add_argument("--region", action="store_true", help="run the integration-region measurement")
+    ap.add_argument("--features", action="store_true",
+                    help="min det F near feature points, patches vs hard constraints, at --sizes")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
@@ -123,6 +148,9 @@ def main():
         return
     if args.region:
         region_measure()
+        return
+    if args.features:
+        feature_measure(args.sizes)
         return
     print("sphere r=0.3 -> equal-volume ellipsoid, 6 pole features; peak = ru_maxrss of the run's process")
     print(f"{'n':>4} {'active':>8} {'unknowns':>9} {'total s':>8} {'initial':>7} {'setup':>6} {'assemb':>6} "

@@ -40,11 +40,6 @@ def bake_file(scene_path, out_path, resolution=0, log=print):
 
     Raises ValueError with a user-facing message on failure.
     """
-    import bpy
-
-    from . import register
-    from .blender import bake
-
     if not os.path.isfile(scene_path):
         raise ValueError(f"No such file: {scene_path!r}: give the path of a .blend file.")
     if resolution < 0:
@@ -52,6 +47,11 @@ def bake_file(scene_path, out_path, resolution=0, log=print):
     out_dir = os.path.dirname(os.path.abspath(out_path))
     if not os.path.isdir(out_dir):
         raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
+    import bpy
+
+    from . import register
+    from .blender import bake
+
     register()
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(scene_path), load_ui=False)
     scenes = [s for s in bpy.data.scenes if len(s.keyframe_implicit.keyframes)]

@@ -15,6 +15,7 @@ in the outliner and the viewport. Plain functions only; the operators in
 """
 
 import colorsys
+import zlib
 from dataclasses import dataclass
 
 import bpy
@@ -106,7 +107,9 @@ def new_pair_id(scene, segment):
 
 def pair_color(pair_id):
     """A distinct RGBA colour per pair (golden-angle hues), the same for both sides."""
-    n = _pair_number(pair_id) if _pair_number(pair_id) < (1 << 30) else abs(hash(pair_id)) % 97
+    n = _pair_number(pair_id)
+    if n >= (1 << 30):  # not "<segment>.<n>": a stable number from the id itself
+        n = zlib.crc32(str(pair_id).encode()) % 97
     seg = _int(str(pair_id).split(".")[0], 0)
     hue = (0.618034 * n + 0.13 * seg) % 1.0
     r, g, b = colorsys.hsv_to_rgb(hue, 0.75, 1.0)

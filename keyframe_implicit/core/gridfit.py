@@ -102,7 +102,8 @@ def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, m
         Refuse (`MemoryLimitError`) before any work if `estimate_memory` says the
         bake needs more; the message names the largest resolution that fits.
     **memory_options
-        Passed to `estimate_memory` (e.g. ``material_fraction``).
+        Passed to `estimate_memory` (e.g. ``material_fraction``; by default half
+        the points' bounding box relative to the grid box).
 
     Returns
     -------
@@ -120,6 +121,8 @@ def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, m
     if not (hi - lo).max() > 0:
         raise ValueError("all keyframe vertices coincide; the bounding box has no size.")
     grid = _grid_for(lo, hi, resolution, padding_cells)
+    if max_bytes is not None and memory_options.get("material_fraction") is None:
+        memory_options["material_fraction"] = _box_fraction(lo, hi, grid)
     if max_bytes is not None:
         need = estimate_memory(grid, **memory_options)["peak"]
         if need > max_bytes:
@@ -134,6 +137,13 @@ def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, m
             raise MemoryLimitError(_refusal(grid, resolution, need, max_bytes, fits),
                                    need, max_bytes, fits)
     return grid
+
+
+def _box_fraction(lo, hi, grid):
+    """Material fraction guessed before any SDF exists: half the points' box (a blob
+    fills about half its bounding box), relative to the grid box."""
+    ext = np.maximum(hi - lo, grid.spacing)
+    return float(min(1.0, 0.5 * np.prod(ext) / np.prod(grid.upper - grid.origin)))
 
 
 def _mb(x):
@@ -152,17 +162,25 @@ def _refusal(grid, resolution, need, limit, fits):
 # ---------------------------------------------------------------------------
 # memory model
 # ---------------------------------------------------------------------------
-# Bytes per grid node of the signed distance stage (mesh_to_sdf): the unsigned and
-# signed float64 fields, the EDT distances (float64) and nearest-node indices
-# (int32 per axis, then int64 flat), labels (int32), boolean masks.
-_SDF_BYTES_PER_NODE = {2: 8 + 8 + 8 + 2 * 4 + 8 + 4 + 4, 3: 8 + 8 + 8 + 3 * 4 + 8 + 4 + 4}
-# Solver (solve_map): per node of the grid (map y, its extension and work copies,
-# d float64 each) and per active node (material of A plus a band; the Gauss-Newton
-# system: block-sparse Hessian of 3**d neighbour blocks of d x d float64, gradient,
-# conjugate-gradient vectors). Calibrated against measured peaks (tests/core/test_gridfit.py).
-_SOLVER_BYTES_PER_NODE_PER_DIM = 8 * 6
-_SOLVER_BYTES_PER_ACTIVE = {2: 9 * 4 * 8 + 12 * 2 * 8, 3: 27 * 9 * 8 + 12 * 3 * 8}
-_SOLVER_FIXED = 0
+# Signed distance stage (mesh_to_sdf): per grid node the unsigned and signed
+# float64 fields, EDT distances and nearest-node indices, labels, masks; plus the
+# chunked band work (candidate tables of sdf._CHUNK nodes, winding-number pair
+# lists), bounded independently of the grid. Measured with tracemalloc on a
+# 5120-triangle sphere: 64 / 89 / 115 / 145 MB at 41^3 / 57^3 / 73^3 / 105^3 nodes;
+# this model gives 70 / 76 / 86 / 123 MB.
+_SDF_BYTES_PER_NODE = {2: 40, 3: 48}
+_SDF_FIXED = 64 * 2 ** 20
+# Solver (solve_map, default options): fixed + per grid node (per dimension) + per
+# active node (material of A plus its band: the 3**d-block stencil Hessian, the
+# neighbour tables, gradient and CG vectors over all levels). Fitted to tracemalloc
+# peaks of solve_map on a sphere -> ellipsoid case (tests/core/test_gridfit.py):
+# measured 99 / 141 / 203 / 437 MB at 33^3 / 41^3 / 49^3 / 65^3 nodes, this model
+# (with the measured material fraction) 93 / 141 / 212 / 434 MB. 2D: the same
+# per-node cost, per-active scaled by the stencil size (9 vs 27 blocks of d x d),
+# not measured.
+_SOLVER_BYTES_PER_NODE_PER_DIM = 45
+_SOLVER_BYTES_PER_ACTIVE = {2: 1000, 3: 4600}
+_SOLVER_FIXED = 43_400_000
 # In-between stage: a few float64 fields per node (level sets, backward values) and
 # the map y per node.
 _INBETWEEN_BYTES_PER_NODE_PER_DIM = 8 * 3
@@ -175,7 +193,7 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
     Model (N = grid nodes, d = dimension, M = active solver nodes):
 
     - ``keyframes``: the distance grids kept for the whole bake, ``n_keyframes * N * 8``;
-    - ``sdf``: transient arrays of one `mesh_to_sdf` call, ``N * c_sdf(d)``;
+    - ``sdf``: transient arrays of one `mesh_to_sdf` call, ``N * c_sdf(d) + c_chunk``;
     - ``solver``: ``N * d * c_node + M * c_active(d)``, M = ``material_fraction * N``
       plus a band of ``band_cells`` around the material (surface ~ N^((d-1)/d));
     - ``inbetween``: ``N * (d * c_map + c_field)``.
@@ -187,8 +205,9 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
     ----------
     grid : Grid
     material_fraction : float, optional
-        Fraction of the grid inside keyframe A (0..1); default 0.25 (a fitted grid
-        around one compact object).
+        Fraction of the grid inside keyframe A (0..1), e.g. ``np.mean(phi_a < 0)``;
+        default 0.25 (a fitted grid around one compact object; `fit_grid` guesses
+        it from the keyframes' box).
     n_keyframes : int
         Distance grids held at once.
     band_cells : float
@@ -213,7 +232,7 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
         "nodes": int(N),
         "active_nodes": int(M),
         "keyframes": int(n_keyframes * N * 8),
-        "sdf": int(N * _SDF_BYTES_PER_NODE[d]),
+        "sdf": int(N * _SDF_BYTES_PER_NODE[d] + _SDF_FIXED),
         "solver": int(N * d * _SOLVER_BYTES_PER_NODE_PER_DIM + M * _SOLVER_BYTES_PER_ACTIVE[d]
                       + _SOLVER_FIXED),
         "inbetween": int(N * (d * _INBETWEEN_BYTES_PER_NODE_PER_DIM + _INBETWEEN_BYTES_PER_NODE)),

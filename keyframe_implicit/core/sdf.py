@@ -62,6 +62,7 @@ __all__ = ["mesh_to_sdf", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
 _SAMPLE_RADIUS = 1.3      # triangle points lie within this many cells of a sample
+_WORKERS = -1             # cKDTree query threads (all cores)
 _K = 16                   # nearest samples fetched per band node (more on demand)
 _MAX_LATTICE = 256        # subdivisions per triangle edge at most (delta grows beyond)
 
@@ -472,15 +473,14 @@ def _triangle_samples(v, tris, delta_target):
     A triangle is cut into n x n similar sub-triangles (barycentric lattice) and
     each sub-triangle is represented by its centroid; every point of a sub-triangle
     lies within max|centroid - corner| / n of it, and n is the smallest count that
-    brings this under ``delta_target`` (capped). Returns (points, triangle id, delta)
-    with ``delta`` the largest such radius over all triangles.
+    brings this under ``delta_target`` (capped). Returns (points, triangle id,
+    delta per triangle).
     """
     a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
     cen = (a + b + c) / 3.0
     rad = np.sqrt(np.maximum.reduce([_dot(a - cen, a - cen), _dot(b - cen, b - cen),
                                      _dot(c - cen, c - cen)]))
     n = np.clip(np.ceil(rad / delta_target).astype(np.int64), 1, _MAX_LATTICE)
-    delta = float(np.max(rad / n))
     pts, ids = [], []
     for k in np.unique(n):  # one lattice per subdivision count (a handful)
         sel = np.flatnonzero(n == k)
@@ -493,7 +493,7 @@ def _triangle_samples(v, tris, delta_target):
              + w[None, :, None] * (c[sel] - a[sel])[:, None, :])
         pts.append(p.reshape(-1, 3))
         ids.append(np.repeat(sel, len(u)))
-    return np.concatenate(pts), np.concatenate(ids), delta
+    return np.concatenate(pts), np.concatenate(ids), rad / n
 
 
 def _band_candidates(grid, samples, radius_cells):
@@ -547,45 +547,50 @@ def _nearest_sample_distance(out, nodes, grid, tree, tri, sample_tri, keep_min=F
     for s in range(0, len(nodes), 8 * _CHUNK):
         o = nodes[s:s + 8 * _CHUNK]
         x = grid.to_world(np.stack(np.unravel_index(o, grid.shape), axis=1))
-        _, si = tree.query(x, workers=-1)
+        _, si = tree.query(x, workers=_WORKERS)
         d = tri.distance(x, sample_tri[si])
         out[o] = np.minimum(out[o], d) if keep_min else d
 
 
-def _band_distance(X, tri, tree, sample_tri, delta, band_r, k=_K):
+def _band_distance(X, tri, tree, sample_tri, tri_delta, band_r, k=_K):
     """Exact unsigned distance for the points X within ``band_r`` of the surface.
 
     Returns (keep, dist, tri): ``keep`` marks the points whose distance may be <= band_r
     (nearest sample within band_r + delta), ``dist`` their exact distance, ``tri``
-    their closest triangle. If d0 is
-    the exact distance to the triangle of the nearest sample, the closest triangle
-    owns a sample within d0 + delta (module step 2), so all those are tested.
+    their closest triangle. If d0 is the exact distance to the triangle of the
+    nearest sample, the closest triangle t owns a sample within d0 + delta_t
+    (module step 2; ``tri_delta`` holds delta_t), so all those are tested: the k
+    nearest samples first, more for the rows whose k-th sample is still in reach.
     """
+    delta = float(tri_delta.max())
     k = min(k, len(tree.data))
     ds, _ = tree.query(X, k=1, distance_upper_bound=band_r + delta * (1 + 1e-9) + 1e-12,
-                       workers=-1)
+                       workers=_WORKERS)
     keep = np.isfinite(ds)
     X = X[keep]
-    dd, ii = tree.query(X, k=k, distance_upper_bound=band_r + 2 * delta + 1e-12, workers=-1)
+    dd, ii = tree.query(X, k=k, distance_upper_bound=band_r + 2 * delta + 1e-12, workers=_WORKERS)
     dd = dd.reshape(len(X), k)
     ii = ii.reshape(len(X), k)
-    d0 = tri.distance(X, sample_tri[ii[:, 0]])
-    r = d0 + delta * (1 + 1e-9) + 1e-12
-    ok = dd <= r[:, None]
-    ok[:, 0] = False  # d0 is known
-    best = d0.copy()
     best_t = sample_tri[ii[:, 0]]
+    best = tri.distance(X, best_t)
+    last = len(sample_tri) - 1
+    slack = tri_delta[sample_tri[np.minimum(ii, last)]] * (1 + 1e-9) + 1e-12
+    ok = dd <= best[:, None] + slack
+    ok[:, 0] = False  # already measured
     _refine(best, best_t, np.arange(len(X)), X, ok, ii, tri, sample_tri)
-    ok[:, 0] = True
-    # rows whose k-th neighbour is still inside the radius may have more candidates
-    more = np.flatnonzero(ok[:, -1])
+    # rows whose k-th sample is still within reach of a closer triangle may have more
+    reach = best + delta * (1 + 1e-9) + 1e-12
+    more = np.flatnonzero(dd[:, -1] <= reach)
     kk = k
     while len(more) and kk < len(tree.data):
         kk = min(kk * 4, len(tree.data))
-        dd2, ii2 = tree.query(X[more], k=kk, distance_upper_bound=float(r[more].max()), workers=-1)
-        ok2 = dd2 <= r[more, None]
+        dd2, ii2 = tree.query(X[more], k=kk, distance_upper_bound=float(reach[more].max()),
+                              workers=_WORKERS)
+        slack2 = tri_delta[sample_tri[np.minimum(ii2, last)]] * (1 + 1e-9) + 1e-12
+        ok2 = dd2 <= best[more, None] + slack2
         _refine(best, best_t, more, X, ok2, ii2, tri, sample_tri)
-        more = more[ok2[:, -1]]
+        reach = best + delta * (1 + 1e-9) + 1e-12
+        more = more[dd2[:, -1] <= reach[more]]
     return keep, best, best_t
 
 
@@ -645,7 +650,8 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     rep(0.02, "triangle samples")
 
     # 1. samples and band
-    samples, sample_tri, delta = _triangle_samples(v, tris, _SAMPLE_RADIUS * h)
+    samples, sample_tri, tri_delta = _triangle_samples(v, tris, _SAMPLE_RADIUS * h)
+    delta = float(tri_delta.max())
     tree = cKDTree(samples)
     st["samples"] = len(samples)
     band_r = band_cells * h
@@ -663,7 +669,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     for s in range(0, len(cand), _CHUNK):
         c = cand[s:s + _CHUNK]
         pts_c = grid.to_world(np.stack(np.unravel_index(c, grid.shape), axis=1))
-        kp, dist, near_t = _band_distance(pts_c, tri, tree, sample_tri, delta, band_r)
+        kp, dist, near_t = _band_distance(pts_c, tri, tree, sample_tri, tri_delta, band_r)
         keep[s:s + _CHUNK] = kp
         dist_band[s:s + _CHUNK][kp] = dist
         tri_band[s:s + _CHUNK][kp] = near_t

@@ -154,20 +154,19 @@ def rigidity_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     F = deformation_gradient(batch.Y, G)  # (E, Q, d, d)
     E, Q, d = F.shape[0], F.shape[1], F.shape[-1]
     nK = G.shape[2]
-    Ft = F.swapaxes(-1, -2)
-    R = Ft @ F - np.eye(d)
+    FFt = F @ F.swapaxes(-1, -2)
+    M = FFt - np.eye(d)  # same Frobenius norm as R = F^T F - I, and F R = M F
     w = batch.weight[:, None] * qw[None, :]  # (E, Q)
-    energy = float(np.sum(w * np.sum(R * R, axis=(-1, -2))))
-    FRG = (F @ R) @ G[None]  # (E, Q, d, K)
-    grad = 4.0 * np.einsum("eq,eqjc->ecj", w, FRG)
+    energy = float(np.sum(w * np.sum(M * M, axis=(-1, -2))))
+    B = F @ G[None]  # (E, Q, d, K)
+    grad = 4.0 * np.einsum("eq,eqjc->ecj", w, M @ B)  # F R G = M F G = M B
     hess = None
     if hessian:
         Kq = (G.swapaxes(1, 2) @ G).reshape(Q, nK * nK)  # G^T G per Gauss point
-        S = (w[:, :, None, None] * (F @ Ft)).reshape(E, Q, d * d)
+        S = (w[:, :, None, None] * FFt).reshape(E, Q, d * d)
         # sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
         hess = (Kq.T[None] @ S).reshape(E, nK, nK, d, d)
         # sum_q w B[j', c] B[j, c']: Gram matrix over q of V[(c, j')] = sqrt(w) B[j', c]
-        B = F @ G[None]  # (E, Q, d, K)
         V = (np.sqrt(w)[:, :, None, None] * B).transpose(0, 3, 2, 1).reshape(E, nK * d, Q)
         t2 = (V @ V.transpose(0, 2, 1)).reshape(E, nK, d, nK, d)  # (e, c, j', c', j)
         hess += t2.transpose(0, 1, 3, 4, 2)

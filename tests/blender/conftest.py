@@ -20,7 +20,10 @@ RES = 20
 @pytest.fixture
 def scene():
     keyframe_implicit.unregister()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    # Factory *scene* only: read_factory_settings would also reset the preferences, and in a
+    # real Blender that disables the installed extension and deletes its scipy/scikit-image
+    # wheels from the extensions' site-packages (Blender keeps that folder in sync).
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True, load_ui=False)
     keyframe_implicit.register()
     yield bpy.context.scene
     keyframe_implicit.unregister()

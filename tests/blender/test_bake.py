@@ -119,15 +119,17 @@ def test_cancel_mid_bake_leaves_scene_unchanged(scene, kfi):
     messages = []
 
     def observer(job, fraction, message):
-        messages.append(message)
-        job.cancel()  # exactly what ESC does in the modal operator
+        messages.append((fraction, message))
+        if fraction > 0.0:  # the first stage is under way: cancel mid-bake
+            job.cancel()  # exactly what ESC does in the modal operator
 
     job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
                        on_progress=observer)
     job.start()  # worker thread, as from invoke()
     job.join(120)
     assert job.finished and job.state == bake.CANCELLED
-    assert len(messages) >= 1
+    assert messages and messages[-1][0] > 0.0 and job.fraction < 1.0  # stopped part way
+    assert job.result is None and job.error is None
     with pytest.raises(RuntimeError):
         job.apply(scene)
     assert kfi.snapshot() == state

@@ -35,12 +35,17 @@ def test_cli_main_reports_setup_errors(scene, tmp_path, capsys):
     assert not (tmp_path / "o.blend").exists()
 
 
-def test_cli_subprocess_missing_file_exits_nonzero(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "keyframe_implicit", "bake",
-                           str(tmp_path / "nope.blend"), "--out", str(tmp_path / "o.blend")],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 1
-    assert "No such file" in proc.stderr
+def test_cli_bad_paths_and_arguments_exit_nonzero(tmp_path, capsys):
+    assert cli.main(["bake", str(tmp_path / "nope.blend"), "--out", str(tmp_path / "o.blend")]) == 1
+    assert "No such file" in capsys.readouterr().err
+    src = tmp_path / "x.blend"
+    src.write_bytes(b"")
+    assert cli.main(["bake", str(src), "--out", str(tmp_path / "missing" / "o.blend")]) == 1
+    assert "does not exist: create it first" in capsys.readouterr().err
+
+
+def test_cli_entry_point_usage_error_in_a_subprocess(tmp_path):
+    # `python -m keyframe_implicit` itself (argument errors need neither bpy nor the core)
     proc = subprocess.run([sys.executable, "-m", "keyframe_implicit", "bake"], cwd=ROOT,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "--out" in proc.stderr

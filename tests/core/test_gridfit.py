@@ -60,7 +60,9 @@ def test_estimate_grows_with_the_grid_and_adds_up():
     for est in (small, big):
         assert est["peak"] == est["keyframes"] + max(est["sdf"], est["solver"], est["inbetween"])
     ratio = big["nodes"] / small["nodes"]
-    assert 0.5 * ratio < big["peak"] / small["peak"] <= ratio * 1.01
+    assert big["peak"] > small["peak"]
+    for stage in ("keyframes", "solver", "inbetween"):  # array sizes: linear in the nodes at most
+        assert 0.5 * ratio < big[stage] / small[stage] <= ratio * 1.01
     more = estimate_memory(fit_grid(pts, 32), material_fraction=0.8)
     assert more["solver"] > big["solver"] and more["active_nodes"] > big["active_nodes"]
     with pytest.raises(ValueError, match="material_fraction"):
@@ -69,11 +71,11 @@ def test_estimate_grows_with_the_grid_and_adds_up():
 
 def test_oversized_request_fails_before_any_work_and_names_what_fits():
     pts = np.array([[0, 0, 0], [2.0, 1.0, 1.0]])
-    limit = estimate_memory(fit_grid(pts, 100))["peak"]
+    limit = estimate_memory(fit_grid(pts, 100), material_fraction=0.3)["peak"]
     tracemalloc.start()
     try:
         with pytest.raises(MemoryLimitError) as info:
-            fit_grid([pts], 2000, max_bytes=limit)  # ~ 2000 x 1000 x 1000 nodes
+            fit_grid([pts], 2000, max_bytes=limit, material_fraction=0.3)  # ~ 2000 x 1000 x 1000 nodes
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
@@ -83,14 +85,22 @@ def test_oversized_request_fails_before_any_work_and_names_what_fits():
     fits = err.max_resolution
     assert re.search(rf"largest resolution that fits is {fits}\b", str(err))
     assert "lower the resolution" in str(err)
-    assert estimate_memory(fit_grid(pts, fits))["peak"] <= limit
-    assert estimate_memory(fit_grid(pts, fits + 1))["peak"] > limit
+    assert estimate_memory(fit_grid(pts, fits), material_fraction=0.3)["peak"] <= limit
+    assert estimate_memory(fit_grid(pts, fits + 1), material_fraction=0.3)["peak"] > limit
     assert fits in (99, 100)  # the limit was the estimate at resolution 100
     # within the limit: the grid comes back
-    assert isinstance(fit_grid(pts, fits, max_bytes=limit), Grid)
+    assert isinstance(fit_grid(pts, fits, max_bytes=limit, material_fraction=0.3), Grid)
     # nothing fits at all
     with pytest.raises(MemoryLimitError, match="raise the memory limit"):
         fit_grid(pts, 50, max_bytes=1000)
+    # without a material fraction the keyframes' box gives one: a grid padded around a
+    # box gets a smaller guess (and estimate) than a tight one
+    loose = fit_grid(pts, 40, padding_cells=20)
+    tight = fit_grid(pts, 40, padding_cells=0)
+    from keyframe_implicit.core.gridfit import _box_fraction
+    f_loose = _box_fraction(pts.min(0), pts.max(0), loose)
+    f_tight = _box_fraction(pts.min(0), pts.max(0), tight)
+    assert 0 < f_loose < f_tight <= 0.5
 
 
 def test_check_memory_on_a_given_grid():
@@ -100,3 +110,47 @@ def test_check_memory_on_a_given_grid():
     with pytest.raises(MemoryLimitError, match="largest that fits has") as info:
         check_memory(g, est["peak"] // 4)
     assert info.value.max_resolution < 200
+
+
+_MEASURE = r"""
+import json, sys, tracemalloc
+import numpy as np
+from keyframe_implicit.core import estimate_memory, fit_grid, solve_map
+
+out = []
+for res in (24, 40):
+    c, R = np.array([0.5, 0.5, 0.5]), 0.3
+    ax = np.array([1.3, 1 / np.sqrt(1.3), 1 / np.sqrt(1.3)]) * R
+    g = fit_grid([np.array([c - 1.3 * R, c + 1.3 * R])], res, padding_cells=4)
+    P = g.points()
+    phi_a = np.linalg.norm(P - c, axis=-1) - R                    # sphere
+    k0 = np.linalg.norm((P - c) / ax, axis=-1)
+    k1 = np.linalg.norm((P - c) / ax ** 2, axis=-1)
+    phi_b = k0 * (k0 - 1) / np.maximum(k1, 1e-12)                 # equal-volume ellipsoid
+    dirs = np.vstack([np.eye(3), -np.eye(3)])
+    tracemalloc.start()
+    solve_map(phi_a, phi_b, g, c + R * dirs, c + ax * dirs)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    est = estimate_memory(g, material_fraction=float(np.mean(phi_a < 0)))
+    out.append(dict(nodes=g.size, peak=peak, solver=est["solver"]))
+print(json.dumps(out))
+"""
+
+
+def test_solver_estimate_within_30_percent_of_measured_peak_at_two_sizes():
+    """The memory model predicts solve_map's peak (tracemalloc, fresh process) at 33^3 and 49^3."""
+    import json
+    import pathlib
+    import subprocess
+    import sys
+
+    root = pathlib.Path(__file__).resolve().parents[2]
+    run = subprocess.run([sys.executable, "-c", _MEASURE], cwd=root, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr
+    rows = json.loads(run.stdout.strip().splitlines()[-1])
+    assert [r["nodes"] for r in rows] == [33 ** 3, 49 ** 3]
+    for r in rows:
+        assert abs(r["solver"] - r["peak"]) <= 0.3 * r["peak"], r
+    assert rows[1]["peak"] > 1.5 * rows[0]["peak"]  # the two sizes really differ

@@ -65,3 +65,20 @@ def test_bad_times_are_refused(rigid_track):
         track_template(ib, [0.0, 1.2])
     with pytest.raises(ValueError, match="empty"):
         track_template(ib, [])
+
+
+def test_2d_template_is_closed_loops_on_every_frame():
+    from inbetween_cases import bend_case
+
+    grid, phi_a, phi_b, mapped, _ = bend_case(d=2, n=40)
+    ib = Inbetween.from_map(phi_a, phi_b, grid, mapped)
+    tr = track_template(ib, np.linspace(0.0, 1.0, 7))
+    assert tr.faces.shape[1] == 2 and tr.vertices.shape[2] == 2
+    # closed: every vertex starts one segment and ends one
+    assert np.array_equal(np.sort(tr.faces[:, 0]), np.arange(tr.vertices.shape[1]))
+    assert np.array_equal(np.sort(tr.faces[:, 1]), np.arange(tr.vertices.shape[1]))
+    assert max(tr.stats["max_abs_phi"]) <= 0.1 * grid.spacing
+    # the farthest point (the pole of the right cap, 0.72 from the joint) travels
+    # 0.72 * (pi / 2) / 6 per frame on its arc; no vertex moves more than that
+    step = np.linalg.norm(np.diff(tr.vertices, axis=0), axis=2).max()
+    assert step <= 1.03 * 0.72 * (np.pi / 2) / 6

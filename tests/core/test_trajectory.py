@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from inbetween_cases import bend_case, rigid_case
+from inbetween_cases import bend_case, merge_case, rigid_case
 from keyframe_implicit.core.grid import Grid
 from keyframe_implicit.core.trajectory import Trajectories, polar, rotation_exp, rotation_log
 
@@ -49,6 +49,18 @@ def test_paths_end_exactly_at_the_map_for_a_non_rigid_map():
     a = traj.positions(0.5)
     b = traj.positions(0.5 + 1e-3)
     assert np.abs(b - a).max() < 4e-3  # speed < 4 world units per unit s on this box
+
+
+def test_folded_cells_keep_paths_finite_and_straight_for_a_squeeze():
+    # the merge map presses the two balls into each other along x: cells in between
+    # fold; a pure squeeze has no rotation, so every path is the straight one
+    grid, phi_a, _, mapped, _ = merge_case(d=2, n=40, gap=0.12, overlap=0.04)
+    traj = Trajectories(grid, mapped, phi_a < 0)
+    assert traj.stats["folded_cells"] > 0
+    x = grid.points()
+    for s in (0.3, 0.7):
+        np.testing.assert_allclose(traj.positions(s), (1 - s) * x + s * mapped, atol=1e-9)
+    np.testing.assert_array_equal(traj.positions(1.0), mapped)
 
 
 def _joint_span(method, s):
