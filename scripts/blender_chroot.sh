@@ -7,21 +7,27 @@
 # 1. Makes the chroot once, or reuses it: $KFI_CHROOT (default
 #    /var/cache/keyframe_implicit/trixie, outside the clone): debootstrap --variant=minbase
 #    trixie, then apt-get install --no-install-recommends blender python3-numpy python3-pytest
-#    (numpy is what Blender's own builds bundle; Debian packages it separately).
+#    and an EGL/Mesa GL driver (numpy is what Blender's own builds bundle, Debian packages it
+#    separately; without a GL driver Workbench/EEVEE renders abort Blender).
 #    No scipy or scikit-image in the chroot: those come from the zip's wheels.
 # 2. Builds the linux-x64 zip (scripts/build_extension.py, with the project venv).
+#    Test-only requirements (requirements-dev.txt minus bpy/numpy/scipy/scikit-image/pytest)
+#    are installed as cp313 wheels into a directory of their own.
 # 3. Copies the checkout and the zip into the chroot, with a fresh HOME (an empty Blender
 #    profile), installs the zip with Blender's own
 #      blender --command extension install-file -r user_default -e ZIP
 #    and checks in a normal start-up that the add-on is enabled and scipy/scikit-image load
 #    from the unpacked cp313 wheels.
-# 4. Runs the tests in that Blender through tests/blender_runner.py; scipy and scikit-image
-#    come from the extension's wheels there too (Blender puts their site-packages on sys.path).
+# 4. Runs the tests in that Blender through tests/blender_runner.py, with another fresh HOME;
+#    scipy and scikit-image come from a copy of the site-packages Blender unpacked from the
+#    zip's wheels in step 3 (KFI_TEST_SITE): Blender itself deletes its unpacked copy when the
+#    tests' factory resets leave the extension disabled.
 # Exit status: non-zero on any failure, else pytest's.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 CHROOT="${KFI_CHROOT:-/var/cache/keyframe_implicit/trixie}"
-PACKAGES="blender python3-numpy python3-pytest"
+# libegl1 + Mesa: a GL driver (software llvmpipe here) for Workbench/EEVEE renders in -b.
+PACKAGES="blender python3-numpy python3-pytest libegl1 libegl-mesa0 libgl1-mesa-dri"
 MIRROR="${KFI_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 log() { echo "[blender_chroot] $*" >&2; }
 
@@ -32,9 +38,9 @@ fi
 
 # ---- 1. the chroot -------------------------------------------------------------------
 stamp="$CHROOT/.kfi-stamp"
-if [ ! -x "$CHROOT/usr/bin/blender" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$PACKAGES" ]; then
+if [ ! -x "$CHROOT/usr/bin/blender" ]; then
   t0=$(date +%s)
-  log "making the trixie chroot in $CHROOT (first run: ~1-2 min, ~1.7 GB)"
+  log "making the trixie chroot in $CHROOT (first run: ~1-2 min, ~1.8 GB)"
   command -v debootstrap >/dev/null || { apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null; }
   rm -rf "$CHROOT.tmp"
   mkdir -p "$(dirname "$CHROOT")"
@@ -45,6 +51,12 @@ if [ ! -x "$CHROOT/usr/bin/blender" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$PA
   rm -rf "$CHROOT"
   mv "$CHROOT.tmp" "$CHROOT"
   log "chroot ready in $(( $(date +%s) - t0 )) s"
+elif [ "$(cat "$stamp" 2>/dev/null)" != "$PACKAGES" ]; then
+  log "updating the packages of $CHROOT"
+  chroot "$CHROOT" apt-get update -qq
+  chroot "$CHROOT" apt-get install -y -qq --no-install-recommends $PACKAGES >/dev/null
+  chroot "$CHROOT" apt-get clean
+  echo "$PACKAGES" > "$stamp"
 fi
 
 # ---- 2. the zip ----------------------------------------------------------------------
@@ -57,14 +69,30 @@ trap 'rm -rf "$run"' EXIT
   python scripts/build_extension.py --platform linux-x64 --out "$run/dist" --build-dir "$run/build" >&2
 )
 zip_name="$(cd "$run/dist" && ls keyframe_implicit-*-linux_x64.zip)"
+# Test-only dependencies of requirements-dev.txt that neither Blender, the zip nor the
+# chroot provide (e.g. matplotlib), as cp313 wheels for the chroot's Python, with the
+# chroot's numpy as a constraint and numpy itself removed again (Debian's stays in use).
+(
+  source "$ROOT/scripts/env.sh"
+  reqs=$(grep -v -E '^\s*(#|$)' "$ROOT/requirements-dev.txt" \
+         | grep -v -i -E '^(bpy|numpy|scipy|scikit-image|pytest)\b' || true)
+  if [ -n "$reqs" ]; then
+    echo "numpy==$(chroot "$CHROOT" python3 -c 'import numpy; print(numpy.__version__)')" > "$run/numpy-pin.txt"
+    python -m pip install --quiet --no-warn-conflicts --target "$run/testdeps" --only-binary=:all: --implementation cp \
+      --python-version 3.13 --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 \
+      --platform manylinux2014_x86_64 -c "$run/numpy-pin.txt" $reqs 2>&1 | grep -v 'is ignored: it is neither' >&2 || true
+    rm -rf "$run/testdeps"/numpy "$run/testdeps"/numpy-* "$run/testdeps"/numpy.libs "$run/testdeps/bin"
+    [ -n "$(ls -A "$run/testdeps" 2>/dev/null)" ] || { log "installing the test-only requirements failed: $reqs"; exit 1; }
+  fi
+)
 
 # ---- 3. install with Blender's own CLI ---------------------------------------------------
 mkdir -p "$run/src" "$run/home"
 tar -C "$ROOT" --exclude=./.git --exclude=./dist --exclude=./build --exclude=./out \
     --exclude='__pycache__' --exclude='.pytest_cache' -cf - . | tar -C "$run/src" -xf -
 in_chroot() {
-  chroot "$CHROOT" /usr/bin/env -i HOME="$inside/home" PATH=/usr/sbin:/usr/bin:/sbin:/bin \
-    LANG=C.UTF-8 KFI_EXTENSION_ZIP="$inside/dist/$zip_name" "$@"
+  chroot "$CHROOT" /usr/bin/env -i HOME="${KFI_HOME:-$inside/home}" PATH=/usr/sbin:/usr/bin:/sbin:/bin \
+    LANG=C.UTF-8 KFI_EXTENSION_ZIP="$inside/dist/$zip_name" ${KFI_TEST_SITE:+KFI_TEST_SITE=$KFI_TEST_SITE} "$@"
 }
 log "$(in_chroot blender --version 2>/dev/null | head -1), installing $zip_name"
 in_chroot blender --command extension install-file -r user_default -e "$inside/dist/$zip_name"
@@ -81,6 +109,12 @@ print("[blender_chroot] enabled:", name, "| Python", sys.version.split()[0], "| 
 ' 2>&1 | grep -E '^\[blender_chroot\]|Error|error' >&2
 
 # ---- 4. the tests in that Blender --------------------------------------------------------
+site=( "$run"/home/.config/blender/*/extensions/.local/lib/python3*/site-packages )
+[ -d "${site[0]}" ] || { log "no unpacked wheels under $run/home after install-file"; exit 1; }
+cp -a "${site[0]}" "$run/testsite"
+mkdir -p "$run/home-tests"
+export KFI_HOME="$inside/home-tests" KFI_TEST_SITE="$inside/testsite"
+[ -d "$run/testdeps" ] && KFI_TEST_SITE="$KFI_TEST_SITE:$inside/testdeps"
 set +e
 [ $# -gt 0 ] || set -- -q tests
 in_chroot /bin/sh -c 'cd "$0" && exec blender -b --factory-startup --python-exit-code 1 \

@@ -8,16 +8,20 @@ What this runner does to Blender's Python, and nothing more:
 
 - puts the checkout's root first on ``sys.path`` so the tests import this
   checkout's ``keyframe_implicit`` (the add-on itself never changes ``sys.path``);
+- puts the directories of ``$KFI_TEST_SITE`` (``os.pathsep``-separated) right after
+  it: where the tests' third-party modules live when that Blender has none of its own;
 - makes ``pytest`` importable if Blender's Python lacks it: from
   ``$KFI_PYTEST_DIR`` if set, else by ``pip install --target`` into
   ``~/.cache/keyframe_implicit/pytest-py3XX`` once (Blender's official builds bundle
   pip; distribution builds can use their ``python3-pytest`` package instead).
 
-scipy and scikit-image must be importable in that Blender, as for the add-on:
-the simplest way is to install the extension zip first
-(``blender --command extension install-file -r user_default -e ZIP``), whose
-wheels Blender unpacks into the user extensions' ``site-packages`` and puts on
-``sys.path`` at startup, even with ``--factory-startup``.
+scipy and scikit-image must be importable in that Blender. Installing the
+extension zip (``blender --command extension install-file -r user_default -e ZIP``)
+unpacks its wheels into the user extensions' ``site-packages``, which Blender puts on
+``sys.path`` at startup, but Blender also removes them again as soon as the
+preferences no longer enable the extension, which is what the Blender-side tests'
+factory resets do. So copy that ``site-packages`` elsewhere and pass it as
+``KFI_TEST_SITE`` (scripts/blender_chroot.sh does exactly this).
 
 The process exits with pytest's exit code (5 when no test was collected).
 """
@@ -60,7 +64,11 @@ def _ensure_pytest():
 
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    sys.path.insert(0, str(ROOT))
+    extra = [p for p in os.environ.get("KFI_TEST_SITE", "").split(os.pathsep) if p]
+    for path in extra:
+        if not os.path.isdir(path):
+            raise SystemExit(f"[blender_runner] KFI_TEST_SITE entry {path!r} is not a directory.")
+    sys.path[:0] = [str(ROOT), *extra]
     _ensure_pytest()
     import bpy
     import pytest
