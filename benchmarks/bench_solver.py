@@ -14,6 +14,18 @@ the input grids).
     python benchmarks/bench_solver.py --features --sizes 64 128   # det F near features
 
 Each size runs in its own process so that peak memory is per size.
+
+Measured 2026-11-22 on the shared 2-core machine (load average 3-5 from other
+jobs, so times are inflated; run it again on a quiet machine):
+
+    n^3   active   unknowns  total s  assembly  lin.solve  GN it (fine)  min detF  max|detF-1|  peak MiB
+    32     9328     26886     1.82      0.94      0.37       3            0.868     0.074         173
+    48    23672     67182     4.22      2.18      0.63       2            0.866     0.101         268
+    64    48416    136446     9.17      4.39      1.97       2            0.838     0.105         498
+    96   140624    395286    24.02      9.10      7.95       2            0.806     0.123        1186
+    128  306504    863046    59.30     22.56     17.96       2            0.791     0.126        2456
+
+Feature residual below 3e-14 h everywhere.
 Targets (2-core machine): 32^3 <= 1 s, 64^3 <= 5 s, 96^3 <= 25 s,
 128^3 <= 2 min, peak memory <= 3 GB.
 """
