@@ -372,8 +372,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     t0 = time.perf_counter()
     E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
     timing["assembly"] += time.perf_counter() - t0
-    mind, _ = level.det_stats(y, chunk)
-    folded = int(np.sum(mind <= 0))
+    dets = level.det_stats(y, chunk)
+    folded = int(np.sum(dets[0] <= 0))
     history = [dict(energy=E, **terms)]
     it = 0
     cg_total = 0
@@ -406,8 +406,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             y_new = y + alpha * dy
             E_new, terms_new, _, _ = level.evaluate(y_new, weights, chunk, hessian=False)
             if E_new <= E + 1e-4 * alpha * slope:
-                mind_new, _ = level.det_stats(y_new, chunk)
-                folded_new = int(np.sum(mind_new <= 0))
+                dets_new = level.det_stats(y_new, chunk)
+                folded_new = int(np.sum(dets_new[0] <= 0))
                 if folded_new <= folded:
                     accepted = True
                     break
@@ -416,7 +416,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         if not accepted:
             break
         rel = (E - E_new) / max(E, 1e-300)
-        y, folded = y_new, folded_new
+        y, folded, dets, terms = y_new, folded_new, dets_new, terms_new
         history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **terms_new))
         E = E_new
         if rel < tolerance or it == max_iterations:
@@ -424,7 +424,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         t0 = time.perf_counter()
         E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
         timing["assembly"] += time.perf_counter() - t0
-    return y, history, len(history) - 1, cg_total
+    return y, history, len(history) - 1, cg_total, dets, terms
 
 
 def _extend(full, known, passes):
@@ -608,7 +608,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
         level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad)
         y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
         timing["setup"] += time.perf_counter() - t0
-        y, history, iters, cg_total = _solve_level(level, y, weights, options, int(max_iterations),
+        y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),
                                                    float(tolerance), lrep, timing)
         t0 = time.perf_counter()
         full = y_start_full.reshape(-1, d).copy()
@@ -625,8 +625,8 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, volume_weight=30.0,
             break
     mapped = y0 + corr_prev
     # finest-level figures
-    mind, cdet = level.det_stats(y, int(options["chunk_elements"]))
-    E, terms, _, _ = level.evaluate(y, weights, int(options["chunk_elements"]), hessian=False)
+    mind, cdet = dets  # of the last accepted iterate, no re-evaluation
+    E = float(sum(terms.values()))
     res = level.cons.residual(y)
     rep(1.0, "Volume map done")
     stats = dict(
