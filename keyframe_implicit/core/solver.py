@@ -62,8 +62,8 @@ extension of the solved correction (never NaN). Measured on the 2D merge case
     ===========  ========  ============  ===========  ============  =========
 
 Without a band (0) the nodes on the material boundary are held by nothing
-but their inner cells and the map folds there (min det F < 0; the line
-search only forbids *new* folds, and the coarse level had already folded);
+but their inner cells and the map folds there (min det F < 0 at the fine
+level; the line search only forbids folds that are not there yet)
 (earlier runs of the same case, before ``reuse_hessian``: 0.180 / 0.695 /
 0.556 min det F for band weight 0 / 0.1 / 1 -- the ranking is stable); a
 full-weight band (1) makes the empty gap between the discs resist the merge
