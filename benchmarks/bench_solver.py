@@ -14,6 +14,18 @@ the input grids).
     python benchmarks/bench_solver.py --features --sizes 64 128   # det F near features
 
 Each size runs in its own process so that peak memory is per size.
+
+Measured 2026-11-22 04:19 UTC on the shared 2-core machine (load average
+3-5 from other jobs, so times are inflated; run it again on a quiet machine):
+
+    n^3   active   unknowns  total s  assembly  lin.solve  line search  GN it (levels)        min detF  max|detF-1|  peak MiB
+    32     9328     26886     1.34      0.35      0.65       0.20        32:2                  0.877     0.086         150
+    48    23672     67182     2.77      1.07      0.85       0.46        25:2 48:2             0.869     0.105         225
+    64    48416    136446     6.33      2.39      1.80       1.21        33:4 64:2             0.841     0.120         382
+    96   140624    395286    15.72      3.49      6.18       3.71        25:4 49:2 96:2        0.809     0.129         901
+    128  306504    863046    45.67     11.78     16.52       8.34        33:2 65:2 128:2       0.792     0.129        1894
+
+Feature residual below 3e-14 h everywhere.
 Targets (2-core machine): 32^3 <= 1 s, 64^3 <= 5 s, 96^3 <= 25 s,
 128^3 <= 2 min, peak memory <= 3 GB.
 """

@@ -355,3 +355,25 @@ def test_prolongation_equals_multilinear_sampling_of_the_coarse_level():
         assert coarse.spacing == 2 * g.spacing and np.all(coarse.upper >= g.upper)
         f = np.random.default_rng(0).normal(size=coarse.shape + (len(shape),))
         assert np.allclose(_prolong(f, g.shape), sample(f, coarse, g.points()), atol=1e-12)
+
+
+def test_a_fourth_term_is_one_function_and_one_registry_entry(monkeypatch):
+    """The recipe of core/terms.py: write the function, append a Term; solve_map takes its weight."""
+    from keyframe_implicit.core import solver, terms
+
+    calls = []
+
+    def pull_term(batch, hessian=True):  # sum of squared displacement from the cell corners' mean
+        calls.append(len(batch.Y))
+        r = batch.Y - batch.Y.mean(axis=1, keepdims=True)
+        w = batch.weight[:, None, None]
+        tv = terms.volume_term(batch, hessian)  # reuse shapes: zero contribution below
+        return terms.TermValue(0.0 * float(np.sum(w * r * r)), 0.0 * tv.grad, None if tv.hess is None else 0.0 * tv.hess)
+
+    monkeypatch.setattr(solver, "TERMS", terms.TERMS + (terms.Term("pull", "pull_weight", "element", pull_term),))
+    g, phi_a, phi_b, fa, fb = _two_discs(24)
+    res = solve_map(phi_a, phi_b, g, fa, fb, pull_weight=2.0)
+    assert calls and "pull" in res.stats["terms"] and res.stats["weights"]["pull"] == 2.0
+    assert "pull" in res.stats["history"][0]
+    with pytest.raises(ValueError, match="unknown option"):
+        solve_map(phi_a, phi_b, g, fa, fb, push_weight=1.0)
