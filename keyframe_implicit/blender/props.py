@@ -15,6 +15,8 @@ from bpy.props import (
     StringProperty,
 )
 
+from ..core.solver import DEFAULT_WEIGHTS
+
 
 def _is_mesh(_self, obj):
     return obj is not None and obj.type == "MESH"
@@ -48,15 +50,15 @@ class KFI_Settings(bpy.types.PropertyGroup):
     )
     # Weights of the three terms of thesis eq. 2.6 (core/terms.py).
     volume_weight: FloatProperty(
-        name="Volume", default=1.0, min=0.0, soft_max=10.0,
+        name="Volume", default=DEFAULT_WEIGHTS["volume"], min=0.0, soft_max=100.0,
         description="Weight of the volume term (det F - 1)^2: keeps the volume of every part",
     )
     rigidity_weight: FloatProperty(
-        name="Rigidity", default=1.0, min=0.0, soft_max=10.0,
+        name="Rigidity", default=DEFAULT_WEIGHTS["rigidity"], min=0.0, soft_max=100.0,
         description="Weight of the rigidity term ||F^T F - I||^2: rigid parts move rigidly",
     )
     levelset_weight: FloatProperty(
-        name="Level Set", default=1.0, min=0.0, soft_max=10.0,
+        name="Level Set", default=DEFAULT_WEIGHTS["levelset"], min=0.0, soft_max=100.0,
         description="Weight of the level-set term: the mapped surface of keyframe A lands on keyframe B",
     )
     output_collection: StringProperty(

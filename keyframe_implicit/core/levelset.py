@@ -51,7 +51,7 @@ from .trajectory import Trajectories
 
 __all__ = ["Inbetween", "inbetween", "inverse_lookup", "idw_resample"]
 
-_TRAJ_OPTIONS = ("trajectory_method", "band", "band_weight")
+_TRAJ_OPTIONS = ("trajectory_method", "trajectory_band", "trajectory_band_weight")
 _LS_OPTIONS = ("resample", "idw_radius", "newton_steps", "interpolation")
 
 
@@ -355,7 +355,8 @@ class Inbetween:
     # ------------------------------------------------------------------
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, material=None, components=None,
-                 trajectory_method="global", band=4.0, band_weight=0.1, resample="splat",
+                 trajectory_method="global", trajectory_band=4.0, trajectory_band_weight=0.1,
+                 resample="splat",
                  idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
                  map_result=None):
         """In-betweens from a given map y(x).
@@ -373,10 +374,12 @@ class Inbetween:
             Labels of A's material components (see `Trajectories`).
         trajectory_method : {"global", "local"}
             See `trajectory.Trajectories`.
-        band : float
+        trajectory_band : float
             Cells around the material that carry trajectories and values; also
-            sets the far-field value ``band * h``.
-        band_weight : float
+            sets the far-field value ``trajectory_band * h``. (Named apart from
+            the solver's ``band_cells`` / ``band_weight``, which `inbetween`
+            passes on to `solve_map`.)
+        trajectory_band_weight : float
             Weight of band cells in the trajectory solve.
         resample : {"splat", "idw"}
             How scattered values return to the grid (module docstring).
@@ -400,7 +403,7 @@ class Inbetween:
             material = phi_a < 0
         t0 = time.perf_counter()
         traj = Trajectories(grid, mapped, material, components, method=trajectory_method,
-                            band=band, band_weight=band_weight)
+                            band=trajectory_band, band_weight=trajectory_band_weight)
         st = dict(stats or {})
         st["trajectory_setup_seconds"] = time.perf_counter() - t0
         return cls(phi_a, phi_b, grid, mapped, traj, resample=resample, idw_radius=idw_radius,
@@ -500,7 +503,7 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         Feature points of A and their targets in B.
     progress, cancel : callables, optional (see `progress.Reporter`).
     **options
-        ``trajectory_method``, ``band``, ``band_weight``, ``resample``,
+        ``trajectory_method``, ``trajectory_band``, ``trajectory_band_weight``, ``resample``,
         ``idw_radius``, ``newton_steps`` go to `Inbetween.from_map`; all
         others are passed to `solve_map`.
 

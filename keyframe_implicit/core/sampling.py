@@ -125,10 +125,14 @@ def _sample(field, grid, points, outside, gradient):
         dfac[:, :, a] = np.where(corners[None, :, a] == 1, 1.0, -1.0)
         grad[:, a] = np.sum(vals * np.prod(dfac, axis=-1), axis=1) / grid.spacing
     if outside == "distance":
-        with np.errstate(invalid="ignore", divide="ignore"):
-            unit = np.where(dist[:, None] > 0, off / np.maximum(dist, 1e-300)[:, None], 0.0)
-        # along a clamped axis the interpolant is flat; the distance term supplies the slope
+        # Along a clamped axis the interpolant is flat and the distance term supplies
+        # the slope. Decide "clamped" from the index (not from dist > 0, which rounding
+        # makes true for points inside the box) and take the slope per clamped axis.
         u = grid.to_index(p)
-        clamped_axis = (u < 0) | (u > np.asarray(grid.shape) - 1)
+        tol = 1e-9  # in cells: a node on the box's face is inside, whatever the rounding
+        clamped_axis = (u < -tol) | (u > np.asarray(grid.shape) - 1 + tol)
+        off = np.where(clamped_axis, off, 0.0)
+        dist = np.linalg.norm(off, axis=-1)
+        unit = np.divide(off, dist[:, None], out=np.zeros_like(off), where=dist[:, None] > 0)
         grad = np.where(clamped_axis, 0.0, grad) + unit
     return value, grad.reshape(lead + (grid.dim,))

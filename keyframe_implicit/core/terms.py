@@ -196,22 +196,8 @@ def levelset_term(batch: NodeBatch, hessian: bool = True) -> TermValue:
 
 
 def _sample_sdf(psi, grid, y):
-    """Multilinear Psi and its gradient at y; outside the grid box Psi grows as the distance to it.
-
-    (Same convention as ``sample_with_gradient(..., outside="distance")``, but
-    the outward slope is only added for points truly outside the box, so
-    rounding noise inside the box cannot add a spurious unit vector.)
-    """
-    value, grad = sample_with_gradient(psi, grid, y, outside="clamp")
-    clamped = np.clip(y, grid.origin, grid.upper)
-    off = y - clamped
-    dist = np.linalg.norm(off, axis=-1)
-    out = dist > 1e-9 * grid.spacing
-    if np.any(out):
-        value = value + np.where(out, dist, 0.0)
-        grad = np.where(off != 0, 0.0, grad)  # the clamped interpolant is flat across the box face
-        grad = grad + np.where(out[:, None], off / np.where(out, dist, 1.0)[:, None], 0.0)
-    return value, grad
+    """Multilinear Psi and its gradient at y; outside the grid box Psi grows as the distance to it."""
+    return sample_with_gradient(psi, grid, y, outside="distance")
 
 
 #: The terms of eq. 2.6 in evaluation order. Append a `Term` to add one.

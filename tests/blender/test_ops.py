@@ -187,5 +187,12 @@ def test_property_group_contract(scene):
         assert name in s.bl_rna.properties, name
     item = s.keyframes.add()
     assert {"object", "frame"} <= set(item.bl_rna.properties.keys())
-    assert s.weights() == {"volume": 1.0, "rigidity": 1.0, "levelset": 1.0}
+    # the panel starts from the solver's measured weights, not a guess of its own
+    from keyframe_implicit.core.solver import solve_map
+    import inspect
+
+    sig = inspect.signature(solve_map).parameters
+    assert s.weights() == {k: sig[f"{k}_weight"].default for k in ("volume", "rigidity", "levelset")}
+    assert s.weights() == {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
     assert "DEFAULT_CLOSED" in panel.KFI_PT_advanced.bl_options
+

@@ -58,3 +58,22 @@ def test_vector_field_sampling():
     g = Grid(origin=(0.0, 0.0), spacing=1.0, shape=(3, 3))
     y = g.points() * 2.0
     np.testing.assert_allclose(sample(y, g, np.array([[0.5, 1.5]])), [[1.0, 3.0]])
+
+
+def test_distance_extension_gradient_inside_is_the_interpolant_gradient():
+    # points inside the box whose world -> index round trip is inexact must not get
+    # the outward unit vector of the extension added to their gradient
+    g = Grid(origin=(-0.37, 0.11, 0.29), spacing=0.1 / 3, shape=(7, 6, 5))
+    a = np.array([-0.44, 0.3, 0.9])
+    field = g.points() @ a
+    pts = g.points().reshape(-1, 3)  # on nodes, including the box faces
+    _, grad = sample_with_gradient(field, g, pts, outside="distance")
+    np.testing.assert_allclose(grad, np.broadcast_to(a, grad.shape), atol=1e-9)
+
+
+def test_distance_extension_gradient_outside_points_away_from_the_box():
+    g = Grid(origin=(0.0, 0.0), spacing=1.0, shape=(4, 4))
+    field = np.zeros(g.shape)
+    v, grad = sample_with_gradient(field, g, np.array([[5.0, 1.5], [-2.0, -2.0]]), outside="distance")
+    np.testing.assert_allclose(v, [2.0, np.sqrt(8.0)])
+    np.testing.assert_allclose(grad, [[1.0, 0.0], [-np.sqrt(0.5), -np.sqrt(0.5)]], atol=1e-12)
