@@ -85,7 +85,8 @@ def _multilinear(u, corners=None):
     return w, dw
 
 
-def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=3, tol=1e-6):
+def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
+                   max_candidates=2_000_000):
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
     Every cell listed in ``cells`` is moved (its corners to
@@ -106,7 +107,10 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=3, tol=1
     cells : ndarray of int, shape (C,)
         Flat node index of the lower corner of every cell.
     newton_steps : int
-        Newton iterations per candidate (the affine start makes 2-3 enough).
+        Newton iterations at most per candidate (the affine start makes 1-2 enough
+        for near-rigid cells; converged candidates drop out).
+    max_candidates : int
+        Cells are processed in chunks of at most this many candidate nodes.
 
     Returns
     -------
@@ -125,19 +129,42 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=3, tol=1
     hi = np.minimum(np.floor(P.max(axis=1) + tol), shape - 1).astype(np.int64)
     ext = np.maximum(hi - lo + 1, 0)
     cnt = np.prod(ext, axis=1)
+    half = np.full((cells.size, d), 0.5)
+    T0, J0 = _poly_eval(coef, half, subsets)
+    Jinv = _inverse_small(J0)
+    # cells in chunks of at most ``max_candidates`` bounding-box nodes (bounded memory
+    # even where a bad map stretches cells over many nodes)
+    bounds = np.searchsorted(np.cumsum(cnt), np.arange(1, int(cnt.sum()) // max_candidates + 1)
+                             * max_candidates)
+    edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
+    targets, sources = [], []
+    for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over a few chunks
+        sel = np.arange(c0, c1)
+        t, u = _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps)
+        targets.append(t)
+        sources.append(u)
+    cc_all = np.concatenate([t[0] for t in targets]) if targets else np.zeros(0, np.int64)
+    zi = np.concatenate([t[1] for t in targets]) if targets else np.zeros((0, d), np.int64)
+    u_all = np.concatenate(sources) if sources else np.zeros((0, d))
+    target = np.ravel_multi_index(tuple(zi[:, a] for a in range(d)), grid.shape)
+    base = np.stack(np.unravel_index(cells[cc_all], grid.shape), axis=-1)
+    return target, base + u_all
+
+
+def _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps):
+    """Inverse lookup for the cells ``sel``: ((cell, node index), local coordinates) found."""
+    d = lo.shape[1]
+    n = cnt[sel]
     # every grid node inside every moved cell's bounding box (variable-size boxes, vectorised)
-    cc = np.repeat(np.arange(cells.size), cnt)
-    start = np.cumsum(cnt) - cnt
-    rem = np.arange(int(cnt.sum())) - np.repeat(start, cnt)
+    cc = np.repeat(sel, n)
+    start = np.cumsum(n) - n
+    rem = np.arange(int(n.sum())) - np.repeat(start, n)
     z = np.empty((cc.size, d))
     for a in reversed(range(d)):
         e = ext[cc, a]
         z[:, a] = lo[cc, a] + rem % e
         rem = rem // e
     # affine guess from the cell centre; drop candidates clearly outside the cell
-    half = np.full((cells.size, d), 0.5)
-    T0, J0 = _poly_eval(coef, half, subsets)
-    Jinv = _inverse_small(J0)
     u = 0.5 + np.einsum("mab,mb->ma", Jinv[cc], z - T0[cc])
     keep = np.all((u > -0.35) & (u < 1.35), axis=1)
     cc, z, u = cc[keep], z[keep], u[keep]
@@ -156,10 +183,7 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=3, tol=1
             break
         u[todo] = np.clip(u[todo] - _solve_small(J, r), -0.5, 1.5)
     inside = np.all((u >= -1e-4) & (u <= 1 + 1e-4), axis=1) & (res < 1e-8)
-    zi = z[inside].astype(np.int64)
-    target = np.ravel_multi_index(tuple(zi[:, a] for a in range(d)), grid.shape)
-    base = np.stack(np.unravel_index(cells[cc[inside]], grid.shape), axis=-1)
-    return target, base + u[inside]
+    return (cc[inside], z[inside].astype(np.int64)), u[inside]
 
 
 def _moebius(P, subsets):
@@ -290,7 +314,7 @@ class Inbetween:
     """
 
     def __init__(self, phi_a, phi_b, grid, mapped, trajectories, *, resample="splat",
-                 idw_radius=1.5, newton_steps=3, interpolation="cubic", stats=None,
+                 idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
                  map_result=None):
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
@@ -332,7 +356,7 @@ class Inbetween:
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, material=None, components=None,
                  trajectory_method="global", band=4.0, band_weight=0.1, resample="splat",
-                 idw_radius=1.5, newton_steps=3, interpolation="cubic", stats=None,
+                 idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
                  map_result=None):
         """In-betweens from a given map y(x).
 

@@ -254,31 +254,27 @@ class _Triangles:
         dist2 = np.where(inside, pn * pn, dist2)
         return np.sqrt(np.maximum(dist2, 0.0))
 
-
-def _closest_point_method(self, p, t):
-    """Closest point on triangles t (P,) to points p (P, 3) (same regions as `distance`)."""
-    a = np.stack([self.a[i][t] for i in range(3)], axis=1)
-    e0 = np.stack([self.e0[i][t] for i in range(3)], axis=1)
-    e1 = np.stack([self.e1[i][t] for i in range(3)], axis=1)
-    v = p - a
-    dv0, dv1 = _dot(v, e0), _dot(v, e1)
-    d00, d01, d11 = self.d00[t], self.d01[t], self.d11[t]
-    u = (d11 * dv0 - d01 * dv1) * self.inv[t]
-    w = (d00 * dv1 - d01 * dv0) * self.inv[t]
-    inside = (u >= 0) & (w >= 0) & (u + w <= 1)
-    best = a + u[:, None] * e0 + w[:, None] * e1
-    bd = np.where(inside, 0.0, np.inf)
-    for s0, e in ((a, e0), (a, e1), (a + e0, e1 - e0)):  # the three edges
-        tt = np.clip(_dot(p - s0, e) / _dot(e, e), 0.0, 1.0)
-        q = s0 + tt[:, None] * e
-        dq = _dot(p - q, p - q)
-        use = ~inside & (dq < bd)
-        best[use] = q[use]
-        bd = np.where(use, dq, bd)
-    return best
-
-
-_Triangles.closest_point = _closest_point_method
+    def closest_point(self, p, t):
+        """Closest point on triangles t (P,) to points p (P, 3) (same regions as `distance`)."""
+        a = np.stack([self.a[i][t] for i in range(3)], axis=1)
+        e0 = np.stack([self.e0[i][t] for i in range(3)], axis=1)
+        e1 = np.stack([self.e1[i][t] for i in range(3)], axis=1)
+        v = p - a
+        dv0, dv1 = _dot(v, e0), _dot(v, e1)
+        d00, d01, d11 = self.d00[t], self.d01[t], self.d11[t]
+        u = (d11 * dv0 - d01 * dv1) * self.inv[t]
+        w = (d00 * dv1 - d01 * dv0) * self.inv[t]
+        inside = (u >= 0) & (w >= 0) & (u + w <= 1)
+        best = a + u[:, None] * e0 + w[:, None] * e1
+        bd = np.where(inside, 0.0, np.inf)
+        for s0, e in ((a, e0), (a, e1), (a + e0, e1 - e0)):  # the three edges
+            tt = np.clip(_dot(p - s0, e) / _dot(e, e), 0.0, 1.0)
+            q = s0 + tt[:, None] * e
+            dq = _dot(p - q, p - q)
+            use = ~inside & (dq < bd)
+            best[use] = q[use]
+            bd = np.where(use, dq, bd)
+        return best
 
 
 def point_triangle_distance(p, a, b, c):
@@ -836,7 +832,7 @@ def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
     loops = list(loops)
     if not loops:
         raise ValueError("no loops given; pass one or more (M, 2) arrays of polygon corners.")
-    seg_a, seg_b, seg_loop = [], [], []
+    seg_a, seg_b = [], []
     for i, lp in enumerate(loops):  # a handful of loops
         p = _check_vertices(lp, dim=2)
         if len(p) > 1 and np.array_equal(p[0], p[-1]):
@@ -847,32 +843,92 @@ def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
         good = np.any(p != q, axis=1)
         seg_a.append(p[good])
         seg_b.append(q[good])
-        seg_loop.append(np.full(int(good.sum()), i))
-    A, B, lid = np.concatenate(seg_a), np.concatenate(seg_b), np.concatenate(seg_loop)
-    n_loops = len(loops)
-    pts = grid.points().reshape(-1, 2)
-    dist = np.empty(len(pts))
-    inside = np.empty(len(pts), dtype=bool)
-    AB = B - A
-    L2 = np.maximum(np.sum(AB * AB, axis=1), 1e-300)
-    step = max(1, (1 << 22) // len(A))
-    for s in range(0, len(pts), step):
-        P = pts[s:s + step, None, :]
-        AP = P - A[None]
-        t = np.clip(np.sum(AP * AB[None], axis=2) / L2[None], 0.0, 1.0)
-        D = AP - t[..., None] * AB[None]
-        dist[s:s + step] = np.sqrt(np.min(np.sum(D * D, axis=2), axis=1))
-        # winding number per loop: sum of signed angles subtended by its segments
-        BP = P - B[None]
-        cross = AP[..., 0] * BP[..., 1] - AP[..., 1] * BP[..., 0]
-        dot = np.sum(AP * BP, axis=2)
-        ang = np.arctan2(cross, dot)
-        wl = np.zeros((ang.shape[0], n_loops))
-        for i in range(n_loops):
-            wl[:, i] = ang[:, lid == i].sum(axis=1)
-        wl = np.rint(wl / (2 * np.pi))
-        if rule == "evenodd":
-            inside[s:s + step] = (np.abs(wl).sum(axis=1) % 2) == 1
-        else:
-            inside[s:s + step] = wl.sum(axis=1) != 0
+    A, B = np.concatenate(seg_a), np.concatenate(seg_b)
+    dist = _segments_distance(grid, A, B)
+    inside = _crossing_rule(grid, A, B, rule)
     return np.where(inside, -dist, dist).reshape(grid.shape)
+
+
+def _segments_distance(grid, A, B):
+    """Exact distance from every 2D grid node to the nearest segment (A_s, B_s).
+
+    Same scheme as the 3D band (module step 2) on all nodes: each segment is cut
+    into n pieces of at most one cell, represented by their midpoints (every point
+    of a segment within L / (2 n) of one); the closest segment of a node owns a
+    midpoint within d0 + delta of it, d0 the distance to the nearest midpoint's
+    segment, and only those are measured exactly.
+    """
+    h = grid.spacing
+    AB = B - A
+    L = np.sqrt(np.sum(AB * AB, axis=1))
+    n = np.clip(np.ceil(L / h).astype(np.int64), 1, 1 << 16)
+    seg = np.repeat(np.arange(len(A)), n)
+    first = np.repeat(np.cumsum(n) - n, n)
+    frac = (np.arange(len(seg)) - first + 0.5) / n[seg]
+    samples = A[seg] + frac[:, None] * AB[seg]
+    delta = float(np.max(L / (2 * n)))
+    tree = cKDTree(samples)
+    L2 = np.maximum(L * L, 1e-300)
+
+    def seg_dist(P, t):
+        AP = P - A[t]
+        u = np.clip(np.sum(AP * AB[t], axis=1) / L2[t], 0.0, 1.0)
+        D = AP - u[:, None] * AB[t]
+        return np.sqrt(np.sum(D * D, axis=1))
+
+    pts = grid.points().reshape(-1, 2)
+    out = np.empty(len(pts))
+    k0 = min(8, len(samples))
+    for s in range(0, len(pts), _CHUNK):
+        P = pts[s:s + _CHUNK]
+        _, i0 = tree.query(P, workers=_WORKERS)
+        best = seg_dist(P, seg[i0])
+        rows = np.arange(len(P))
+        k = k0
+        while len(rows):
+            r = best[rows] + delta * (1 + 1e-9) + 1e-12
+            dd, ii = tree.query(P[rows], k=k, distance_upper_bound=float(r.max()), workers=_WORKERS)
+            dd, ii = dd.reshape(len(rows), k), ii.reshape(len(rows), k)
+            ok = dd <= r[:, None]
+            rr, cc = np.nonzero(ok)
+            d = seg_dist(P[rows[rr]], seg[ii[rr, cc]])
+            grp = np.concatenate([[0], np.flatnonzero(rr[1:] != rr[:-1]) + 1])
+            best[rows[rr[grp]]] = np.minimum(best[rows[rr[grp]]], np.minimum.reduceat(d, grp))
+            if k >= len(samples):
+                break
+            rows = rows[ok[:, -1]]  # the k-th midpoint is still in reach: look further
+            k = min(4 * k, len(samples))
+        out[s:s + _CHUNK] = best
+    return out
+
+
+def _crossing_rule(grid, A, B, rule):
+    """Inside test of every 2D grid node by counting crossings of a ray towards -x.
+
+    For each segment and each grid row it spans (half-open in y, so a shared corner
+    counts once), the crossing's x is found and the nodes to its right get +-1
+    (the segment's direction in y); a cumulative sum along x then gives, per node,
+    the number of crossings (even-odd rule: odd is inside) or the winding number
+    (non-zero rule: non-zero is inside).
+    """
+    nx, ny = grid.shape
+    ox, oy = grid.origin
+    h = grid.spacing
+    ya, yb = A[:, 1], B[:, 1]
+    moving = ya != yb
+    A, B, ya, yb = A[moving], B[moving], ya[moving], yb[moving]
+    lo, hi = np.minimum(ya, yb), np.maximum(ya, yb)
+    j0 = np.clip(np.ceil((lo - oy) / h).astype(np.int64), 0, ny)
+    j1 = np.clip(np.ceil((hi - oy) / h).astype(np.int64), 0, ny)  # rows j0 .. j1 - 1
+    cnt = np.maximum(j1 - j0, 0)
+    sid = np.repeat(np.arange(len(A)), cnt)
+    j = np.repeat(j0, cnt) + (np.arange(len(sid)) - np.repeat(np.cumsum(cnt) - cnt, cnt))
+    y = oy + h * j
+    x = A[sid, 0] + (y - ya[sid]) * (B[sid, 0] - A[sid, 0]) / (yb[sid] - ya[sid])
+    i = np.clip(np.floor((x - ox) / h).astype(np.int64) + 1, 0, nx)  # first node right of x
+    sign = np.where(yb[sid] > ya[sid], 1, -1) if rule == "nonzero" else np.ones(len(sid), np.int64)
+    acc = np.zeros((nx + 1, ny), dtype=np.int64)
+    np.add.at(acc, (i, j), sign)
+    w = np.cumsum(acc, axis=0)[:nx]
+    inside = (w % 2 == 1) if rule == "evenodd" else (w != 0)
+    return inside.reshape(-1)

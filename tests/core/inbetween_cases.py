@@ -7,6 +7,8 @@ in-between stage can be checked without the solver.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -47,12 +49,15 @@ def l_shape(p):
     return np.minimum(b1, b2)
 
 
+@functools.lru_cache(maxsize=None)
 def l_centroid(n=160):
     """Centroid of the L-shape by dense sampling (independent of the code under test)."""
     ax = np.linspace(-0.8, 0.8, n)
     p = np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
     inside = l_shape(p) < 0
-    return p[inside].mean(axis=0)
+    out = p[inside].mean(axis=0)
+    out.setflags(write=False)
+    return out
 
 
 RIGID_AXIS = np.array([1.0, 2.0, 0.5]) / np.linalg.norm([1.0, 2.0, 0.5])

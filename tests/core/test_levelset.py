@@ -140,3 +140,35 @@ def test_from_map_refuses_bad_input(rigid):
         Inbetween.from_map(phi_a, phi_b, grid, mapped, resample="nearest")
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         ib.levelset(-0.1)
+
+
+def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
+    from keyframe_implicit.core.levelset import inverse_lookup
+
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    corners = ib.trajectories.node_positions(0.5, ib._corner_nodes)[ib._cnodes_local]
+    t1, s1 = inverse_lookup(grid, corners, ib._cells)
+    t2, s2 = inverse_lookup(grid, corners, ib._cells, max_candidates=997)
+    np.testing.assert_array_equal(t1, t2)
+    np.testing.assert_allclose(s1, s2)
+    # every source maps onto its target: x(s) at the source is the grid node
+    src_world = grid.to_world(s1)
+    moved = ib.trajectory(src_world, 0.5)
+    np.testing.assert_allclose(moved, grid.points().reshape(-1, 3)[t1], atol=1e-6)
+
+
+def test_in_between_is_a_distance_field_near_its_surface(rigid):
+    # |grad| ~ 1 across the zero set, and values off the surface are distances
+    from keyframe_implicit.core.sampling import sample_with_gradient
+
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    h = grid.spacing
+    ls = ib.levelset(0.5)
+    V, _ = extract_surface(ls, grid)
+    _, g = sample_with_gradient(ls, grid, V)
+    gn = np.linalg.norm(g, axis=1)
+    assert 0.95 <= np.median(gn) <= 1.05 and np.percentile(gn, 5) >= 0.7
+    p = grid.points()
+    exact = rigid_expected(p, 0.5, info)
+    shell = (np.abs(exact) > 0.5 * h) & (np.abs(exact) < 2.5 * h)
+    assert np.abs(ls - exact)[shell].mean() <= 0.1 * h

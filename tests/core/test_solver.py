@@ -344,3 +344,14 @@ def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     A = L.bsr(Hs).toarray()
     assert np.allclose(A, A.T, atol=1e-12 * np.abs(A).max())
     np.linalg.cholesky(A + 1e-9 * np.abs(A).max() * np.eye(len(A)))  # Gauss-Newton: PSD (raises if not)
+
+
+def test_prolongation_equals_multilinear_sampling_of_the_coarse_level():
+    from keyframe_implicit.core.solver import _levels, _prolong
+
+    for shape in ((33, 34, 36), (32, 32), (48, 25, 27)):
+        g = Grid((0.1,) * len(shape), 0.05, shape)
+        coarse = _levels(g, 5)[-2]
+        assert coarse.spacing == 2 * g.spacing and np.all(coarse.upper >= g.upper)
+        f = np.random.default_rng(0).normal(size=coarse.shape + (len(shape),))
+        assert np.allclose(_prolong(f, g.shape), sample(f, coarse, g.points()), atol=1e-12)
