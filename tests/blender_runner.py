@@ -10,6 +10,7 @@ What this runner does to Blender's Python, and nothing more:
   checkout's ``keyframe_implicit`` (the add-on itself never changes ``sys.path``);
 - puts the directories of ``$KFI_TEST_SITE`` (``os.pathsep``-separated) right after
   it: where the tests' third-party modules live when that Blender has none of its own;
+  both also go into ``PYTHONPATH`` for Python subprocesses of the tests;
 - makes ``pytest`` importable if Blender's Python lacks it: from
   ``$KFI_PYTEST_DIR`` if set, else by ``pip install --target`` into
   ``~/.cache/keyframe_implicit/pytest-py3XX`` once (Blender's official builds bundle
@@ -69,6 +70,9 @@ def main():
         if not os.path.isdir(path):
             raise SystemExit(f"[blender_runner] KFI_TEST_SITE entry {path!r} is not a directory.")
     sys.path[:0] = [str(ROOT), *extra]
+    # The same for Python subprocesses the tests start with sys.executable.
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        [str(ROOT), *extra, *filter(None, [os.environ.get("PYTHONPATH")])])
     _ensure_pytest()
     import bpy
     import pytest
