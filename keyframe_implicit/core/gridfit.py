@@ -7,15 +7,14 @@ signed distance fields have a band of positive values around the material.
 
 `fit_grid` builds that grid from a resolution (cells along the longest side of the
 box). `estimate_memory` predicts the peak memory of the whole bake on a grid from
-array sizes (the model is spelled out in its docstring, its constants are
-calibrated against measured peaks of `solve_map`), and `check_memory` /
+array sizes (the model is spelled out in its docstring; its constants were fitted
+to tracemalloc peaks of `mesh_to_sdf`, `solve_map` and `animate`, and the tests
+check the solver and whole-bake figures at two sizes), and `check_memory` /
 ``fit_grid(..., max_bytes=...)`` refuse a request that would not fit BEFORE any
 work starts, naming the largest resolution that would.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 

@@ -61,9 +61,9 @@ from .progress import Reporter
 __all__ = ["mesh_to_sdf", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
-_SAMPLE_RADIUS = 1.3      # triangle points lie within this many cells of a sample
+_SAMPLE_RADIUS = 0.7      # triangle points lie within this many cells of a sample
 _WORKERS = -1             # cKDTree query threads (all cores)
-_K = 16                   # nearest samples fetched per band node (more on demand)
+_K = 32                   # nearest samples fetched per band node (more on demand)
 _MAX_LATTICE = 256        # subdivisions per triangle edge at most (delta grows beyond)
 
 
