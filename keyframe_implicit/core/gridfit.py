@@ -183,14 +183,14 @@ _SOLVER_BYTES_PER_ACTIVE = {2: 1000, 3: 4600}
 _SOLVER_FIXED = 43_400_000
 # In-between stage (levelset.Inbetween.from_map: trajectories over A's material
 # plus a 4-cell band, whose Laplacian is factored once with scipy's splu, then the
-# level sets): per node plus a fill-in term growing like M_t ** (5/3), M_t the
-# trajectory nodes. Fitted to tracemalloc peaks inside `animate` (two UV spheres,
-# tests/core/test_pipeline.py case): 58 / 151 / 369 MB at 24882 / 45920 / 76342
-# nodes; the model gives 53 / 156 / 367 MB. The exponent comes from three small
-# grids: it is the main uncertainty of the estimate at large ones. 2D: linear
-# guess, not measured.
+# level sets and the template): per node plus a fill-in term c * M_t ** p, M_t the
+# trajectory nodes. p = 4/3 is the fill growth of a sparse 3D factorisation with a
+# good ordering; c fitted to tracemalloc peaks of the whole `animate` (two UV
+# spheres, tests/core/test_pipeline.py case, 5 frames) at resolution 32 / 48 / 64 / 80
+# (45,920 / 117,648 / 240,462 / 428,802 nodes): measured 91 / 346 / 808 / 1,662 MB,
+# this model 95 / 330 / 808 / 1,662 MB. 2D: linear guess, not measured.
 _INBETWEEN_BYTES_PER_NODE = {2: 64, 3: 44}
-_INBETWEEN_FILL = {2: (2000.0, 1.0), 3: (22.7, 5.0 / 3.0)}  # bytes * M_t ** power
+_INBETWEEN_FILL = {2: (2000.0, 1.0), 3: (330.0, 4.0 / 3.0)}  # bytes * M_t ** power
 _INBETWEEN_BAND = 4.0
 
 
@@ -204,7 +204,7 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
     - ``solver``: ``N * d * c_node + M * c_active(d)``, M = ``material_fraction * N``
       plus a band of ``band_cells`` around the material (surface ~ N^((d-1)/d));
     - ``inbetween``: ``N * c_node(d) + c_fill * M_t ** p``, M_t the trajectory nodes
-      (material plus a 4-cell band), p = 5/3 in 3D (sparse LU fill-in).
+      (material plus a 4-cell band), p = 4/3 in 3D (sparse LU fill-in).
 
     The constants (module source) were fitted to tracemalloc peaks; the solver part
     is checked to stay within 30 % of `solve_map`'s measured peak by the tests.

@@ -61,6 +61,19 @@ def _physical_memory():
         return None
 
 
+def _material_fraction(keyframe, grid):
+    """Share of the grid box enclosed by a keyframe mesh (from its volume, before any grid work)."""
+    from .sdf import triangulate
+    from .surface import mesh_volume
+
+    v = np.asarray(keyframe.vertices, dtype=float).reshape(-1, 3)
+    try:
+        vol = abs(mesh_volume(v, triangulate(keyframe.faces, len(v))))
+    except ValueError:
+        return 0.25  # mesh_to_sdf reports what is wrong with it; estimate_memory's default
+    return float(min(1.0, vol / np.prod(grid.upper - grid.origin)))
+
+
 def _check_inputs(keyframes, features):
     keyframes = list(keyframes)
     if len(keyframes) < 2:
@@ -123,7 +136,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         When ``cancel()`` returned True.
     """
     from .chain import animate_chain
-    from .gridfit import fit_grid
+    from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
     from .sdf import mesh_to_sdf
 
     t0 = time.perf_counter()
@@ -140,9 +153,26 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
 
     rep(0.0, "Choosing the grid")
     extra = np.concatenate([np.concatenate(pair) for pair in features]) if features else None
-    grid = fit_grid([np.asarray(kf.vertices, dtype=float).reshape(-1, 3) for kf in keyframes],
-                    resolution, padding_cells=padding_cells, extra_points=extra,
-                    max_bytes=max_bytes, n_keyframes=len(keyframes))
+    pts = [np.asarray(kf.vertices, dtype=float).reshape(-1, 3) for kf in keyframes]
+    grid = fit_grid(pts, resolution, padding_cells=padding_cells, extra_points=extra)
+    if max_bytes is not None:
+        # refuse before any work; the largest keyframe's share of the box sets the solver's
+        # and the trajectories' size (estimate_memory's model)
+        mem = dict(n_keyframes=len(keyframes),
+                   material_fraction=max(_material_fraction(kf, grid) for kf in keyframes))
+        try:
+            check_memory(grid, max_bytes, **mem)
+        except MemoryLimitError as exc:
+            def fits(r):
+                g = fit_grid(pts, r, padding_cells=padding_cells, extra_points=extra)
+                return estimate_memory(g, **mem)["peak"] <= max_bytes
+            best = max((r for r in range(4, int(resolution)) if fits(r)), default=None)
+            hint = (f"lower the resolution to {best} or less" if best else
+                    "even the smallest grid does not fit: free memory or simplify the keyframes")
+            raise MemoryLimitError(
+                f"Resolution {resolution} would need about {exc.required / 2**20:,.0f} MB but "
+                f"the limit is {max_bytes / 2**20:,.0f} MB: {hint}.",
+                exc.required, max_bytes, best) from None
     stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing, "sdf": []}
 
     phis = []

@@ -170,7 +170,7 @@ off, R = np.array([0.4, 0.1, -0.2]), rotation([0.3, 1.0, 0.2], np.deg2rad(50))
 vb = va @ R.T + off
 pa, pb = _sphere_features(np.zeros(3), 0.3, R, off)
 out = []
-for res in (24, 32):
+for res in (32, 48):
     tracemalloc.start()
     anim = animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 5)], [(pa, pb)], resolution=res)
     peak = tracemalloc.get_traced_memory()[1]

@@ -104,3 +104,19 @@ def test_cancel_raises_cancelled():
 
     with pytest.raises(Cancelled):
         animate([Keyframe(v, f, 1), Keyframe(v, f, 5)], [(pa, pb)], resolution=16, cancel=cancel)
+
+
+def test_too_large_a_grid_is_refused_before_any_work():
+    from keyframe_implicit.core import MemoryLimitError
+
+    v, f = uv_sphere(np.zeros(3), 0.3, n=8)
+    pa, pb = _sphere_features(np.zeros(3), 0.3)
+    stages = []
+    with pytest.raises(MemoryLimitError, match=r"lower the resolution to \d+") as err:
+        animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=400,
+                max_bytes=200 * 2**20, progress=lambda frac, msg: stages.append(msg))
+    assert not any("Distance grid" in m for m in stages)  # refused before the first distance grid
+    best = err.value.max_resolution
+    assert 4 <= best < 400
+    animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=best,
+            max_bytes=200 * 2**20)  # the resolution the message names does fit
