@@ -94,6 +94,7 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 DEFAULTS = dict(
     band_weight=0.1,
     feature_radius=None,
+    patch_rigidity=10.0,
     coarse_nodes=24,
     cg_tolerance=3e-2,
     cg_max_iterations=300,
@@ -188,7 +189,7 @@ def _check_inputs(phi_a, phi_b, grid, features_a, features_b):
 class _Level:
     """Region, elements, stencil and constraints of one grid level."""
 
-    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, band_cells, band_weight, radius):
+    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, band_cells, band_weight, radius, patch_rigidity=1.0):
         d = grid.dim
         self.grid, self.d = grid, d
         self.phi_b = phi_b
@@ -262,6 +263,13 @@ class _Level:
         self.bsr_indptr = np.arange(self.n + 1) * len(offs)
         self.cons = FeatureConstraints(grid, active, xa, yb, radius)
         self.x = grid.to_world(idx)
+        # cells inside one feature patch: their F is the patch's affine A_i (see `patch_rigidity`)
+        self.patch_cell = np.all(self.cons.patch_of_node[self.elem] >= 0, axis=1)
+        self.term_weight = {"rigidity": np.where(self.patch_cell, float(patch_rigidity), 1.0) * self.cell_weight}
+
+    def cell_weights_of(self, name):
+        """Per-cell weight of term ``name`` (region weight, times ``patch_rigidity`` in patch cells for rigidity)."""
+        return self.term_weight.get(name, self.cell_weight)
 
     # -- energy ----------------------------------------------------------------
     def evaluate(self, y, weights, chunk, hessian=True):
@@ -282,7 +290,7 @@ class _Level:
                 if w == 0:
                     continue
                 # the user weight rides on the cell weights: the term returns weighted values
-                batch = ElementBatch(Y, w * self.cell_weight[s:s + chunk], self.gauss, self.centre)
+                batch = ElementBatch(Y, w * self.cell_weights_of(t.name)[s:s + chunk], self.gauss, self.centre)
                 tv = t.function(batch, hessian=hessian)
                 energies[t.name] += tv.energy
                 if g_sum is None:
@@ -581,6 +589,10 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         raise ValueError("max_iterations must be >= 0.")
     d = grid.dim
     band_weight = float(options["band_weight"])
+    patch_rigidity = float(options["patch_rigidity"])
+    if not np.isfinite(patch_rigidity) or patch_rigidity < 0:
+        raise ValueError(f"patch_rigidity must be a finite number >= 0 (a factor on rigidity_weight inside "
+                         f"the feature patches; 1 = plain material, default 10), got {patch_rigidity}.")
     radius = options["feature_radius"]
     if radius is None:
         radius = 0.08 * float(np.max(grid.upper - grid.origin))
@@ -627,7 +639,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
             continue  # material too thin for this coarse level
         # a patch must hold its feature's cell; feature_radius=0 asks for plain hard constraints
         rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing) if radius > 0 else 0.0
-        level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad)
+        level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad, patch_rigidity)
         y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
         timing["setup"] += time.perf_counter() - t0
         y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),
