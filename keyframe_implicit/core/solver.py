@@ -41,6 +41,41 @@ at 28^3 had only 95.7 % of the cells with det F in [0.8, 1.25] (volume weight
 with 30. ``levelset_weight`` 1 left 0.7 % of the sphere's material mapped
 outside the ellipsoid, 10 none.
 
+Feature patches are stiffer than the material (``patch_rigidity``)
+-------------------------------------------------------------------
+Each feature point moves the solved nodes within ``feature_radius`` by one
+affine map y'_i + A_i (x - x'_i) (`keyframe_implicit.core.constraints`).
+A_i is a free d x d matrix, so a patch can shear and scale as a whole. With
+the material's own rigidity weight there, the patches gave way: a rod bent
+90 degrees at its middle (2D, n = 40, six features on the axis and off it,
+``bend_case`` in tests/core/inbetween_cases.py) must lose area at the inner
+corner of the joint, the nearly incompressible volume term (30 vs 1) extrudes
+that material along the arms, and the arm patches absorbed it (singular
+values of A_i 1.09 / 0.90 at x = 0.35, 1.04 / 0.95 at x = 0.55): the
+"rigid" half x in [0.2, 0.6] came out 2.2 % short. With volume weight 0 it
+was 0.06 % (the volume term drives it); more iterations gave 2.0 %,
+``feature_radius`` 0.04 1.9 %, band weight 0 1.7 %: no other knob fixes it.
+A feature marks material that must follow the user's point, so the patch
+cells' rigidity weight is multiplied by ``patch_rigidity``:
+
+    ==============  ==============  ==============  =====================================
+    patch_rigidity  bend 2D (n=40)  bend 3D (n=32)  2D merge: min det F / det F in
+                    worst half      worst half      [0.8, 1.25] / B uncovered
+    ==============  ==============  ==============  =====================================
+    1               2.22 %          1.12 %          0.696 / 100 %   / 0.0 %
+    5               1.25 %          1.22 %          0.616 / 99.4 %  / 0.0 %
+    10              0.99 %          1.26 %          0.618 / 99.4 %  / 0.9 %
+    30              0.89 %          1.29 %          0.475 / 99.4 %  / 1.5 %
+    100             0.79 %          1.30 %          0.473 / 98.3 %  / 1.8 %
+    ==============  ==============  ==============  =====================================
+
+(worst relative length change of the halves' parts |x| in [0.2, 0.6] at
+s = 1; the merge is the 2D case of the table below). Rigid patches (100) cost the merge its det F
+range; default ``patch_rigidity = 10``. In 3D the two joint features are too
+close for patches (hard constraints), and the remaining ~1.3 % of the left
+half is the volume term's extrusion from the joint, which patch stiffness
+does not reach.
+
 Integration region (PAPER-NOTES section 2)
 ------------------------------------------
 Cells whose centre is inside A's material (phi_a < 0) have weight 1; cells
@@ -67,7 +102,10 @@ level; the line search only forbids folds that are not there yet)
 (earlier runs of the same case, before ``reuse_hessian``: 0.180 / 0.695 /
 0.556 min det F for band weight 0 / 0.1 / 1 -- the ranking is stable); a
 full-weight band (1) makes the empty gap between the discs resist the merge
-(rigidity doubles, det F range and coverage get worse). Default:
+(rigidity doubles, det F range and coverage get worse). The table was
+measured with ``patch_rigidity`` 1; with 10 (``--region``): min det F
+0.020 / 0.618 / 0.377, det F in range 98.9 / 99.4 / 92.7 %, B uncovered
+2.4 / 0.9 / 3.3 % -- the same ranking. Default:
 ``band_weight = 0.1``, ``band_cells = 3``.
 """
 
@@ -94,6 +132,7 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 DEFAULTS = dict(
     band_weight=0.1,
     feature_radius=None,
+    patch_rigidity=10.0,
     coarse_nodes=24,
     cg_tolerance=3e-2,
     cg_max_iterations=300,
@@ -188,7 +227,7 @@ def _check_inputs(phi_a, phi_b, grid, features_a, features_b):
 class _Level:
     """Region, elements, stencil and constraints of one grid level."""
 
-    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, band_cells, band_weight, radius):
+    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, band_cells, band_weight, radius, patch_rigidity=1.0):
         d = grid.dim
         self.grid, self.d = grid, d
         self.phi_b = phi_b
@@ -262,6 +301,13 @@ class _Level:
         self.bsr_indptr = np.arange(self.n + 1) * len(offs)
         self.cons = FeatureConstraints(grid, active, xa, yb, radius)
         self.x = grid.to_world(idx)
+        # cells inside one feature patch: their F is the patch's affine A_i (see `patch_rigidity`)
+        self.patch_cell = np.all(self.cons.patch_of_node[self.elem] >= 0, axis=1)
+        self.term_weight = {"rigidity": np.where(self.patch_cell, float(patch_rigidity), 1.0) * self.cell_weight}
+
+    def cell_weights_of(self, name):
+        """Per-cell weight of term ``name`` (region weight, times ``patch_rigidity`` in patch cells for rigidity)."""
+        return self.term_weight.get(name, self.cell_weight)
 
     # -- energy ----------------------------------------------------------------
     def evaluate(self, y, weights, chunk, hessian=True):
@@ -282,7 +328,7 @@ class _Level:
                 if w == 0:
                     continue
                 # the user weight rides on the cell weights: the term returns weighted values
-                batch = ElementBatch(Y, w * self.cell_weight[s:s + chunk], self.gauss, self.centre)
+                batch = ElementBatch(Y, w * self.cell_weights_of(t.name)[s:s + chunk], self.gauss, self.centre)
                 tv = t.function(batch, hessian=hessian)
                 energies[t.name] += tv.energy
                 if g_sum is None:
@@ -532,7 +578,9 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         ``band_weight`` (0.1), ``feature_radius`` (world units; default 4 % of
         the largest grid extent, never less than one cell diagonal; 0 gives
         plain hard constraints on each feature's cell) -- see
-        `keyframe_implicit.core.constraints`; ``coarse_nodes`` (24, nodes per
+        `keyframe_implicit.core.constraints`; ``patch_rigidity`` (10, factor
+        on ``rigidity_weight`` in the cells inside one feature patch, see
+        the module docstring); ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
         ``cg_tolerance`` (3e-2), ``cg_max_iterations`` (300), ``damping``
         (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
@@ -581,6 +629,10 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         raise ValueError("max_iterations must be >= 0.")
     d = grid.dim
     band_weight = float(options["band_weight"])
+    patch_rigidity = float(options["patch_rigidity"])
+    if not np.isfinite(patch_rigidity) or patch_rigidity < 0:
+        raise ValueError(f"patch_rigidity must be a finite number >= 0 (a factor on rigidity_weight inside "
+                         f"the feature patches; 1 = plain material, default 10), got {patch_rigidity}.")
     radius = options["feature_radius"]
     if radius is None:
         radius = 0.08 * float(np.max(grid.upper - grid.origin))
@@ -627,7 +679,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
             continue  # material too thin for this coarse level
         # a patch must hold its feature's cell; feature_radius=0 asks for plain hard constraints
         rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing) if radius > 0 else 0.0
-        level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad)
+        level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad, patch_rigidity)
         y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
         timing["setup"] += time.perf_counter() - t0
         y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),

@@ -296,6 +296,8 @@ def test_bad_options_are_rejected():
         solve_map(pa, pb, g, fa, fb, band_wieght=0.1)
     with pytest.raises(ValueError, match="levelset_weight must be"):
         solve_map(pa, pb, g, fa, fb, levelset_weight=-1)
+    with pytest.raises(ValueError, match="patch_rigidity must be"):
+        solve_map(pa, pb, g, fa, fb, patch_rigidity=-1.0)
 
 
 @pytest.mark.parametrize("band_weight", [0.1, 0.0])
@@ -328,14 +330,16 @@ def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     phi_a = np.linalg.norm(P - 0.5, axis=-1) - 0.3
     phi_b = np.linalg.norm(P - 0.52, axis=-1) - 0.3
     fa = np.array([[0.5, 0.5, 0.5], [0.8, 0.5, 0.5]])
-    L = solver._Level(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.1)
+    L = solver._Level(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.1, patch_rigidity=10.0)
+    assert L.patch_cell.any() and np.allclose(L.cell_weights_of("rigidity")[L.patch_cell],
+                                              10.0 * L.cell_weight[L.patch_cell])
     y = L.x + 0.02 * np.sin(7 * L.x)
     w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
     _, _, _, Hs = L.evaluate(y, w, 97, True)
     ref = np.zeros_like(Hs)
     Y = y[L.elem]
     for name, fn in (("volume", terms.volume_term), ("rigidity", terms.rigidity_term)):
-        h = fn(terms.ElementBatch(Y, w[name] * L.cell_weight, L.gauss, L.centre)).hess
+        h = fn(terms.ElementBatch(Y, w[name] * L.cell_weights_of(name), L.gauss, L.centre)).hess
         for c in range(L.elem.shape[1]):
             ref[L.elem[:, c][:, None], L.pair_off[c][None, :]] += h[:, c]
     tv = terms.levelset_term(terms.NodeBatch(y, L.node_weight, L.h_phi, phi_b, g, L.eps))
@@ -344,6 +348,30 @@ def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     A = L.bsr(Hs).toarray()
     assert np.allclose(A, A.T, atol=1e-12 * np.abs(A).max())
     np.linalg.cholesky(A + 1e-9 * np.abs(A).max() * np.eye(len(A)))  # Gauss-Newton: PSD (raises if not)
+
+
+def _bent_rod_half_lengths(**opts):
+    """Rod bent 90 degrees at its middle (2D, n = 40), six features: relative length change of the
+    rigid parts x in [-0.6, -0.2] and [0.2, 0.6] under the solved map."""
+    from inbetween_cases import bend_case
+
+    g, phi_a, phi_b, _, _ = bend_case(d=2, n=40)
+    fa = np.zeros((6, 2))
+    fa[:, 0] = [-0.55, -0.35, -0.05, 0.05, 0.35, 0.55]
+    fa[1, 1], fa[4, 1] = 0.05, -0.05
+    fb = fa.copy()
+    right = fa[:, 0] > 0
+    fb[right, 0], fb[right, 1] = -fa[right, 1], fa[right, 0]
+    res = solve_map(phi_a, phi_b, g, fa, fb, **opts)
+    q = sample(res.mapped, g, np.array([[-0.6, 0.0], [-0.2, 0.0], [0.2, 0.0], [0.6, 0.0]]))
+    return abs(np.linalg.norm(q[1] - q[0]) / 0.4 - 1), abs(np.linalg.norm(q[3] - q[2]) / 0.4 - 1)
+
+
+def test_stiff_feature_patches_keep_the_halves_of_a_bent_rod_rigid():
+    """With plain-material patches (factor 1) a patch near the joint shears and scales and the
+    half shortens by 2.2 %; patch_rigidity (default 10) holds the halves within 1.2 %."""
+    assert max(_bent_rod_half_lengths()) <= 0.012
+    assert max(_bent_rod_half_lengths(patch_rigidity=1.0)) > 0.02
 
 
 def test_prolongation_equals_multilinear_sampling_of_the_coarse_level():
