@@ -1,9 +1,12 @@
 """Build the example scenes in assets/ deterministically, through the add-on's own operators.
 
-Run from the repository root with the bpy module::
+Run from the repository root with the bpy module of the OLDEST supported Blender (4.2 LTS),
+so that every supported Blender opens the files (a .blend saved by 5.0 has a new header that
+4.x cannot read; newer versions read older files)::
 
-    python assets/make_assets.py            # every scene
-    python assets/make_assets.py bend rigid # some scenes
+    KFI_VENV=~/.cache/keyframe_implicit/venv-bpy42 KFI_REQUIREMENTS=requirements-bpy42.txt \
+        bash -c 'source scripts/env.sh && python assets/make_assets.py'      # every scene
+    ... python assets/make_assets.py bend rigid                               # some scenes
 
 Each scene is made in an empty file: the keyframe meshes (from `keyframe_implicit.examples`,
 or Blender's monkey for "suzanne") are added as mesh objects in a collection "Keyframes",

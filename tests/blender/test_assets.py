@@ -136,3 +136,13 @@ def test_asset_bakes_at_low_resolution(name):
         ref = _world_vertices(obj)
         assert np.allclose(co.min(0), ref.min(0), atol=2.5 * h), (f, co.min(0), ref.min(0))
         assert np.allclose(co.max(0), ref.max(0), atol=2.5 * h), (f, co.max(0), ref.max(0))
+
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_asset_was_saved_by_the_oldest_supported_blender(name):
+    """Blender 5.0 writes a file header 4.x cannot read ("not a blend file"), while newer
+    versions read older files: the assets must be saved by 4.2 (see assets/make_assets.py)."""
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(ASSETS, f"{name}.blend"))
+    assert tuple(bpy.data.version[:2]) == (4, 2), (
+        f"{name}.blend was saved by Blender {bpy.data.version}; regenerate it with bpy 4.2")
