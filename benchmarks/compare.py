@@ -180,10 +180,10 @@ def _row(r):
 
 
 def write_results(results, outdir):
+    from cases import CASE_NAMES
     outdir = pathlib.Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     order = {m: i for i, m in enumerate(METHOD_ORDER)}
-    from cases import CASE_NAMES
     corder = {c: i for i, c in enumerate(CASE_NAMES)}
     results = sorted(results, key=lambda r: (corder.get(r["case"], 99), r["n"], order.get(r["method"], 9)))
     (outdir / "results.json").write_text(json.dumps(results, indent=1, default=float) + "\n")
@@ -209,6 +209,22 @@ def write_results(results, outdir):
         "(Python + numpy + scipy alone take about " + _fmt(_import_rss(results), ".0f") + " MB).",
         "",
     ] + lines + [""]
+    floors = [r for r in results if "volume_drift_floor" in r and r["method"] == "blend"]
+    if floors:
+        md += ["Volume metric floor (drift of the exact rigid motion sampled on the grid): "
+               + ", ".join(f"{r['n']}^3 {100 * r['volume_drift_floor']:.2f}%" for r in sorted(floors, key=lambda r: r["n"]))
+               + ".", ""]
+    md += ["## Cost growth", "",
+           "Log-log slope (numpy polyfit) of wall seconds and of peak RSS above the import baseline against "
+           "active voxels (phi_a < 2h), per case over the grid sizes run, and pooled over all cases and sizes.", "",
+           "| method | case | time slope | memory slope | runs |", "|---|---|---|---|---|"]
+    for m in METHOD_ORDER:
+        for c in CASE_NAMES + (None,):
+            sl = cost_slopes(results, m, c)
+            if sl:
+                md.append(f"| {METHOD_LABEL[m]} | {c or 'all (pooled)'} | {sl['time_slope']:.2f} | "
+                          f"{sl['memory_slope']:.2f} | {sl['points']} |")
+    md.append("")
     (outdir / "results.md").write_text("\n".join(md))
     _plots(results, outdir)
     return outdir / "results.md"
@@ -219,9 +235,15 @@ def _import_rss(results):
     return float(np.median(v)) if v else None
 
 
-def cost_slopes(results, method="project"):
-    """Log-log slopes (numpy polyfit) of seconds and peak MB against active voxels for ``method``."""
-    rs = [r for r in results if r["method"] == method and "error" not in r]
+def cost_slopes(results, method="project", case=None):
+    """Log-log slopes (numpy polyfit) of seconds and peak MB against active voxels for ``method``.
+
+    With ``case`` the fit runs over that case's grid sizes only; without, over
+    every (case, size) run of the method (cases differ in shape, so the pooled
+    slope mixes shape with size: the per-case slopes are the cleaner figure).
+    Memory is peak RSS above the import baseline.
+    """
+    rs = [r for r in results if r["method"] == method and "error" not in r and (case is None or r["case"] == case)]
     if len(rs) < 2 or len({r["active_voxels"] for r in rs}) < 2:
         return None
     x = np.log([r["active_voxels"] for r in rs])
@@ -258,7 +280,7 @@ def _plots(results, outdir):
     axes[0].set_xticklabels(CASE_NAMES)
     axes[0].set_ylabel("max volume drift over frames (%)")
     axes[0].set_title(f"volume drift at {nmax}^3")
-    axes[0].set_yscale("symlog", linthresh=1.0)
+    axes[0].set_yscale("log")
     axes[0].legend(fontsize=8)
     for m in methods:
         rr = sorted([r for r in ok if r["case"] == "rigid" and r["method"] == m and "truth_mean_h" in r],
@@ -277,29 +299,36 @@ def _plots(results, outdir):
     fig.savefig(outdir / "quality.png", dpi=110)
     plt.close(fig)
 
-    # 2. cost growth against active voxels
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    # 2. cost growth against active voxels: one line per (method, case) over the sizes
+    from matplotlib.ticker import NullFormatter
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    markers = dict(zip(CASE_NAMES, "osD^v"))
     for m in methods:
-        rr = [r for r in ok if r["method"] == m]
-        x = np.array([r["active_voxels"] for r in rr], float)
-        sl = cost_slopes(results, m)
-        lab = METHOD_LABEL[m]
-        if sl:
-            lab_t = f"{lab} (slope {sl['time_slope']:.2f})"
-            lab_m = f"{lab} (slope {sl['memory_slope']:.2f})"
-        else:
-            lab_t = lab_m = lab
-        axes[0].loglog(x, [max(r["total_seconds"], 1e-4) for r in rr], "o", color=colours[m], label=lab_t)
-        axes[1].loglog(x, [max(r["peak_rss_mb"] - r["import_rss_mb"], 1.0) for r in rr], "o",
-                       color=colours[m], label=lab_m)
-    axes[0].set_xlabel("active voxels (phi_a < 2h)")
-    axes[0].set_ylabel("wall seconds (all stages, shared 2-core machine)")
-    axes[1].set_xlabel("active voxels (phi_a < 2h)")
-    axes[1].set_ylabel("peak RSS above import baseline (MB)")
+        slopes = [cost_slopes(results, m, c) for c in CASE_NAMES]
+        slopes = [sl for sl in slopes if sl]
+        lab_t = lab_m = METHOD_LABEL[m]
+        if slopes:
+            lab_t += f" (slope {np.median([sl['time_slope'] for sl in slopes]):.2f})"
+            lab_m += f" (slope {np.median([sl['memory_slope'] for sl in slopes]):.2f})"
+        for i, c in enumerate(CASE_NAMES):
+            rr = sorted([r for r in ok if r["method"] == m and r["case"] == c], key=lambda r: r["n"])
+            if not rr:
+                continue
+            x = [r["active_voxels"] for r in rr]
+            axes[0].loglog(x, [max(r["total_seconds"], 1e-4) for r in rr], "-", marker=markers[c],
+                           color=colours[m], label=lab_t if i == 0 else None, lw=2 if m == "project" else 0.8)
+            axes[1].loglog(x, [max(r["peak_rss_mb"] - r["import_rss_mb"], 1.0) for r in rr], "-",
+                           marker=markers[c], color=colours[m], label=lab_m if i == 0 else None,
+                           lw=2 if m == "project" else 0.8)
     for ax in axes:
-        ax.legend(fontsize=7)
-    axes[0].set_title("time against active voxels (all cases, all sizes)")
+        ax.set_xlabel("active voxels (phi_a < 2h)")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.legend(fontsize=7, title="median per-case log-log slope", title_fontsize=7)
+    axes[0].set_ylabel("wall seconds, all stages (shared 2-core machine)")
+    axes[1].set_ylabel("peak RSS above import baseline (MB)")
+    axes[0].set_title("time against active voxels (lines: one case over sizes)")
     axes[1].set_title("memory against active voxels")
+    fig.suptitle("markers: " + ", ".join(f"{c} '{markers[c]}'" for c in CASE_NAMES), fontsize=8, y=0.99)
     fig.tight_layout()
     fig.savefig(outdir / "cost.png", dpi=110)
     plt.close(fig)
@@ -316,12 +345,17 @@ def main(argv=None):
     p.add_argument("--out", default=str(HERE / "results"))
     p.add_argument("--merge", action="store_true",
                    help="keep rows of the existing results.json that this run does not redo")
+    p.add_argument("--render-only", action="store_true",
+                   help="rewrite the table and plots from the existing results.json without running anything")
     p.add_argument("--worker-case")
     p.add_argument("--worker-method")
     p.add_argument("--worker-n", type=int)
     args = p.parse_args(argv)
     if args.worker_case:
         _worker(args)
+        return 0
+    if args.render_only:
+        print(f"wrote {write_results(json.loads((pathlib.Path(args.out) / 'results.json').read_text()), args.out)}")
         return 0
     sizes = [32] if args.quick else [int(s) for s in args.sizes.split(",") if s.strip()]
     case_names = [c.strip() for c in args.cases.split(",") if c.strip()]
