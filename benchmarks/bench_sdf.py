@@ -20,29 +20,13 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from keyframe_implicit.core import Grid, mesh_to_sdf
+from keyframe_implicit.examples import icosphere
 from keyframe_implicit.core.sdf import point_triangle_distance, winding_number
 
 
 def noisy_sphere(n_sub=5, radius=1.0, noise=0.03, seed=0):
     """Icosphere (20 * 4**n_sub triangles; 20480 for n_sub=5) with radial noise."""
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    v /= np.linalg.norm(v, axis=1)[:, None]
-    for _ in range(n_sub):
-        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        ue, inv = np.unique(e, axis=0, return_inverse=True)
-        mid = v[ue[:, 0]] + v[ue[:, 1]]
-        mid /= np.linalg.norm(mid, axis=1)[:, None]
-        m = len(v) + inv.reshape(3, -1).T
-        v = np.concatenate([v, mid])
-        a, b, c = f.T
-        ab, bc, ca = m.T
-        f = np.concatenate([np.stack(x, 1) for x in
-                            ([a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca])])
+    v, f = icosphere(n_sub)
     rng = np.random.default_rng(seed)
     # smooth-ish bumps plus per-vertex noise
     bumps = 0.08 * np.sin(5 * v[:, 0]) * np.cos(4 * v[:, 1]) * np.sin(3 * v[:, 2] + 1)

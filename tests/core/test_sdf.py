@@ -9,28 +9,7 @@ from keyframe_implicit.core.sdf import point_triangle_distance, triangulate, win
 
 
 # -- test meshes built with numpy --------------------------------------------------
-def icosphere(n_sub, radius=1.0, center=(0.0, 0.0, 0.0)):
-    """Icosahedron subdivided n_sub times, projected on the sphere, outward faces."""
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    v /= np.linalg.norm(v, axis=1)[:, None]
-    for _ in range(n_sub):
-        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        ue, inv = np.unique(e, axis=0, return_inverse=True)
-        mid = v[ue[:, 0]] + v[ue[:, 1]]
-        mid /= np.linalg.norm(mid, axis=1)[:, None]
-        m = len(v) + inv.reshape(3, -1).T
-        v = np.concatenate([v, mid])
-        a, b, c = f.T
-        ab, bc, ca = m.T
-        f = np.concatenate([np.stack(x, 1) for x in
-                            ([a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca])])
-    return v * radius + np.asarray(center), f
-
+from keyframe_implicit.examples import icosphere  # noqa: E402
 
 BOX_V = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
 # outward quads of the unit box (vertex index = 4x + 2y + z)
