@@ -10,14 +10,7 @@ from keyframe_implicit import demo
 
 
 def _read_png(path):
-    img = bpy.data.images.load(path, check_existing=False)
-    try:
-        w, h = img.size
-        px = np.empty(w * h * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)[::-1, :, :3]
+    return demo._read_png(path)[:, :, :3]
 
 
 def test_sheet_frames_keep_ends_and_keyframes_and_the_count():

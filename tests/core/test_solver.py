@@ -142,18 +142,21 @@ def test_feature_points_land_exactly_off_node_and_inside(d):
     assert res.stats["feature_residual_h"] < 1e-6
 
 
+def _sphere_to_ellipsoid(n):
+    """Sphere r = 0.3 -> equal-volume prolate ellipsoid, six pole features (3D, n^3 nodes)."""
+    g = _unit_grid(n, 3)
+    P = g.points()
+    c = np.array([0.5, 0.5, 0.5])
+    phi_a = np.linalg.norm(P - c, axis=-1) - 0.3
+    ax = np.array([1.3, 1 / np.sqrt(1.3), 1 / np.sqrt(1.3)]) * 0.3
+    dirs = np.vstack([np.eye(3), -np.eye(3)])
+    return g, phi_a, _ellipsoid(P, c, ax), c + 0.3 * dirs, c + ax * dirs
+
+
 def test_det_bound_near_features_at_two_resolutions():
     """The affine patch of fixed physical radius keeps det F bounded near every feature point."""
     for n in (24, 40):
-        g = _unit_grid(n, 3)
-        P = g.points()
-        c = np.array([0.5, 0.5, 0.5])
-        phi_a = np.linalg.norm(P - c, axis=-1) - 0.3
-        ax = np.array([1.3, 1 / np.sqrt(1.3), 1 / np.sqrt(1.3)]) * 0.3
-        phi_b = _ellipsoid(P, c, ax)
-        dirs = np.vstack([np.eye(3), -np.eye(3)])
-        fa = c + 0.3 * dirs
-        fb = c + ax * dirs
+        g, phi_a, phi_b, fa, fb = _sphere_to_ellipsoid(n)
         res = solve_map(phi_a, phi_b, g, fa, fb, feature_radius=0.08)
         assert res.stats["patch_features"] == 6
         _, mins, centres = _material_dets(res, phi_a)
@@ -165,14 +168,8 @@ def test_det_bound_near_features_at_two_resolutions():
 
 # -- equal-volume deformations ----------------------------------------------
 def test_sphere_to_equal_volume_ellipsoid_3d():
-    g = _unit_grid(28, 3)
-    P = g.points()
-    c = np.array([0.5, 0.5, 0.5])
-    phi_a = np.linalg.norm(P - c, axis=-1) - 0.3
-    ax = np.array([1.3, 1 / np.sqrt(1.3), 1 / np.sqrt(1.3)]) * 0.3
-    phi_b = _ellipsoid(P, c, ax)
-    dirs = np.vstack([np.eye(3), -np.eye(3)])
-    res = solve_map(phi_a, phi_b, g, c + 0.3 * dirs, c + ax * dirs)
+    g, phi_a, phi_b, fa, fb = _sphere_to_ellipsoid(28)
+    res = solve_map(phi_a, phi_b, g, fa, fb)
     det_c, det_min, _ = _material_dets(res, phi_a)
     assert det_min.min() > 0
     assert np.mean((det_c >= 0.8) & (det_c <= 1.25)) >= 0.99
