@@ -141,6 +141,7 @@ DEFAULTS = dict(
     extension_passes=8,
     initial=None,
     reuse_hessian=True,
+    min_det=0.2,
 )
 
 
@@ -423,7 +424,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
     timing["assembly"] += time.perf_counter() - t0
     dets = level.det_stats(y, chunk)
-    folded = int(np.sum(dets[0] <= 0))
+    floor = _det_floor(dets, opts["min_det"])
     history = [dict(energy=E, **terms)]
     it = 0
     cg_total = 0
@@ -460,8 +461,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False)
             if E_new <= E + 1e-4 * alpha * slope:
                 dets_new = level.det_stats(y_new, chunk)
-                folded_new = int(np.sum(dets_new[0] <= 0))
-                if folded_new <= folded:
+                if _det_floor(dets_new, opts["min_det"]) >= floor:
                     accepted = True
                     break
             alpha *= 0.5
@@ -469,7 +469,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         if not accepted:
             break
         rel = (E - E_new) / max(E, 1e-300)
-        y, folded, dets, terms = y_new, folded_new, dets_new, terms_new
+        y, dets, terms = y_new, dets_new, terms_new
+        floor = _det_floor(dets, opts["min_det"])
         history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **terms_new))
         E = E_new
         if rel < tolerance or it == max_iterations:
@@ -485,6 +486,42 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms
+
+
+def _level_start(level, base, corr_prev, options):
+    """Start of one level: its base map plus as much of the coarser level's correction as
+    keeps the material's det F at ``min_det`` (or at the base's own minimum, if lower).
+
+    The correction comes from coarser cells and is extended past their region, so at
+    the finer level's material boundary it can fold cells the coarse level never saw;
+    it is halved until it does not. Returns the start on every node and on the active ones.
+    """
+    d, chunk = level.d, int(options["chunk_elements"])
+
+    def start(scale):
+        full = base if scale == 0 else base + scale * _prolong(corr_prev, level.grid.shape)
+        return full, level.cons.enforce(full.reshape(-1, d)[level.active])
+
+    full, y = start(0.0)
+    if corr_prev is None:
+        return full.copy(), y
+    floor = _det_floor(level.det_stats(y, chunk), options["min_det"])
+    for scale in (1.0, 0.5, 0.25, 0.125):
+        full_s, y_s = start(scale)
+        if _det_floor(level.det_stats(y_s, chunk), options["min_det"]) >= floor:
+            return full_s, y_s
+    return full.copy(), y
+
+
+def _det_floor(dets, min_det):
+    """What a step may not lower: the material's smallest det F, counted up to ``min_det``.
+
+    A step is refused if it takes any quadrature point of the material below
+    ``min_det`` (or below the current minimum, where the start is already
+    lower), so the map never folds and never comes close to folding.
+    """
+    low = dets[0]
+    return float(min(low.min(), min_det)) if low.size else float(min_det)
 
 
 def _extend(full, known, passes):
@@ -657,7 +694,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (d * i) for i in range(nlev)])
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
-    corr_prev, grid_prev = None, None
+    corr_prev = None
     level_stats = []
     for li, g in enumerate(grids):
         lrep = rep.sub(edges[li], edges[li + 1])
@@ -671,16 +708,12 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
             pa = sample(phi_a, grid, pts, outside="distance")
             pb = sample(phi_b, grid, pts, outside="distance")
             base = pts + sample(disp0, grid, pts)
-        if corr_prev is not None:
-            y_start_full = base + _prolong(corr_prev, g.shape)
-        else:
-            y_start_full = base.copy()
         if not np.any(pa < 0):
             continue  # material too thin for this coarse level
         # a patch must hold its feature's cell; feature_radius=0 asks for plain hard constraints
         rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing) if radius > 0 else 0.0
         level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad, patch_rigidity)
-        y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
+        y_start_full, y = _level_start(level, base, corr_prev, options)
         timing["setup"] += time.perf_counter() - t0
         y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),
                                                    float(tolerance), lrep, timing)
@@ -694,7 +727,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         timing["extension"] += time.perf_counter() - t0
         level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
                                 iterations=iters, cg_iterations=cg_total, history=history))
-        corr_prev, grid_prev = corr, g
+        corr_prev = corr
         if fine:
             break
     mapped = y0 + corr_prev
