@@ -38,8 +38,9 @@ if str(HERE) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-METHOD_ORDER = ("project", "blend", "morph", "rbf")
-METHOD_LABEL = {"project": "this project", "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
+METHOD_ORDER = ("project", "one-sided", "blend", "morph", "rbf")
+METHOD_LABEL = {"project": "this project", "one-sided": "this project, one-sided (thesis eq. 3.4)",
+                "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
                 "rbf": "plain RBF warp"}
 
 
@@ -262,7 +263,7 @@ def _plots(results, outdir):
     if not ok:
         return
     from cases import CASE_NAMES
-    colours = {"project": "C3", "blend": "C0", "morph": "C2", "rbf": "C1"}
+    colours = {"project": "C3", "one-sided": "C4", "blend": "C0", "morph": "C2", "rbf": "C1"}
 
     # 1. quality: volume drift per case and method at the largest size run
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
