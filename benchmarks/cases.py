@@ -41,6 +41,7 @@ class Case:
     features : list of (features_a, features_b), one pair of (N, 3) arrays per segment.
     truth : callable(points (P, 3), s) -> signed distance, or None.
     expected_components : list of int, connected components of each keyframe.
+    info : dict of facts of the case's geometry (e.g. the merge's ``gap``, world units).
     """
 
     name: str
@@ -49,6 +50,7 @@ class Case:
     features: list
     truth: object = None
     expected_components: list = field(default_factory=list)
+    info: dict = field(default_factory=dict)
 
 
 def make_grid(n: int) -> Grid:
@@ -176,14 +178,15 @@ def _merge(grid):
     half = 3 * R / 8
     fa = np.vstack([ca + off, cb + off])
     fb = np.vstack([np.array([-half, 0, 0]) + off, np.array([half, 0, 0]) + off])
-    return Case("merge", grid, [phi_a, phi_b], [(fa, fb)], None, [2, 1])
+    gap = float(np.linalg.norm(cb - ca) - 2 * r)
+    return Case("merge", grid, [phi_a, phi_b], [(fa, fb)], None, [2, 1], {"gap": gap})
 
 
 def _split(grid):
     """The merge played backwards: one ball tears into two (the thesis's future work)."""
     merge = _merge(grid)
     fa, fb = merge.features[0]
-    return Case("split", grid, merge.fields[::-1], [(fb, fa)], None, [1, 2])
+    return Case("split", grid, merge.fields[::-1], [(fb, fa)], None, [1, 2], merge.info)
 
 
 # star: a ball with six thin arms along the axes, into a ball of equal volume

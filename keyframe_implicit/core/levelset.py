@@ -11,14 +11,18 @@ in the spirit of the warp-and-blend of Cohen-Or, Levin and Solomovici (1998):
     L_s(z) = (1 - s) Phi_s(z) + s Psi_s(z),
     Phi_s(x_A(s)) = Phi(x),   Psi_s(x_B(1 - s)) = Psi(x),
 
-with x_A(t), x_B(t) the node paths of A and B. Each transported field is
-truncated at its region's width w (the trajectories' margin); where a
-transport does not reach z, z lies beyond that margin of the moved keyframe,
-so its value is w: "not reached" and "far outside" agree, the blend is
-continuous where one transport's region ends, and far from both keyframes
-L_s = w > 0, never drifting to zero. Neither transport hands depth from one
-keyframe to the empty space of the other (the swelling of the one-sided form
-below in merges). The ends are the keyframes themselves: L_0 = Phi, L_1 = Psi.
+with x_A(t), x_B(t) the node paths of A and B (material a map tears fades on
+the way: `transport.Transport.carry`). Both transported fields are truncated
+at one value w > 0, the smallest value either field has on the border of its
+region (a few cells around the material). Where a transport does not reach
+z, z lies beyond that border of the moved keyframe, so its value is w: "not
+reached" and "far outside" agree, the blend is continuous where one
+transport's region ends, and far from both keyframes L_s = w, never drifting
+to zero. Neither transport hands depth from one keyframe to the empty space
+of the other (the swelling of the one-sided form below in merges). Each
+in-between is then shifted by the iso-value that keeps its volume on the
+linear path between the keyframes' (`isovolume`). The ends are the keyframes
+themselves: L_0 = Phi, L_1 = Psi.
 
 The backward map is solved like the forward one with the feature pairs
 swapped (`inbetween`), or, with `Inbetween.from_map`, given, or else
@@ -147,7 +151,7 @@ class Inbetween:
         self.idw_radius = float(idw_radius)
         self.map_result = map_result
         self.map_result_back = map_result_back
-        self.outside_value = forward.truncation
+        self.outside_value = forward.truncation  # both transports share it (from_map)
         self.stats = dict(stats or {})
         self.stats.setdefault("levelset_seconds", 0.0)
         self.stats.setdefault("levelset_calls", 0)
@@ -236,6 +240,9 @@ class Inbetween:
             back_traj = Trajectories(grid, np.asarray(mapped_back, dtype=float), phi_b < 0,
                                      **traj_opts)
             backward = Transport(phi_b, back_traj, **lookup_opts)
+            # one truncation for both, so that the far field is one value
+            w = min(forward.border_value, backward.border_value)
+            forward.truncation = backward.truncation = w
         st["trajectory_setup_seconds"] = time.perf_counter() - t0
         return cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume, resample=resample,
                    idw_radius=idw_radius, stats=st, map_result=map_result,

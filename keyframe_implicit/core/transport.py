@@ -10,10 +10,12 @@ cubic B-splines (or multilinearly). Moved cells share faces, so the image of
 the region has no holes; where two moved cells overlap (two parts pressed into
 each other) the smaller value wins, i.e. the union of the material.
 
-The field is truncated at the region's width (``truncation``, world units):
-every value the transport carries is at most that, and a node no moved cell
-reaches has no value. So "far outside" and "not reached" agree, and nothing
-far from the material can drift to zero (thesis sec. 3.2 and its artifacts,
+The field is truncated (``truncation``, world units) at its smallest value on
+the border of the region: every value the transport carries is at most that,
+and a node no moved cell reaches -- beyond the moved border -- has no value,
+which its user reads as the truncation. So "far outside" and "not reached"
+agree, the carried field is continuous where the region ends, and nothing far
+from the material can drift to zero (thesis sec. 3.2 and its artifacts,
 PAPER-NOTES section 6).
 
 `levelset.Inbetween` blends two transports, one per keyframe (PAPER-NOTES
@@ -239,14 +241,19 @@ class Transport:
         halve the zero-set error of multilinear reads on rotated shapes).
     newton_steps : int
         Newton iterations of the inverse lookup.
+    truncation : float, optional
+        Largest value carried (world units); by default the field's smallest
+        value on the region's border (`border_value`).
 
     Attributes
     ----------
+    border_value : float
+        The field's smallest value on the border of the region (world units).
     truncation : float
-        Largest value carried (world units): the region's width.
     """
 
-    def __init__(self, field, trajectories, *, interpolation="cubic", newton_steps=6):
+    def __init__(self, field, trajectories, *, interpolation="cubic", newton_steps=6,
+                 truncation=None):
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
         grid = trajectories.grid
@@ -255,11 +262,12 @@ class Transport:
         self.trajectories = trajectories
         self.interpolation = interpolation
         self.newton_steps = int(newton_steps)
-        self.truncation = trajectories.margin_cells * grid.spacing
         self._coef = (ndimage.spline_filter(self.field, order=3, mode="nearest")
                       if interpolation == "cubic" else None)
-        self._cells, self._corner_nodes, self._cnodes_local = _region_cells(
+        self._cells, self._corner_nodes, self._cnodes_local, border = _region_cells(
             grid, trajectories.region_nodes())
+        self.border_value = float(self.field.reshape(-1)[border].min()) if border.size else np.inf
+        self.truncation = self.border_value if truncation is None else float(truncation)
 
     def read(self, field, u, coef=None):
         """A field's value at continuous node-index coordinates u (M, d).
@@ -318,18 +326,28 @@ class Transport:
 
 
 def _region_cells(grid, region):
-    """Cells with all corners in ``region`` (bool, flat): lower-corner nodes, their corner
-    nodes (unique) and each cell's corners as indices into those."""
+    """The cells with all corners in ``region`` (bool, flat).
+
+    Returns their lower-corner nodes, their corner nodes (unique), each cell's
+    corners as indices into those, and the border nodes: corners of some
+    region cell that are not surrounded by region cells.
+    """
     shape = np.asarray(grid.shape)
+    d = grid.dim
     near = region.reshape(grid.shape)
-    corners = _corners(grid.dim)
+    corners = _corners(d)
     cell_ok = np.ones(tuple(shape - 1), dtype=bool)
     for c in corners:
-        cell_ok &= near[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(grid.dim))]
+        cell_ok &= near[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))]
     cells = np.ravel_multi_index(np.unravel_index(np.flatnonzero(cell_ok), tuple(shape - 1)),
                                  grid.shape)
-    strides = np.array([int(np.prod(shape[a + 1:])) for a in range(grid.dim)])
+    strides = np.array([int(np.prod(shape[a + 1:])) for a in range(d)])
     cnodes = cells[:, None] + (corners @ strides)[None, :]
     corner_nodes, inv = np.unique(cnodes, return_inverse=True)
-    return cells, corner_nodes, inv.reshape(cnodes.shape)
-
+    # a node is inside the union of region cells when all 2^d cells around it are region cells
+    padded = np.pad(cell_ok, 1)
+    inside = np.ones(grid.shape, dtype=bool)
+    for c in corners:
+        inside &= padded[tuple(slice(c[a], c[a] + shape[a]) for a in range(d))]
+    border = corner_nodes[~inside.reshape(-1)[corner_nodes]]
+    return cells, corner_nodes, inv.reshape(cnodes.shape), border

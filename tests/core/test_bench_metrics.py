@@ -4,25 +4,13 @@ Each assertion would fail if the metric were wrong (volume formula, component
 labelling, drift definition, surface distance in h, feature error in h).
 """
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
 
+from benchmark_modules import load
 from keyframe_implicit.core.grid import Grid
 
-_BENCH = pathlib.Path(__file__).resolve().parents[2] / "benchmarks"
-
-
-def _load(name):
-    spec = importlib.util.spec_from_file_location(f"_bench_{name}", _BENCH / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-metrics = _load("metrics")
+metrics = load("metrics")
 
 
 @pytest.fixture(scope="module")
