@@ -4,7 +4,7 @@
 #
 #   scripts/blender_chroot.sh [pytest args]     # default: -q tests
 #
-# 1. Makes the chroot once, or reuses it: $KFI_CHROOT (default
+# 1. Makes the chroot once, or reuses it (scripts/trixie_chroot.sh): $KFI_CHROOT (default
 #    /var/cache/keyframe_implicit/trixie, outside the clone): debootstrap --variant=minbase
 #    trixie, then apt-get install --no-install-recommends blender python3-numpy python3-pytest
 #    and an EGL/Mesa GL driver (numpy is what Blender's own builds bundle, Debian packages it
@@ -25,10 +25,8 @@
 # Exit status: non-zero on any failure, else pytest's.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-CHROOT="${KFI_CHROOT:-/var/cache/keyframe_implicit/trixie}"
 # libegl1 + Mesa: a GL driver (software llvmpipe here) for Workbench/EEVEE renders in -b.
 PACKAGES="blender python3-numpy python3-pytest libegl1 libegl-mesa0 libgl1-mesa-dri"
-MIRROR="${KFI_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 log() { echo "[blender_chroot] $*" >&2; }
 
 if [ "$(id -u)" != 0 ]; then
@@ -37,27 +35,8 @@ if [ "$(id -u)" != 0 ]; then
 fi
 
 # ---- 1. the chroot -------------------------------------------------------------------
-stamp="$CHROOT/.kfi-stamp"
-if [ ! -x "$CHROOT/usr/bin/blender" ]; then
-  t0=$(date +%s)
-  log "making the trixie chroot in $CHROOT (first run: ~1-2 min, ~1.8 GB)"
-  command -v debootstrap >/dev/null || { apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null; }
-  rm -rf "$CHROOT.tmp"
-  mkdir -p "$(dirname "$CHROOT")"
-  debootstrap --variant=minbase trixie "$CHROOT.tmp" "$MIRROR" >/dev/null
-  chroot "$CHROOT.tmp" apt-get install -y -qq --no-install-recommends $PACKAGES >/dev/null
-  chroot "$CHROOT.tmp" apt-get clean
-  echo "$PACKAGES" > "$CHROOT.tmp/.kfi-stamp"
-  rm -rf "$CHROOT"
-  mv "$CHROOT.tmp" "$CHROOT"
-  log "chroot ready in $(( $(date +%s) - t0 )) s"
-elif [ "$(cat "$stamp" 2>/dev/null)" != "$PACKAGES" ]; then
-  log "updating the packages of $CHROOT"
-  chroot "$CHROOT" apt-get update -qq
-  chroot "$CHROOT" apt-get install -y -qq --no-install-recommends $PACKAGES >/dev/null
-  chroot "$CHROOT" apt-get clean
-  echo "$PACKAGES" > "$stamp"
-fi
+source "$ROOT/scripts/trixie_chroot.sh"
+ensure_chroot $PACKAGES
 
 # ---- 2. the zip ----------------------------------------------------------------------
 run="$(mktemp -d "$CHROOT/tmp/kfi-run.XXXXXX")"
