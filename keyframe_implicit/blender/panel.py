@@ -12,9 +12,10 @@ import bpy
 
 from . import features, validate
 
-# Width (px at UI scale 1) taken from a sidebar label by the panel's and a box's margins and
-# the icon: what is left is the text's.
-LABEL_MARGIN = 52
+# Width (px at UI scale 1) a sidebar label loses to the category tabs, the panel's and a
+# box's margins and the label's own padding (measured on a 4.3 window: 81 without a box),
+# and to its icon: what is left is the text's.
+LABEL_MARGIN = 76
 ICON_WIDTH = 20
 
 
@@ -69,8 +70,11 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             for p in found:
                 _wrapped(box, context, p.message, p.icon)
 
-        layout.prop(settings, "resolution")
         col = layout.column(align=True)
+        col.use_property_split = True  # labels in a column of their own: not cut at 291 px
+        col.use_property_decorate = False
+        col.prop(settings, "resolution")
+        col.separator()
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
         from .ops import _running

@@ -4,7 +4,8 @@ The result is selected and active (so the timeline shows its keys and the
 Properties editor shows it), the keyframe objects and their feature Empties are
 hidden in the viewport and in renders (the result sits where they are), and the
 scene's frame range is widened to cover the baked frames. `show_keyframes`
-brings the keyframes back as wireframe overlays for comparison; their own
+brings the keyframes back as wireframe overlays for comparison (the Empties stay
+hidden: their names would cover the result; Select Pair shows a pair); their own
 display type is kept in the setup (``KFI_Keyframe.display_type``) and restored
 when they are hidden again. Everything here is ordinary scene state, so one
 undo step of the bake brings it all back.
@@ -30,7 +31,7 @@ def _set_hidden(obj, view_layer, hidden):
 
 
 def show_keyframes(settings, view_layer, show):
-    """Show the keyframes (and their feature Empties) as wireframes, or hide them.
+    """Show the keyframes as wireframes, or hide them (with their feature Empties).
 
     They stay out of renders either way. The first call remembers each
     object's display type; hiding them again restores it.
@@ -48,8 +49,9 @@ def show_keyframes(settings, view_layer, show):
         if show:
             obj.display_type = "WIRE"
         _set_hidden(obj, view_layer, not show)
-    for empty in features.feature_objects(view_layer.id_data):  # the view layer's scene
-        _set_hidden(empty, view_layer, not show)
+    if not show:
+        for empty in features.feature_objects(view_layer.id_data):  # the view layer's scene
+            _set_hidden(empty, view_layer, True)
 
 
 def cover_frames(scene, first, last):

@@ -8,8 +8,10 @@ core but gives the solver a poor start).
 The surface checks (`surface_check`) are cheap topology counts on each
 keyframe's evaluated mesh: a keyframe that encloses no volume (a plane) is
 refused before any grid is built; holes and non-manifold edges, which the
-core reads anyway, are pointed out. Keyframes are numbered from 1 in list order,
-as the core's messages number them.
+core reads anyway, are pointed out. The panel and the Bake button's poll ask
+on every redraw, so answers are kept until a depsgraph update changes some
+geometry (`forget_surfaces`, a handler registered with the add-on). Keyframes
+are numbered from 1 in list order, as the core's messages number them.
 """
 
 from dataclasses import dataclass
@@ -60,7 +62,7 @@ def problems(scene, settings=None, depsgraph=None):
             out.append(Problem(ERROR, f"{name} is not in this scene: link it into the scene or "
                                       "pick another object."))
         else:
-            found = surface_check(kf.object, _depsgraph(scene, depsgraph))
+            found = _cached_surface_check(kf.object, _depsgraph(scene, depsgraph))
             if found:
                 out.append(Problem(found[0], f"{name} {found[1]}"))
     frames = [kf.frame for kf in kfs]
@@ -134,6 +136,24 @@ def surface_check(obj, depsgraph):
     finally:
         if obj.modifiers:
             ob.to_mesh_clear()
+
+
+_surfaces = {}  # cheap state of a keyframe object -> surface_check's answer
+
+
+def _cached_surface_check(obj, depsgraph):
+    mesh = obj.data
+    key = (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
+           tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers))
+    if key not in _surfaces:
+        _surfaces[key] = surface_check(obj, depsgraph)
+    return _surfaces[key]
+
+
+def forget_surfaces(scene=None, depsgraph=None):
+    """Drop the kept surface checks: after a geometry update, a file load, re-registering."""
+    if depsgraph is None or any(u.is_updated_geometry for u in depsgraph.updates):
+        _surfaces.clear()
 
 
 def _surface_problem(mesh, after=""):
