@@ -41,3 +41,35 @@ ensure_chroot() {
   flock -u 9
   exec 9>&-
 }
+
+# A run directory inside the chroot, removed on exit: $run outside, $inside as the chroot
+# sees it.
+make_run_dir() {
+  run="$(mktemp -d "$CHROOT/tmp/kfi-run.XXXXXX")"
+  inside="/tmp/$(basename "$run")"
+  trap 'rm -rf "$run"' EXIT
+}
+
+# Run a command in the chroot with a clean environment; HOME is $KFI_HOME or $inside/home
+# (an empty Blender profile), extra variables come as NAME=value arguments before it.
+in_chroot() {
+  chroot "$CHROOT" /usr/bin/env -i HOME="${KFI_HOME:-$inside/home}" PATH=/usr/sbin:/usr/bin:/sbin:/bin \
+    LANG=C.UTF-8 "$@"
+}
+
+# Build the linux-x64 zip of the checkout $1 into $run/dist ($zip_name) and install it into
+# $inside/home with Blender's own tool, as a user would:
+#   blender --command extension install-file -r user_default -e ZIP
+install_zip() {
+  local root="$1"
+  (
+    source "$root/scripts/env.sh"
+    cd "$root"
+    python scripts/build_extension.py --platform linux-x64 --out "$run/dist" --build-dir "$run/build" >&2
+  )
+  zip_name="$(cd "$run/dist" && ls keyframe_implicit-*-linux_x64.zip)"
+  mkdir -p "$run/home"
+  echo "[trixie_chroot] $(in_chroot blender --version 2>/dev/null | head -1), installing $zip_name" >&2
+  KFI_HOME="$inside/home" in_chroot blender --command extension install-file -r user_default \
+    -e "$inside/dist/$zip_name" >&2
+}
