@@ -131,7 +131,7 @@ class BakeJob:
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
         return output.write_animation(scene, scene.keyframe_implicit, self.result,
-                                      material_name=self.inputs.material_name, stats=stats)
+                                      material_names=self.inputs.material_names, stats=stats)
 
 
 def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None):

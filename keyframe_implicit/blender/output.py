@@ -2,8 +2,9 @@
 
 Layout of the result (issue 5, item 4):
 
-- a mesh whose Basis is the first frame's shape, smooth shaded, with the first
-  keyframe's material, in its own collection;
+- a mesh whose Basis is the first frame's shape, smooth shaded, in its own
+  collection, with the keyframes' materials in its slots: the faces use the
+  first keyframe's, the others are there to pick from;
 - one relative shape key per timeline frame f ("Frame f"), keyed 1 on f and 0
   on f-1 and f+1 with LINEAR interpolation, so exactly one key is 1.0 on every
   integer frame and sub-frames (motion blur) blend the two neighbouring frames;
@@ -135,7 +136,7 @@ def remove_output(obj):
             bpy.data.collections.remove(coll)
 
 
-def write_animation(scene, settings, animation, *, material_name="", stats=None):
+def write_animation(scene, settings, animation, *, material_names=(), stats=None):
     """Create the output object for ``animation`` and make it the setup's output.
 
     The previous output (``settings.output_object``) is removed only once the
@@ -155,8 +156,7 @@ def write_animation(scene, settings, animation, *, material_name="", stats=None)
     coll_created = coll_linked = False
     try:
         mesh = build_mesh(name, verts[0], animation.faces)
-        mat = bpy.data.materials.get(material_name) if material_name else None
-        if mat is not None:
+        for mat in filter(None, map(bpy.data.materials.get, material_names)):
             mesh.materials.append(mat)
         obj = bpy.data.objects.new(name, mesh)
         add_frame_keys(obj, frames, verts, f"{name} Frames")

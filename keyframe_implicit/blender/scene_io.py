@@ -21,7 +21,7 @@ class BakeInput:
     features: list  # per segment (points_a (N,3), points_b (N,3))
     resolution: int
     weights: dict
-    material_name: str = ""
+    material_names: list = field(default_factory=list)  # the keyframes' materials, first use first
     pair_ids: list = field(default_factory=list)  # per segment, the pair ids in row order
 
     @property
@@ -82,13 +82,16 @@ def collect(scene, depsgraph, resolution=0):
                              "must be a closed surface.")
         keyframes.append(Keyframe(vertices=verts, faces=tris, frame=int(kf.frame)))
     feats, ids = feature_arrays(scene, settings, depsgraph)
-    first = settings.keyframes[0].object
-    material = first.active_material if first.material_slots else None
+    materials = []
+    for kf in settings.keyframes:
+        mat = kf.object.active_material if kf.object.material_slots else None
+        if mat is not None and mat.name not in materials:
+            materials.append(mat.name)
     return BakeInput(
         keyframes=keyframes,
         features=feats,
         resolution=int(resolution) if resolution and resolution > 0 else int(settings.resolution),
         weights=settings.weights(),
-        material_name=material.name if material is not None else "",
+        material_names=materials,
         pair_ids=ids,
     )
