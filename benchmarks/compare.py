@@ -338,7 +338,7 @@ def _plots(results, outdir):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", default="32,48,64", help="comma-separated nodes per axis (e.g. 32,48,64,96,128)")
-    p.add_argument("--cases", default="rigid,merge,bend,squash,splash")
+    p.add_argument("--cases", default=None, help="comma-separated case names (default: all)")
     p.add_argument("--methods", default=",".join(METHOD_ORDER))
     p.add_argument("--quick", action="store_true", help="smoke run at 32^3 only")
     p.add_argument("--frames", type=int, default=9, help="frames per keyframe pair including both ends")
@@ -359,9 +359,9 @@ def main(argv=None):
         print(f"wrote {write_results(json.loads((pathlib.Path(args.out) / 'results.json').read_text()), args.out)}")
         return 0
     sizes = [32] if args.quick else [int(s) for s in args.sizes.split(",") if s.strip()]
-    case_names = [c.strip() for c in args.cases.split(",") if c.strip()]
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     from cases import CASE_NAMES
+    case_names = list(CASE_NAMES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [c for c in case_names if c not in CASE_NAMES] + [m for m in methods if m not in METHOD_ORDER]
     if bad:
         raise ValueError(f"unknown case/method {bad}; cases: {CASE_NAMES}, methods: {METHOD_ORDER}.")

@@ -43,7 +43,10 @@ benchmarks/README.md.
 
 from __future__ import annotations
 
+import os
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy import ndimage
@@ -367,28 +370,23 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     **options
         ``transport``, ``keep_volume``, ``trajectory_method``, ``trajectory_band``,
         ``trajectory_band_weight``, ``resample``, ``idw_radius``,
-        ``newton_steps``, ``interpolation`` go to `Inbetween.from_map`; all
-        others are passed to `solve_map`.
+        ``newton_steps``, ``interpolation`` go to `Inbetween.from_map`;
+        ``parallel`` (True: solve the two maps at once when two cores are
+        free); all others are passed to `solve_map`.
 
     Returns
     -------
     Inbetween
     """
-    from .solver import solve_map
-
     rep = Reporter(progress, cancel)
     mine = {k: options.pop(k) for k in list(options) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
+    parallel = options.pop("parallel", True)
     two_sided = mine.get("transport", "two-sided") == "two-sided"
     t0 = time.perf_counter()
-    res = solve_map(phi_a, phi_b, grid, features_a, features_b,
-                    progress=rep.sub(0.0, 0.4 if two_sided else 0.8), cancel=cancel, **options)
-    st = {"map_seconds": time.perf_counter() - t0, "map": getattr(res, "stats", {})}
-    back = None
-    if two_sided:
-        t1 = time.perf_counter()
-        back = solve_map(phi_b, phi_a, grid, features_b, features_a,
-                         progress=rep.sub(0.4, 0.8), cancel=cancel, **options)
-        st["map_back_seconds"] = time.perf_counter() - t1
+    res, back = _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided,
+                            parallel, rep.sub(0.0, 0.8), cancel, options)
+    st = {"map_seconds": time.perf_counter() - t0, "map": res.stats}
+    if back is not None:
         st["map_back"] = back.stats
     rep(0.8, "trajectories")
     out = Inbetween.from_map(phi_a, phi_b, grid, res.mapped,
@@ -397,3 +395,40 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
                              stats=st, map_result=res, map_result_back=back, **mine)
     rep(1.0, "in-betweens ready")
     return out
+
+
+def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel, rep, cancel,
+                options):
+    """The map A -> B and, for the two-sided transport, B -> A (feature pairs swapped).
+
+    The two solves are independent: with ``parallel`` and two cores free the
+    backward one runs in a second thread (numpy and scipy release the GIL in
+    their kernels); it reports no progress of its own and stops when the
+    forward one fails or the caller cancels.
+    """
+    from .solver import solve_map
+
+    if not two_sided:
+        return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
+                         cancel=cancel, **options), None
+    if not (parallel and (os.cpu_count() or 1) >= 2):
+        res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
+                        cancel=cancel, **options)
+        back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),
+                         cancel=cancel, **options)
+        return res, back
+    failed = threading.Event()
+
+    def stop():
+        return failed.is_set() or (cancel is not None and cancel())
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        job = pool.submit(solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
+                          **options)
+        try:
+            res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
+                            cancel=cancel, **options)
+        except BaseException:
+            failed.set()
+            raise
+        return res, job.result()
