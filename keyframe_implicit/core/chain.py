@@ -67,7 +67,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, pro
         (one marching cubes per frame).
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
-        Passed to `levelset.inbetween` (solver weights and options, ``band``,
+        Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
         ``resample``, ...) or to `Inbetween.from_map` when ``maps`` is given.
 
     Returns

@@ -54,13 +54,16 @@ from scipy import ndimage
 from .grid import Grid
 from .isovolume import volume_offset
 from .progress import Reporter
+from .renamed import take_renamed
 from .surface import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
 
 __all__ = ["Inbetween", "inbetween", "invert_map", "idw_resample"]
 
-_TRAJ_OPTIONS = ("trajectory_method", "trajectory_band", "trajectory_band_weight")
+_TRAJ_OPTIONS = ("trajectory_method", "trajectory_margin_cells", "trajectory_margin_weight")
+_RENAMED = {"trajectory_band": "trajectory_margin_cells",
+            "trajectory_band_weight": "trajectory_margin_weight"}
 _LS_OPTIONS = ("transport", "keep_volume", "resample", "idw_radius", "newton_steps", "interpolation")
 TRANSPORTS = ("two-sided", "one-sided")
 
@@ -171,9 +174,9 @@ class Inbetween:
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, transport="two-sided",
                  keep_volume=True, material=None, components=None, trajectory_method="global",
-                 trajectory_band=4.0, trajectory_band_weight=0.1, resample="splat",
+                 trajectory_margin_cells=4.0, trajectory_margin_weight=0.1, resample="splat",
                  idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None, map_result_back=None):
+                 map_result=None, map_result_back=None, **renamed):
         """In-betweens from given maps.
 
         Parameters
@@ -198,11 +201,11 @@ class Inbetween:
             Labels of A's material components (see `Trajectories`).
         trajectory_method : {"global", "local"}
             See `trajectory.Trajectories`.
-        trajectory_band : float
+        trajectory_margin_cells : float
             The trajectories' margin in cells around each keyframe's material
-            (`Trajectories` ``margin_cells``); the transported fields are
-            truncated at this width, which is also ``outside_value``.
-        trajectory_band_weight : float
+            (`Trajectories` ``margin_cells``): the region each transport
+            carries (its field is truncated at its value on the border).
+        trajectory_margin_weight : float
             Weight of margin cells in the trajectory solve.
         resample : {"splat", "idw"}
             How scattered values return to the grid; "idw" only with the
@@ -228,8 +231,14 @@ class Inbetween:
                              'use it with transport="one-sided".')
         if not np.any(phi_b < 0):
             raise ValueError("phi_b has no node inside (< 0): keyframe B is empty on this grid.")
-        traj_opts = dict(method=trajectory_method, margin_cells=trajectory_band,
-                         margin_weight=trajectory_band_weight)
+        renamed = take_renamed(dict(renamed), _RENAMED, "Inbetween.from_map")
+        unknown = set(renamed) - set(_RENAMED.values())
+        if unknown:
+            raise TypeError(f"Inbetween.from_map got unexpected options {sorted(unknown)}.")
+        traj_opts = dict(method=trajectory_method,
+                         margin_cells=renamed.get("trajectory_margin_cells", trajectory_margin_cells),
+                         margin_weight=renamed.get("trajectory_margin_weight",
+                                                   trajectory_margin_weight))
         lookup_opts = dict(interpolation=interpolation, newton_steps=newton_steps)
         st = dict(stats or {})
         t0 = time.perf_counter()
@@ -368,8 +377,8 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         Feature points of A and their targets in B.
     progress, cancel : callables, optional (see `progress.Reporter`).
     **options
-        ``transport``, ``keep_volume``, ``trajectory_method``, ``trajectory_band``,
-        ``trajectory_band_weight``, ``resample``, ``idw_radius``,
+        ``transport``, ``keep_volume``, ``trajectory_method``,
+        ``trajectory_margin_cells``, ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
         ``newton_steps``, ``interpolation`` go to `Inbetween.from_map`;
         ``parallel`` (True: solve the two maps at once when two cores are
         free); all others are passed to `solve_map`.
@@ -379,6 +388,7 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     Inbetween
     """
     rep = Reporter(progress, cancel)
+    take_renamed(options, _RENAMED, "inbetween")
     mine = {k: options.pop(k) for k in list(options) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
     parallel = options.pop("parallel", True)
     two_sided = mine.get("transport", "two-sided") == "two-sided"
