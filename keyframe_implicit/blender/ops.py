@@ -271,15 +271,18 @@ class KFI_OT_bake(bpy.types.Operator):
             return False
         return context.scene is not None
 
-    def _hints(self, context):
+    def _hints(self, context, notes=()):
         for p in validate.problems(context.scene):
             if p.level == validate.WARNING:
                 self.report({"WARNING"}, p.message)
+        for note in notes:
+            self.report({"WARNING"}, note)
 
     def execute(self, context):
+        notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
-                                  context.evaluated_depsgraph_get())
+                                  context.evaluated_depsgraph_get(), notes=notes)
         except Cancelled as exc:
             self.report({"WARNING"}, str(exc))
             return {"CANCELLED"}
@@ -289,7 +292,7 @@ class KFI_OT_bake(bpy.types.Operator):
         except Exception as exc:  # the core failed: tell the user, leave the scene as it was
             self.report({"ERROR"}, f"Bake failed ({type(exc).__name__}: {exc}); the scene is unchanged.")
             return {"CANCELLED"}
-        self._hints(context)
+        self._hints(context, notes)
         self.report({"INFO"}, f"Baked '{obj.name}': {len(obj.data.shape_keys.key_blocks) - 1} frames.")
         return {"FINISHED"}
 
@@ -352,7 +355,7 @@ class KFI_OT_bake(bpy.types.Operator):
         except Exception as exc:
             self.report({"ERROR"}, f"Writing the result failed: {exc}; the scene is unchanged.")
             return {"CANCELLED"}
-        self._hints(context)
+        self._hints(context, job.notes)
         self.report({"INFO"}, f"Baked '{obj.name}' in {job.seconds:.1f} s.")
         return {"FINISHED"}
 
