@@ -25,11 +25,13 @@ class Keyframe:
     vertices : (V, 3) float array, world coordinates.
     faces : sequence of index sequences (triangles or polygons), or an (F, k) int array.
     frame : int, the timeline frame this shape must be matched on.
+    name : str, optional; the object's name, used in messages about this keyframe.
     """
 
     vertices: np.ndarray
     faces: object
     frame: int
+    name: str = ""
 
 
 @dataclass

@@ -66,3 +66,79 @@ def test_rebake_unreferenced_output_is_still_replaced(scene, kfi):
     second = bake.bake_scene(scene, kfi.RES, notes=notes)
     assert notes == [] and second.name == name
     assert [o.name for o in bpy.data.objects if o.get(output.OUTPUT_TAG)] == [name]
+
+
+def _collect(scene):
+    return scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
+
+
+def _same_object_twice(scene, kfi):
+    """One sphere, its location keyed from x=0 (frame 1) to x=3 (frame 9), added on both frames."""
+    obj = kfi.add_sphere("Mover", (0.0, 0.0, 0.0))
+    for frame, x in ((1, 0.0), (9, 3.0)):
+        obj.location = (x, 0.0, 0.0)
+        obj.keyframe_insert("location", frame=frame)
+    for frame in (1, 9):
+        assert bpy.ops.keyframe_implicit.add_keyframe(object_name="Mover", frame=frame) == {"FINISHED"}
+    return obj
+
+
+def test_object_animated_by_its_transform_is_read_on_each_keyframe_frame(scene, kfi):
+    _same_object_twice(scene, kfi)
+    pa = kfi.sphere_points((0, 0, 0), 1.0)
+    for a in pa:  # the feature points ride on the object: the same Empties on both sides
+        assert bpy.ops.keyframe_implicit.add_feature_pair(
+            segment=0, location_a=tuple(a), location_b=tuple(a)) == {"FINISHED"}
+    scene.frame_set(5)  # in between: the object is at x = 1.5
+    inp = _collect(scene)
+    assert scene.frame_current == 5  # the scene is back on its frame
+    centres = [kf.vertices.mean(axis=0) for kf in inp.keyframes]
+    np.testing.assert_allclose(centres[0], (0, 0, 0), atol=1e-5)
+    np.testing.assert_allclose(centres[1], (3, 0, 0), atol=1e-5)
+    a, b = inp.features[0]
+    np.testing.assert_allclose(b - a, np.tile((3.0, 0.0, 0.0), (4, 1)), atol=1e-5)
+    assert [kf.name for kf in inp.keyframes] == ["Mover", "Mover"]
+    # and the bake moves: the result's first and last frames follow the object
+    out = bake.bake_scene(scene, kfi.RES)
+    assert scene.frame_current == 5
+    keys = out.data.shape_keys.key_blocks
+    first, last = (np.array([v.co for v in keys[name].data]) for name in ("Frame 1", "Frame 9"))
+    np.testing.assert_allclose(first.mean(axis=0), (0, 0, 0), atol=0.1)
+    np.testing.assert_allclose(last.mean(axis=0), (3, 0, 0), atol=0.1)
+
+
+def test_shape_key_animation_is_read_on_each_keyframe_frame(scene, kfi):
+    obj = kfi.add_sphere("Breathe", (0.0, 0.0, 0.0))
+    obj.shape_key_add(name="Basis")
+    big = obj.shape_key_add(name="Big")
+    co = np.empty(len(big.data) * 3)
+    big.data.foreach_get("co", co)
+    big.data.foreach_set("co", 1.5 * co)
+    for frame, value in ((1, 0.0), (9, 1.0)):
+        big.value = value
+        big.keyframe_insert("value", frame=frame)
+    for frame in (1, 9):
+        assert bpy.ops.keyframe_implicit.add_keyframe(object_name="Breathe", frame=frame) == {"FINISHED"}
+    scene.frame_set(1)
+    radii = [np.linalg.norm(kf.vertices, axis=1).max() for kf in _collect(scene).keyframes]
+    np.testing.assert_allclose(radii, [1.0, 1.5], atol=1e-5)
+    assert scene.frame_current == 1 and obj.data.shape_keys.key_blocks["Big"].value == 0.0
+
+
+def test_animated_modifier_is_read_on_each_keyframe_frame(scene, kfi):
+    obj = kfi.add_sphere("Pulse", (0.0, 0.0, 0.0))
+    mod = obj.modifiers.new("Displace", "DISPLACE")  # no texture: every vertex moves along its normal
+    for frame, strength in ((1, 0.0), (9, 1.0)):
+        mod.strength = strength
+        mod.keyframe_insert("strength", frame=frame)
+    for frame in (1, 9):
+        assert bpy.ops.keyframe_implicit.add_keyframe(object_name="Pulse", frame=frame) == {"FINISHED"}
+    scene.frame_set(9)
+    ref = [kfi.evaluated_arrays(obj)[0]]
+    scene.frame_set(1)
+    ref.insert(0, kfi.evaluated_arrays(obj)[0])
+    inp = _collect(scene)
+    for kf, want in zip(inp.keyframes, ref):
+        np.testing.assert_allclose(kf.vertices, want, atol=1e-6)
+    r0, r1 = (np.linalg.norm(kf.vertices, axis=1).mean() for kf in inp.keyframes)
+    assert r1 > r0 + 0.25, (r0, r1)
