@@ -83,6 +83,7 @@ class BakeJob:
                 weights=inp.weights,
                 progress=self._progress,
                 cancel=self._cancel.is_set,
+                feature_names=inp.feature_names or None,
             )
             self.state = DONE
         except Cancelled:
@@ -129,6 +130,7 @@ class BakeJob:
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
+        self.notes = list(stats.pop("notes", []))
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
         return output.write_animation(scene, scene.keyframe_implicit, self.result,

@@ -12,7 +12,8 @@ The saddle-point system of eq. 2.5 is what ``scipy.interpolate.RBFInterpolator``
 The map is built per connected component of A's material (``phi_a < 0``,
 face connectivity), each with the feature points that lie in it (a point
 slightly outside goes to the nearest component). Where the RBF cannot be used
--- fewer than d+1 points, or all of them on one line (2D) / plane (3D) -- the
+-- fewer than d+1 points, all of them on one line (2D) / plane (3D), or an
+interpolant that would carry the material out of the grid (`_rbf_map`) -- the
 component gets a rigid alignment onto keyframe B instead (centroid and
 principal axes; sign/permutation of the axes chosen to best overlap B's
 material, pinned by whatever feature points exist), plus a smooth Gaussian
@@ -80,6 +81,30 @@ def _affinely_independent(points, d):
     c = points - points.mean(axis=0)
     s = np.linalg.svd(c, compute_uv=False)
     return s[-1] > 1e-6 * max(s[0], 1e-300)
+
+
+def _rbf_map(fa, fb, pts, grid: Grid, material):
+    """y(x) = x + RBF displacement (eq. 2.1-2.5) at ``pts``, or None where it cannot be trusted.
+
+    Guard on the map's conditioning and range: the interpolant is refused when
+    its saddle-point system is singular, when its result is not finite, or when
+    it sends any of the component's material nodes (``material``) out of the
+    grid by more than a quarter of its size (the solver pulls a start that
+    overshoots a little back onto B). Feature points that are nearly coplanar or
+    almost on top of each other with different targets make the cubic's
+    polynomial part explode far from them; the rigid start with a smooth
+    correction is used instead.
+    """
+    kernel = "thin_plate_spline" if grid.dim == 2 else "cubic"
+    try:
+        rbf = RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    y = pts + rbf(pts)
+    slack = 0.25 * float(np.max(grid.upper - grid.origin))
+    if not np.all(np.isfinite(y)) or not np.all(grid.contains(y[material], margin=-slack)):
+        return None
+    return y
 
 
 def _principal_frame(points):
@@ -186,13 +211,13 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
     for k in range(1, n + 1):
         sel = comp_of == k
         fa, fb = xa[sel], ya[sel]
-        if _affinely_independent(fa, d):
-            kernel = "thin_plate_spline" if d == 2 else "cubic"
-            rbf = RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)
-            maps.append(pts + rbf(pts))
-            methods.append("rbf")
-            continue
         mask = labels == k
+        if _affinely_independent(fa, d):
+            y = _rbf_map(fa, fb, pts, grid, mask.reshape(-1))
+            if y is not None:
+                maps.append(y)
+                methods.append("rbf")
+                continue
         comp_pts = grid.to_world(np.argwhere(mask))
         if len(fb):
             tlab = _nearest_label(labels_b, grid, fb)
