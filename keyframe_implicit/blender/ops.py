@@ -13,6 +13,17 @@ def _settings(context):
     return context.scene.keyframe_implicit
 
 
+def _kind(obj):
+    """"a Curve object", "an Empty": the object's type as the Add menu names it, with its article."""
+    kind = obj.bl_rna.properties["type"].enum_items[obj.type].name
+    return f"{'an' if kind[0] in 'AEIOU' else 'a'} {kind}"
+
+
+def _failed(what, error):
+    """One sentence: "<what>: <error>; the scene is unchanged." (no doubled full stop)."""
+    return f"{what}: {str(error).rstrip('. ')}; the scene is unchanged."
+
+
 class KFI_OT_add_keyframe(bpy.types.Operator):
     """Add a mesh object as a keyframe on a timeline frame"""
 
@@ -22,24 +33,30 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
 
     object_name: StringProperty(name="Object", default="",
                                 description="Mesh object to add (empty: the active object)")
-    frame: IntProperty(name="Frame", default=-1, description="Timeline frame (-1: the current frame)")
+    frame: IntProperty(name="Frame", default=1,
+                       description="Timeline frame, negative ones included (not set: the current frame)")
 
     def execute(self, context):
         settings = _settings(context)
         name = self.object_name or (context.active_object.name if context.active_object else "")
         obj = context.scene.objects.get(name) if name else None
         if obj is None:
-            self.report({"ERROR"}, "No object to add: make a mesh object active "
-                                   "(or pass object_name) and try again.")
+            missing = f"There is no object '{name}' in this scene" if name else "No object to add"
+            self.report({"ERROR"}, f"{missing}: make a mesh object active (or pass object_name) "
+                                   "and try again.")
             return {"CANCELLED"}
         if obj.type != "MESH":
-            self.report({"ERROR"}, f"'{obj.name}' is a {obj.type.lower()}, not a mesh: "
-                                   "pick a mesh object.")
+            self.report({"ERROR"}, f"'{obj.name}' is {_kind(obj)}, not a mesh: pick a mesh object "
+                                   "(or convert it with Object > Convert > Mesh).")
             return {"CANCELLED"}
-        frame = context.scene.frame_current if self.frame < 0 else self.frame
+        given = self.properties.is_property_set("frame")
+        if not given:  # the current frame; shown (and kept) in the redo panel
+            self.frame = context.scene.frame_current
+        frame = self.frame
         if any(kf.frame == frame for kf in settings.keyframes):
-            self.report({"ERROR"}, f"Frame {frame} already has a keyframe: change the current "
-                                   "frame (or pass frame=...) first.")
+            where = "the frame given" if given else "the current frame"
+            self.report({"ERROR"}, f"Frame {frame} ({where}) already has a keyframe: pick another "
+                                   "frame.")
             return {"CANCELLED"}
         # keep the list ordered by frame
         index = sum(1 for kf in settings.keyframes if kf.frame < frame)
@@ -290,7 +307,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         except Exception as exc:  # the core failed: tell the user, leave the scene as it was
-            self.report({"ERROR"}, f"Bake failed ({type(exc).__name__}: {exc}); the scene is unchanged.")
+            self.report({"ERROR"}, _failed("Bake failed", f"{type(exc).__name__}: {exc}"))
             return {"CANCELLED"}
         self._hints(context, notes)
         self.report({"INFO"}, f"Baked '{obj.name}': {len(obj.data.shape_keys.key_blocks) - 1} frames.")
@@ -348,12 +365,12 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
             return {"CANCELLED"}
         if job.state == bake.FAILED:
-            self.report({"ERROR"}, f"Bake failed: {job.error_message()}; the scene is unchanged.")
+            self.report({"ERROR"}, _failed("Bake failed", job.error_message()))
             return {"CANCELLED"}
         try:
             obj = job.apply(context.scene)
         except Exception as exc:
-            self.report({"ERROR"}, f"Writing the result failed: {exc}; the scene is unchanged.")
+            self.report({"ERROR"}, _failed("Writing the result failed", exc))
             return {"CANCELLED"}
         self._hints(context, job.notes)
         self.report({"INFO"}, f"Baked '{obj.name}' in {job.seconds:.1f} s.")

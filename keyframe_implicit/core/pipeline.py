@@ -240,10 +240,10 @@ def _notes(keyframes, loose, sdf_stats):
         if n_loose:
             notes.append(f"{label}: ignored {n_loose} loose vertices (not part of any face).")
         if st.get("reoriented_faces"):
-            notes.append(f"{label}: {st['reoriented_faces']} faces pointed the wrong way and were "
+            notes.append(f"{label}: {st['reoriented_faces']} triangles faced the wrong way and were "
                          "read flipped; fix them with Mesh > Normals > Recalculate Outside.")
         if st.get("non_orientable_faces"):
-            notes.append(f"{label}: {st['non_orientable_faces']} faces cannot be given a consistent "
+            notes.append(f"{label}: {st['non_orientable_faces']} triangles cannot be given a consistent "
                          "inside and outside (a twisted or non-manifold surface); the result there "
                          "may be wrong: check that part of the mesh.")
     return notes

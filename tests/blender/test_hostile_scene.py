@@ -142,3 +142,62 @@ def test_animated_modifier_is_read_on_each_keyframe_frame(scene, kfi):
         np.testing.assert_allclose(kf.vertices, want, atol=1e-6)
     r0, r1 = (np.linalg.norm(kf.vertices, axis=1).mean() for kf in inp.keyframes)
     assert r1 > r0 + 0.25, (r0, r1)
+
+
+def test_negative_explicit_frame_is_honoured_and_unset_means_current(scene, kfi, capfd):
+    kfi.add_sphere("Early", (0.0, 0.0, 0.0))
+    scene.frame_set(4)
+    assert bpy.ops.keyframe_implicit.add_keyframe(frame=-2) == {"FINISHED"}
+    kfi.add_sphere("Now", (2.0, 0.0, 0.0))
+    assert bpy.ops.keyframe_implicit.add_keyframe() == {"FINISHED"}  # no frame: the current one
+    assert [(k.object.name, k.frame) for k in scene.keyframe_implicit.keyframes] == [
+        ("Early", -2), ("Now", 4)]
+    _reports(capfd)
+    with pytest.raises(RuntimeError, match=r"Frame -2 \(the frame given\) already has a keyframe"):
+        bpy.ops.keyframe_implicit.add_keyframe(object_name="Now", frame=-2)
+    assert list(bake.bake_scene(scene, kfi.RES).get("kfi_frames")) == [-2, 4]
+
+
+@pytest.mark.parametrize("kind, add, words", [
+    ("CURVE", lambda: bpy.ops.curve.primitive_bezier_circle_add(), "is a Curve, not a mesh"),
+    ("EMPTY", lambda: bpy.ops.object.empty_add(), "is an Empty, not a mesh"),
+    ("FONT", lambda: bpy.ops.object.text_add(), "is a Text, not a mesh"),
+])
+def test_non_mesh_keyframe_is_named_with_its_kind(scene, kind, add, words):
+    add()
+    obj = bpy.context.active_object
+    obj.name = "Nothing"
+    assert obj.type == kind
+    with pytest.raises(RuntimeError, match=f"'Nothing' {words}: .*Convert > Mesh"):
+        bpy.ops.keyframe_implicit.add_keyframe()
+
+
+def test_far_empty_is_refused_naming_it_and_nothing_changes(scene, kfi):
+    kfi.build_spheres(TWO)
+    stray = bpy.data.objects["KFI 0.2 B"]
+    stray.parent = None
+    stray.location = (1000.0, 0.0, 0.0)
+    bpy.context.view_layer.update()
+    state = kfi.snapshot()
+    with pytest.raises(RuntimeError) as err:
+        bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
+    msg = str(err.value)
+    assert "'KFI 0.2 B'" in msg and "keyframe 1" in msg and "close the mesh" not in msg, msg
+    assert ".;" not in msg and "..;" not in msg
+    assert kfi.snapshot() == state
+
+
+def test_loose_vertices_and_reversed_faces_are_reported_after_the_bake(scene, kfi, capfd):
+    a, b = kfi.build_spheres(TWO)
+    a.data.vertices.add(1)
+    a.data.vertices[-1].co = (50.0, 0.0, 0.0)  # a stray vertex far away
+    b.data.polygons[3].flip()
+    b.data.polygons[10].flip()
+    b.data.update()
+    _reports(capfd)
+    assert bpy.ops.keyframe_implicit.bake(resolution=kfi.RES) == {"FINISHED"}
+    warnings = [m for kind, m in _reports(capfd) if kind == "Warning"]
+    assert any(m.startswith("Keyframe 0 ('KeyA', frame 1): ignored 1 loose vert") for m in warnings), warnings
+    assert any(m.startswith("Keyframe 1 ('KeyB', frame 7): 4 triangles faced the wrong way") for m in warnings), warnings
+    out = scene.keyframe_implicit.output_object
+    assert max(np.abs(np.array([v.co for v in out.data.vertices])).max(axis=0)) < 4.0
