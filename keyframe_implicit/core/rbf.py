@@ -89,18 +89,26 @@ def _rbf_map(fa, fb, pts, grid: Grid, material):
     Guard on the map's conditioning and range: the interpolant is refused when
     its saddle-point system is singular, when its result is not finite, or when
     it sends any of the component's material nodes (``material``) out of the
-    grid by more than a quarter of its size (the solver pulls a start that
-    overshoots a little back onto B). Feature points that are nearly coplanar or
+    grid (`_guarded`). Feature points that are nearly coplanar or
     almost on top of each other with different targets make the cubic's
     polynomial part explode far from them; the rigid start with a smooth
     correction is used instead.
     """
     kernel = "thin_plate_spline" if grid.dim == 2 else "cubic"
+    return _guarded(lambda: pts + RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)(pts),
+                    grid, material)
+
+
+def _guarded(build, grid: Grid, material):
+    """``build()`` if it succeeds with a finite map keeping ``material`` near the grid, else None.
+
+    "Near": out of the grid box by at most a quarter of its size (the solver
+    pulls a start that overshoots a little back onto B).
+    """
     try:
-        rbf = RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)
+        y = build()
     except (np.linalg.LinAlgError, ValueError):
         return None
-    y = pts + rbf(pts)
     slack = 0.25 * float(np.max(grid.upper - grid.origin))
     if not np.all(np.isfinite(y)) or not np.all(grid.contains(y[material], margin=-slack)):
         return None
@@ -233,8 +241,12 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
             if np.max(np.abs(resid)) > 0:
                 _, _, s = _principal_frame(comp_pts)
                 sigma = max(float(np.sqrt(np.sum(s ** 2))), 2 * grid.spacing)
-                corr = RBFInterpolator(fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)
-                y = y + corr(pts)
+                rigid = y
+                y = _guarded(lambda: rigid + RBFInterpolator(
+                    fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)(pts),
+                    grid, mask.reshape(-1))
+                if y is None:  # an ill-conditioned correction: the solver's constraints do it
+                    y = rigid
         maps.append(y)
         methods.append("rigid")
 

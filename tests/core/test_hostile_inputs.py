@@ -126,3 +126,21 @@ def test_open_mesh_is_told_to_close_it():
     kfs[0] = Keyframe(sheet, [[0, 1, 2, 3]], 1, "Sheet")  # a flat open square
     with pytest.raises(ValueError, match="Keyframe 0 \\('Sheet', frame 1\\).*4 open edges.*Close"):
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES)
+
+
+@pytest.mark.parametrize("gap", [0.001, 0.01])
+def test_initial_map_stays_on_the_grid_with_near_duplicate_features(gap):
+    """The guard on the RBF start: whatever the features, the material is not sent off the grid."""
+    from keyframe_implicit.core import Grid
+    from keyframe_implicit.core.rbf import initial_map
+
+    n = 24
+    g = Grid((-1.0, -1.0, -1.0), 2.0 / n, (n + 1,) * 3)
+    phi = np.linalg.norm(g.points(), axis=-1) - 0.5
+    pa, pb = _features(shift=0.0)
+    pa = np.vstack([pa, pa[0] + (gap, 0, 0)])
+    pb = np.vstack([pb, pb[0] + (0, 0.3, -0.4)])
+    m = initial_map(phi, phi, g, pa, pb)
+    material = m.mapped[phi < 0]
+    assert np.all(np.isfinite(material))
+    assert np.all(g.contains(material, margin=-0.25 * 2.0)), np.abs(material).max()
