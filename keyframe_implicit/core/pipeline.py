@@ -174,10 +174,11 @@ def _check_feature_reach(features, lo, hi, feature_names):
 
 
 def _check_feature_spacing(features, h, feature_names):
-    """Refuse two feature points of a segment closer than one grid cell on either keyframe.
+    """Refuse two feature points closer than one grid cell whose partners are farther apart.
 
-    The grid cannot tell them apart; with different partners the map would have
-    to tear space between them (the initial map then sends points far off).
+    The grid cannot tell the two points apart, yet the map would have to pull
+    them more than two cells apart (or the reverse): it tears space between
+    them, and the initial map sends points far off.
     """
     for i, (fa, fb) in enumerate(features):
         if len(fa) < 2:
@@ -185,18 +186,16 @@ def _check_feature_spacing(features, h, feature_names):
         da = np.linalg.norm(fa[:, None] - fa[None], axis=2)
         db = np.linalg.norm(fb[:, None] - fb[None], axis=2)
         for side, near, other in ((0, da, db), (1, db, da)):
-            close = np.argwhere(np.triu(near < h, k=1))
+            close = np.argwhere(np.triu((near < h) & (other > 2 * h), k=1))
             if not len(close):
                 continue
             j, k = (int(x) for x in close[0])
             first = _feature_label(feature_names, i, j, side)
             second = _feature_label(feature_names, i, k, side)
-            partners = (f"their partners are {other[j, k]:.3g} apart" if other[j, k] >= h
-                        else "so are their partners")
             raise ValueError(
                 f"The {first} and the {second} are {near[j, k]:.3g} apart on keyframe {i + side}, "
-                f"less than one grid cell ({h:.3g}), and {partners}: move them apart or delete "
-                "one of the pairs (or raise the resolution).")
+                f"less than one grid cell ({h:.3g}), but their partners are {other[j, k]:.3g} "
+                "apart: move them apart or delete one of the pairs (or raise the resolution).")
 
 
 def _no_volume_message(k, kf, v, tris, grid):
