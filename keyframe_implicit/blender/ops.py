@@ -22,6 +22,12 @@ def _search_meshes(_op, context, text):
     return [o.name for o in context.scene.objects if o.type == "MESH" and text in o.name.lower()]
 
 
+def _kind(obj):
+    """"a Curve object", "an Empty": the object's type as the Add menu names it, with its article."""
+    kind = obj.bl_rna.properties["type"].enum_items[obj.type].name
+    return f"{'an' if kind[0] in 'AEIOU' else 'a'} {kind}"
+
+
 class KFI_OT_add_keyframe(bpy.types.Operator):
     """Add a mesh object as a keyframe on a timeline frame"""
 
@@ -33,25 +39,28 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
                                 search=_search_meshes,
                                 description="Mesh object to add (empty: the active object)")
     frame: IntProperty(name="Frame", default=1, options={"SKIP_SAVE"},
-                       description="Timeline frame (not given: the current frame)")
+                       description="Timeline frame, negative ones included (not set: the current frame)")
 
     def execute(self, context):
         settings = _settings(context)
         name = self.object_name or (context.active_object.name if context.active_object else "")
         obj = context.scene.objects.get(name) if name else None
         if obj is None:
-            self.report({"ERROR"}, "No object to add: make a mesh object active "
-                                   "(or pass object_name) and try again.")
+            missing = f"There is no object '{name}' in this scene" if name else "No object to add"
+            self.report({"ERROR"}, f"{missing}: make a mesh object active (or pass object_name) "
+                                   "and try again.")
             return {"CANCELLED"}
         if obj.type != "MESH":
-            self.report({"ERROR"}, f"'{obj.name}' is a {obj.type.lower()}, not a mesh: "
-                                   "pick a mesh object.")
+            self.report({"ERROR"}, f"'{obj.name}' is {_kind(obj)}, not a mesh: pick a mesh object "
+                                   "(or convert it with Object > Convert > Mesh).")
             return {"CANCELLED"}
-        frame = self.frame if self.properties.is_property_set("frame") else context.scene.frame_current
+        given = self.properties.is_property_set("frame")
+        frame = self.frame if given else context.scene.frame_current
         self.object_name, self.frame = obj.name, frame  # what the redo panel shows
         if any(kf.frame == frame for kf in settings.keyframes):
-            self.report({"ERROR"}, f"Frame {frame} already has a keyframe: change the current "
-                                   "frame (or pass frame=...) first.")
+            where = "the frame given" if given else "the current frame"
+            self.report({"ERROR"}, f"Frame {frame} ({where}) already has a keyframe: pick another "
+                                   "frame.")
             return {"CANCELLED"}
         # keep the list ordered by frame
         index = sum(1 for kf in settings.keyframes if kf.frame < frame)
@@ -300,15 +309,18 @@ class KFI_OT_bake(bpy.types.Operator):
             return False
         return True
 
-    def _hints(self, context):
+    def _hints(self, context, notes=()):
         for p in validate.problems(context.scene):
             if p.level == validate.WARNING:
                 self.report({"WARNING"}, p.message)
+        for note in notes:
+            self.report({"WARNING"}, note)
 
     def execute(self, context):
+        notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
-                                  context.evaluated_depsgraph_get())
+                                  context.evaluated_depsgraph_get(), notes=notes)
         except Cancelled as exc:
             self.report({"WARNING"}, str(exc))
             return {"CANCELLED"}
@@ -318,7 +330,7 @@ class KFI_OT_bake(bpy.types.Operator):
         except Exception as exc:  # the core failed: tell the user, leave the scene as it was
             self.report({"ERROR"}, _failed("Bake failed", f"{type(exc).__name__}: {exc}"))
             return {"CANCELLED"}
-        return self._done(context, obj)
+        return self._done(context, obj, notes=notes)
 
     def invoke(self, context, event):
         if context.window is None:
@@ -379,18 +391,19 @@ class KFI_OT_bake(bpy.types.Operator):
         except Exception as exc:
             self.report({"ERROR"}, _failed("Writing the result failed", str(exc)))
             return {"CANCELLED"}
-        return self._done(context, obj, job.seconds)
+        return self._done(context, obj, job.seconds, notes=job.notes)
 
-    def _done(self, context, obj, seconds=None):
-        """Show the result (selected, keyframes hidden, frame range) and say what was made where."""
-        notes = result_view.present(context.scene, context.view_layer, _settings(context), obj)
-        self._hints(context)
+    def _done(self, context, obj, seconds=None, notes=()):
+        """Show the result (selected, keyframes hidden, frame range) and say what was made where;
+        ``notes`` (faces reoriented, loose vertices ignored, ...) come as warnings."""
+        shown = result_view.present(context.scene, context.view_layer, _settings(context), obj)
+        self._hints(context, notes)
         span = obj.get("kfi_frames")
         frames = f"frames {span[0]}-{span[1]}" if span is not None else "no frames"
         took = f" in {seconds:.1f} s" if seconds is not None else ""
         where = ", ".join(f"'{c.name}'" for c in obj.users_collection)
         self.report({"INFO"}, f"Baked '{obj.name}' ({frames}){took} into collection {where}; "
-                              + "; ".join(notes) + ".")
+                              + "; ".join(shown) + ".")
         return {"FINISHED"}
 
     def cancel(self, context):  # window closed / file loaded while running

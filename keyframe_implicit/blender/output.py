@@ -136,12 +136,39 @@ def remove_output(obj):
             bpy.data.collections.remove(coll)
 
 
-def write_animation(scene, settings, animation, *, material_names=(), stats=None):
+def _uses(scene, settings, obj):
+    """How the setup still reaches ``obj``: as a keyframe or as the parent of a feature point."""
+    from . import features
+
+    found = [f"keyframe {i}" for i, kf in enumerate(settings.keyframes, start=1) if kf.object == obj]
+    found += [f"feature point '{e.name}'" for e in features.feature_objects(scene) if e.parent == obj]
+    return found
+
+
+def retire_output(scene, settings, old):
+    """Remove the previous output, or keep it renamed if the setup still uses it.
+
+    A baked object the artist made a keyframe (or put feature points on) is the
+    artist's object now: deleting it would lose data. Returns a note for the
+    user when it was kept, else "".
+    """
+    uses = _uses(scene, settings, old)
+    if not uses:
+        remove_output(old)
+        return ""
+    name = old.name
+    old.name = f"{name} (kept)"
+    return (f"The previous result '{name}' is used as {', '.join(uses)}, so it was kept as "
+            f"'{old.name}' instead of being replaced.")
+
+
+def write_animation(scene, settings, animation, *, material_names=(), stats=None, notes=None):
     """Create the output object for ``animation`` and make it the setup's output.
 
     The previous output (``settings.output_object``) is removed only once the
-    new one is complete; on any error everything created here is removed and
-    the scene is left as it was.
+    new one is complete, and only if the setup no longer uses it (`retire_output`;
+    its note, if any, is appended to ``notes``). On any error everything created
+    here is removed and the scene is left as it was.
 
     Returns the new object.
     """
@@ -176,7 +203,9 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
                 obj[f"kfi_{k}"] = float(v)
         old = settings.output_object
         if old is not None and old != obj:
-            remove_output(old)
+            note = retire_output(scene, settings, old)
+            if note and notes is not None:
+                notes.append(note)
         settings.output_object = obj
         key = mesh.shape_keys
         for block, coll_, wanted in ((obj, bpy.data.objects, name), (mesh, bpy.data.meshes, name),

@@ -69,7 +69,7 @@ def _points(vertex_arrays, extra_points):
             arrays.append(e)
     pts = np.concatenate(arrays)
     if not np.all(np.isfinite(pts)):
-        raise ValueError("keyframe vertices or extra points contain NaN or infinity; fix them first.")
+        raise ValueError("keyframe vertices or feature points contain NaN or infinity; fix them first.")
     return pts
 
 
