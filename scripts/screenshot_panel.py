@@ -4,12 +4,12 @@
 
 With the extension installed and enabled: open SCENE with the default UI, open the
 3D view's sidebar on the "Keyframe Implicit" tab at its default width, and write
-``panel_<step>.png`` (the sidebar cut out of the X display's pixels) for the steps
-before, baking (mid-bake), after, compare (the middle frame with Show Keyframes on) and
-problems (an open plane added as a keyframe past the scene's end, and a feature without
-its partner); ``window_<step>.png`` keeps the whole window after the bake. The bake is
-started as a user starts it (the modal operator); the script quits Blender when done,
-with exit code 1 on any error.
+``panel_<step>.png`` (the sidebar cut out of the X display's pixels, once it has stopped
+changing) for the steps before, baking (mid-bake), after, compare (the middle frame with
+Show Keyframes on) and problems (an open plane added as a keyframe past the scene's end,
+and a feature without its partner); ``window_<step>.png`` keeps the whole window after the
+bake. The bake is started as a user starts it (the modal operator); the script quits
+Blender when done, with exit code 1 on any error.
 """
 
 import os
@@ -24,6 +24,8 @@ SCENE, OUT = sys.argv[sys.argv.index("--") + 1:][:2]
 CATEGORY = "Keyframe Implicit"
 ADDON = "bl_ext.user_default.keyframe_implicit"
 WINDOWS = ("after", "compare")  # the steps whose whole window is kept too
+STABLE_GRABS = 3  # identical sidebar grabs in a row (half a second apart) count as settled
+MAX_GRABS = 40
 
 
 def view3d():
@@ -68,14 +70,46 @@ def save_png(pixels, path):
     bpy.data.images.remove(img)
 
 
-def screenshot(step):
-    """panel_<step>.png (the sidebar region), and window_<step>.png (all) for `WINDOWS`."""
+def sidebar_pixels():
+    """(the window's pixels, the sidebar cut out of them)."""
     win, area, sidebar, _ = view3d()
     screen = grab_screen()[:win.height, :win.width]  # the window sits at the display's corner
+    x, y, w, h = sidebar.x, sidebar.y, sidebar.width, sidebar.height  # window pixels, y up
+    return screen, screen[y:y + h, x:x + w]
+
+
+def settled(step, strict=True):
+    """Pauses until the sidebar has stopped changing, then writes the pictures of ``step``.
+
+    When a panel's height changes, Blender slides the panels below it to their new
+    places over several redraws, and a software-GL window takes about half a second
+    per redraw: a capture after a fixed pause can catch the sub-panels half-way, drawn
+    over the main panel. So the sidebar is redrawn and grabbed until `STABLE_GRABS`
+    grabs in a row are identical. ``strict=False`` (a running bake, whose progress
+    line moves) takes the last grab instead of failing.
+    """
+    last, same = None, 0
+    for _ in range(MAX_GRABS):
+        view3d()[2].tag_redraw()
+        yield 0.5
+        screen, pixels = sidebar_pixels()
+        same = same + 1 if last is not None and np.array_equal(pixels, last) else 0
+        last = pixels
+        if same + 1 >= STABLE_GRABS:
+            break
+    else:
+        if strict:
+            raise RuntimeError(f"{step}: the sidebar still changed after {MAX_GRABS} grabs")
+    save(step, screen, pixels)
+
+
+def save(step, screen, pixels):
+    """panel_<step>.png (the sidebar region), and window_<step>.png (all) for `WINDOWS`."""
+    win = view3d()[0]
     if step in WINDOWS:
         save_png(screen, os.path.join(OUT, f"window_{step}.png"))
-    x, y, w, h = sidebar.x, sidebar.y, sidebar.width, sidebar.height  # window pixels, y up
-    save_png(screen[y:y + h, x:x + w], os.path.join(OUT, f"panel_{step}.png"))
+    save_png(pixels, os.path.join(OUT, f"panel_{step}.png"))
+    h, w = pixels.shape[:2]
     print(f"[screenshot_panel] {step}: window {win.width}x{win.height}, sidebar {w}x{h} px, "
           f"UI scale {bpy.context.preferences.system.ui_scale:.2f}", flush=True)
 
@@ -106,27 +140,24 @@ def steps():
         obj.select_set(obj in keyframes)
     with bpy.context.temp_override(window=win, area=area, region=main):
         bpy.ops.view3d.view_selected()
-    yield 1.5
-    screenshot("before")
+    yield from settled("before")
     ops = sys.modules[f"{ADDON}.blender.ops"]
     with bpy.context.temp_override(window=win, area=area, region=main):
         assert bpy.ops.keyframe_implicit.bake("INVOKE_DEFAULT") == {"RUNNING_MODAL"}
     while ops._running and ops._running[0].status()[0] < 0.3:
         yield 0.2
     if ops._running:
-        screenshot("baking")
+        yield from settled("baking", strict=False)
     while ops._running:
         yield 0.5
-    yield 1.5
     settings = bpy.context.scene.keyframe_implicit
     assert settings.output_object is not None, "the bake made no result"
-    screenshot("after")
+    yield from settled("after")
     # comparing: the middle frame, with the keyframes shown as wireframes
     scene = bpy.context.scene
     scene.frame_set((scene.frame_start + scene.frame_end) // 2)
     settings.show_keyframes = True
-    yield 1.5
-    screenshot("compare")
+    yield from settled("compare")
     # what a new user hit: an open plane as a keyframe past the scene's end, a lone feature
     with bpy.context.temp_override(window=win, area=area, region=main):
         bpy.ops.mesh.primitive_plane_add(location=(0, 3, 0))
@@ -134,8 +165,7 @@ def steps():
         bpy.ops.keyframe_implicit.add_keyframe(frame=40)
         bpy.ops.keyframe_implicit.add_feature_pair(segment=1)
     bpy.data.objects.remove(bpy.data.objects["KFI 1.0 B"])
-    yield 1.5
-    screenshot("problems")
+    yield from settled("problems")
 
 
 def main():

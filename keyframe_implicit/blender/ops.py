@@ -97,7 +97,7 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
         settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
         msg = f"Removed keyframe {index + 1}."
         if gone:
-            msg += f" Deleted {gone} feature pair(s) that used it."
+            msg += f" Deleted {validate.count(gone, 'feature pair')} that used it."
         self.report({"INFO"}, msg)
         return {"FINISHED"}
 

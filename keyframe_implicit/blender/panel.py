@@ -30,8 +30,10 @@ class KFI_UL_keyframes(bpy.types.UIList):
             layout.label(text=item.object.name if item.object else "?")
             return
         split = layout.split(factor=self.NAME_SHARE, align=True)
-        split.prop(item, "object", text="", emboss=False,
-                   icon="OUTLINER_OB_MESH" if item.object else "ERROR")
+        if item.object is not None:  # the name, as Blender's lists show it: no clear button
+            split.prop(item.object, "name", text="", emboss=False, icon="OUTLINER_OB_MESH")
+        else:
+            split.label(text="No object", icon="ERROR")
         split.prop(item, "frame", text="", emboss=False)
 
 
@@ -88,11 +90,11 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")  # poll says why not
         out = settings.output_object
         if out is not None:
+            col = layout.column(align=True)
+            _wrapped(col, context, f"Output: {out.name}", "OUTLINER_OB_MESH")
             span = out.get("kfi_frames")
-            text = f"Output: {out.name}"
-            if span is not None:
-                text += f" (frames {span[0]}-{span[1]})"
-            _wrapped(layout, context, text, "OUTLINER_OB_MESH")
+            if span is not None:  # a line of its own: wrapped, "1-25)" was left alone
+                col.label(text=f"Frames {span[0]}-{span[1]}", icon="BLANK1")
             layout.prop(settings, "show_keyframes", icon="MOD_WIREFRAME")
 
 

@@ -26,6 +26,11 @@ WARNING = "WARNING"
 MIN_PAIRS_HINT = 4
 
 
+def count(n, noun):
+    """``n`` ``noun``s in words: "no feature pairs", "1 feature pair", "3 feature pairs"."""
+    return f"{n or 'no'} {noun}{'' if n == 1 else 's'}"
+
+
 @dataclass(frozen=True)
 class Problem:
     level: str  # ERROR or WARNING
@@ -48,8 +53,8 @@ def problems(scene, settings=None, depsgraph=None):
     out = []
     kfs = list(settings.keyframes)
     if len(kfs) < 2:
-        out.append(Problem(ERROR, f"{len(kfs)} keyframe(s): add at least two (select a mesh, "
-                                  "set the frame, press Add Keyframe)."))
+        out.append(Problem(ERROR, f"{count(len(kfs), 'keyframe').capitalize()}: add at least "
+                                  "two (select a mesh, set the frame, press Add Keyframe)."))
     for i, kf in enumerate(kfs, start=1):
         name = f"Keyframe {i} '{kf.object.name}'" if kf.object is not None else f"Keyframe {i}"
         if kf.object is None:
@@ -106,9 +111,10 @@ def problems(scene, settings=None, depsgraph=None):
         counts[pair.segment] += 1
     for seg, n in enumerate(counts):
         if n < MIN_PAIRS_HINT:
-            out.append(Problem(WARNING, f"Keyframes {seg + 1} -> {seg + 2} have {n} feature "
-                                        f"pair(s): {MIN_PAIRS_HINT} or more on distinctive points "
-                                        "guide the motion better (Add Feature Pair).", seg))
+            out.append(Problem(WARNING, f"Keyframes {seg + 1} \u2192 {seg + 2} have "
+                                        f"{count(n, 'feature pair')}: {MIN_PAIRS_HINT} or more on "
+                                        "distinctive points guide the motion better (Add Feature "
+                                        "Pair).", seg))
     out.sort(key=lambda p: p.level != ERROR)
     return out
 
