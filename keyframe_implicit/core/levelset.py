@@ -487,48 +487,59 @@ class Inbetween:
         """
         return self.trajectories(points, s)
 
-    def velocity(self, points, s, ds=1e-3):
+    def velocity(self, points, s, ds=1e-3, near_cells=2.5, neighbours=12):
         """Velocity dx/ds (world units per unit s) at world points on the level set at time s.
 
-        The Eulerian velocity of the trajectories at time s: every grid node z
-        near the moved region gets the velocity of its source point x (x(s) = z,
-        found by the same inverse lookup as the level set), the node
-        velocities being central differences of the node trajectories over
-        ``ds``, read multilinearly at x. The points are then read
-        multilinearly from that node field, so a point of the zero set at time
-        s gets the velocity of the material that carries it there (eq. 3.1
-        differentiated in s). Nodes no moved cell reaches get zero velocity;
-        every point within the band of the surface lies among reached nodes.
+        The material that reaches the zero set at time s comes from the nodes
+        whose carried value (eq. 3.4) lies near zero. Those nodes are moved to
+        time s along their trajectories, with velocities from finite
+        differences of the trajectories over ``ds`` (eq. 3.1 differentiated in
+        s). Each point then gets the value at it of a weighted least-squares
+        affine fit of the velocities of its ``neighbours`` nearest moved nodes
+        (moving least squares), which is exact for any rigid or affine motion.
 
         Parameters
         ----------
         points : (P, d) array, world units (e.g. the vertices of ``levelset(s)``'s surface).
         s : float in [0, 1]
         ds : float
-            Half step of the central difference (one-sided at s = 0 and s = 1).
+            Step of the finite difference (forward; backward near s = 1).
+        near_cells : float
+            Nodes whose carried value is within this many cells of zero take part.
+        neighbours : int
+            Moved nodes in each point's fit.
 
         Returns
         -------
         (P, d) array, world units per unit s (divide by the frames of the segment for
         units per frame).
         """
+        from scipy.spatial import cKDTree
+
         s = float(s)
         if not 0.0 <= s <= 1.0:
             raise ValueError(f"time s must lie in [0, 1], got {s}.")
         p = np.asarray(points, dtype=float)
-        if p.ndim != 2 or p.shape[1] != self.grid.dim:
-            raise ValueError(f"points must have shape (P, {self.grid.dim}), got {p.shape}.")
-        traj, nodes = self.trajectories, self._corner_nodes
-        s0, s1 = max(0.0, s - ds), min(1.0, s + ds)
-        node_vel = np.zeros((self.grid.size, self.grid.dim))
-        node_vel[nodes] = (traj.node_positions(s1, nodes) - traj.node_positions(s0, nodes)) / (s1 - s0)
+        d = self.grid.dim
+        if p.ndim != 2 or p.shape[1] != d:
+            raise ValueError(f"points must have shape (P, {d}), got {p.shape}.")
+        h = self.grid.spacing
+        nodes = self._corner_nodes[np.abs(self.values(s)[self._corner_nodes]) <= near_cells * h]
+        if p.shape[0] == 0 or nodes.size == 0:
+            return np.zeros_like(p)
+        traj = self.trajectories
         pos = traj.node_positions(s, nodes)
-        target, source = inverse_lookup(self.grid, pos[self._cnodes_local], self._cells,
-                                        newton_steps=self.newton_steps)
-        field = np.zeros_like(node_vel)
-        field[target] = sample(node_vel.reshape(self.grid.shape + (self.grid.dim,)), self.grid,
-                               self.grid.to_world(source))
-        return sample(field.reshape(self.grid.shape + (self.grid.dim,)), self.grid, p)
+        s1 = s + ds if s + ds <= 1.0 else s - ds
+        vel = (traj.node_positions(s1, nodes) - pos) / (s1 - s)
+        k = min(int(neighbours), nodes.size)
+        dist, idx = cKDTree(pos).query(p, k=k, workers=-1)
+        dist, idx = dist.reshape(len(p), k), idx.reshape(len(p), k)
+        w = 1.0 / (dist ** 2 + (0.5 * h) ** 2)
+        X = np.concatenate([np.ones((len(p), k, 1)), (pos[idx] - p[:, None]) / h], axis=2)
+        XtW = X.transpose(0, 2, 1) * w[:, None, :]
+        A = XtW @ X + 1e-6 * np.diag(np.r_[0.0, np.ones(d)])
+        coef = np.linalg.solve(A, XtW @ vel[idx])
+        return coef[:, 0, :]
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
