@@ -290,7 +290,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, f"Bake failed ({type(exc).__name__}: {exc}); the scene is unchanged.")
             return {"CANCELLED"}
         self._hints(context)
-        self.report({"INFO"}, f"Baked '{obj.name}': {len(obj.data.shape_keys.key_blocks) - 1} frames.")
+        self.report({"INFO"}, f"Baked '{obj.name}'. {obj.get('kfi_report', '')}")
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -353,7 +353,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, f"Writing the result failed: {exc}; the scene is unchanged.")
             return {"CANCELLED"}
         self._hints(context)
-        self.report({"INFO"}, f"Baked '{obj.name}' in {job.seconds:.1f} s.")
+        self.report({"INFO"}, f"Baked '{obj.name}' in {job.seconds:.1f} s. {obj.get('kfi_report', '')}")
         return {"FINISHED"}
 
     def cancel(self, context):  # window closed / file loaded while running

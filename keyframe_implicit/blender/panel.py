@@ -61,6 +61,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col = layout.column(align=True)
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
+        col.prop(settings, "output_mode")
         from .ops import _running
 
         if _running:
@@ -78,6 +79,8 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             if span is not None:
                 text += f" (frames {span[0]}-{span[1]})"
             layout.label(text=text, icon="OUTLINER_OB_MESH")
+            if out.get("kfi_report"):
+                _wrapped(layout, out["kfi_report"], "INFO")
 
 
 class KFI_PT_features(_Sidebar, bpy.types.Panel):

@@ -32,7 +32,7 @@ from .sampling import sample_with_gradient
 from .surface import extract_surface, mesh_area
 
 __all__ = ["LIMITS", "frame_quality", "keyframe_distance", "mesh_distance", "failures",
-           "worst_frame", "choose_output"]
+           "worst_frame", "choose_output", "describe_worst"]
 
 # per-frame limits of a clean result (area ratio band, largest inverted share, smallest
 # coverage, and on keyframe frames the mean and largest two-way distance in cells)
@@ -202,3 +202,13 @@ def choose_output(frames, quality, limits=LIMITS):
         return "shape_keys", "every frame of the tracked mesh passes the cleanliness limits"
     return "mesh_sequence", (f"the tracked mesh fails the cleanliness limits on frame {frame} "
                              f"({', '.join(fails)}): topology changes need a mesh per frame")
+
+
+def describe_worst(frames, per_frame, limits=LIMITS):
+    """One sentence on the worst frame of an output, for the bake report."""
+    frame, q, fails = worst_frame(frames, per_frame, limits)
+    text = (f"worst frame {frame}: area ratio {q['area_ratio']:.3f}, inverted area "
+            f"{100 * q['inverted_fraction']:.1f} %, coverage {100 * q['coverage']:.1f} %")
+    if "keyframe_max" in q:
+        text += f", keyframe distance mean {q['keyframe_mean']:.2f} h max {q['keyframe_max']:.2f} h"
+    return text + (" (within the limits)" if not fails else f" (over the limits: {', '.join(fails)})")
