@@ -47,6 +47,7 @@ class ChainResult:
         frame's own surface (empty when not asked for).
     velocities : list of (V_f, 3) float32, velocity of every vertex of ``surfaces`` in
         world units per frame.
+    levelsets : list of float32 arrays of grid.shape, each frame's level set (when asked for).
     """
 
     frames: np.ndarray
@@ -55,10 +56,11 @@ class ChainResult:
     stats: dict = field(default_factory=dict)
     surfaces: list = field(default_factory=list)
     velocities: list = field(default_factory=list)
+    levelsets: list = field(default_factory=list)
 
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
-                  progress=None, cancel=None, **options):
+                  levelsets=False, progress=None, cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -83,6 +85,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         3D only: also keep every frame's own surface (marching cubes of its
         level set) with its vertices' velocities (`Inbetween.velocity`), and
         measure both outputs against it (`quality.frame_quality`).
+    levelsets : bool
+        Also keep every frame's level set (float32, grid.shape), e.g. for a volume export.
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         Passed to `levelset.inbetween` (solver weights and options, ``band``,
@@ -123,7 +127,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     per_frame = surfaces and grid.dim == 3
     if per_frame:
         stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
-    meshes, velocities = [], []
+    meshes, velocities, fields = [], [], []
     for k in range(nk - 1):  # loop over segments (keyframe pairs)
         seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
         if maps is not None:
@@ -141,6 +145,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             tr = track_template(inb, [s], template=(verts, faces), coverage=False)
             p = out[f - frames[0]] = tr.vertices[0]
             stats["max_abs_phi"].extend(tr.stats["max_abs_phi"])
+            if levelsets:
+                fields.append(inb.levelset(s).astype(np.float32))
             if coverage or per_frame:
                 ls = inb.levelset(s)
                 surf = extract_surface(ls, grid)
@@ -160,4 +166,4 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     stats["seconds"] = time.perf_counter() - t0
     stats["vertices"] = int(len(verts))
     stats["faces"] = int(len(faces))
-    return ChainResult(all_frames, out, faces, stats, meshes, velocities)
+    return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)

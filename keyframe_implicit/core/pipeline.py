@@ -49,6 +49,8 @@ class Animation:
         the frame's own surface (topology free), world units.
     velocities : list, per frame, of (V_f, 3) float32: velocity of every vertex of
         ``surfaces`` in world units per frame (the trajectories' rate, eq. 3.1).
+    levelsets : list, per frame, of float32 arrays of grid.shape: the in-between level sets
+        (eq. 3.4), kept when `animate` is called with ``levelsets=True``.
     """
 
     frames: np.ndarray
@@ -58,6 +60,7 @@ class Animation:
     stats: dict = field(default_factory=dict)
     surfaces: list = field(default_factory=list)
     velocities: list = field(default_factory=list)
+    levelsets: list = field(default_factory=list)
 
 
 _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
@@ -216,7 +219,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     return Animation(frames=np.asarray(chain.frames, dtype=np.int64),
                      vertices=np.asarray(chain.vertices, dtype=np.float32),
                      faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats,
-                     surfaces=chain.surfaces, velocities=chain.velocities)
+                     surfaces=chain.surfaces, velocities=chain.velocities,
+                     levelsets=chain.levelsets)
 
 
 def _measure_keyframes(quality, keyframes, chain, spacing):

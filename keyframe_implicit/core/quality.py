@@ -116,8 +116,8 @@ def _within(points, vertices, faces, tol):
     from scipy.spatial import cKDTree
 
     a, b, c = (vertices[faces[:, i]] for i in range(3))
-    samples = np.concatenate([vertices, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a),
-                              (a + b + c) / 3.0])
+    samples = np.concatenate([a, b, c, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a),
+                              (a + b + c) / 3.0])  # loose vertices reach nothing
     d, _ = cKDTree(samples).query(points, distance_upper_bound=tol, workers=-1)
     near = d <= tol
     rest = np.flatnonzero(~near)
@@ -137,8 +137,8 @@ def keyframe_distance(vertices, faces, key_vertices, key_faces, spacing):
     """
     v, f = _triangles(vertices, faces)
     kv, kf = _triangles(key_vertices, key_faces)
-    d = np.concatenate([mesh_distance(np.concatenate([v, v[f].mean(axis=1)]), kv, kf),
-                        mesh_distance(np.concatenate([kv, kv[kf].mean(axis=1)]), v, f)])
+    d = np.concatenate([mesh_distance(np.concatenate([v[np.unique(f)], v[f].mean(axis=1)]), kv, kf),
+                        mesh_distance(np.concatenate([kv[np.unique(kf)], kv[kf].mean(axis=1)]), v, f)])
     d = d / float(spacing)
     return {"keyframe_mean": float(d.mean()), "keyframe_max": float(d.max())}
 
