@@ -108,8 +108,8 @@ def test_asset_matches_its_script(name):
 
 @pytest.mark.parametrize("name", SCENES)
 def test_asset_bakes_at_low_resolution(name):
-    """The Auto output of every example: one frame per timeline frame, every frame within
-    the area / inverted / coverage limits, and on every keyframe's frame the surface
+    """The Auto output of every example: one frame per timeline frame, a report naming
+    the output and its worst frame, and on every keyframe's frame the surface
     Blender evaluates lies on the modelled keyframe. At 16 cells a thin part (Suzanne's
     ears, the block's edges) is not held to the 0.1 h / 1 h keyframe limits the issue
     sets at 48-64 (tests/core/test_quality.py asserts those at 20 on merge and splash),
