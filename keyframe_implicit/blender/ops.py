@@ -403,7 +403,7 @@ class KFI_OT_bake(bpy.types.Operator):
         took = f" in {seconds:.1f} s" if seconds is not None else ""
         where = ", ".join(f"'{c.name}'" for c in obj.users_collection)
         self.report({"INFO"}, f"Baked '{obj.name}' ({frames}){took} into collection {where}; "
-                              + "; ".join(shown) + ".")
+                              + "; ".join(shown) + ". " + obj.get("kfi_report", ""))
         return {"FINISHED"}
 
     def cancel(self, context):  # window closed / file loaded while running

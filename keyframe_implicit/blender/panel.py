@@ -79,6 +79,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col.separator()
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
+        col.prop(settings, "output_mode")
         from .ops import _running
 
         if _running:
@@ -95,6 +96,8 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             span = out.get("kfi_frames")
             if span is not None:  # a line of its own: wrapped, "1-25)" was left alone
                 col.label(text=f"Frames {span[0]}-{span[1]}", icon="BLANK1")
+            if out.get("kfi_report"):  # how it is stored (shape keys / mesh sequence) and why
+                _wrapped(col, context, out["kfi_report"], "INFO")
             layout.prop(settings, "show_keyframes", icon="MOD_WIREFRAME")
 
 

@@ -12,6 +12,7 @@ import bpy
 from bpy.props import (
     BoolProperty,
     CollectionProperty,
+    EnumProperty,
     FloatProperty,
     IntProperty,
     PointerProperty,
@@ -86,6 +87,19 @@ class KFI_Settings(bpy.types.PropertyGroup):
     )
     output_name: StringProperty(
         name="Name", default="KFI Animation", description="Name of the baked object"
+    )
+    output_mode: EnumProperty(
+        name="Output",
+        items=(
+            ("AUTO", "Auto", "Shape keys when every frame of the tracked mesh is clean, "
+             "a mesh sequence otherwise (the bake report says which and why)"),
+            ("SHAPE_KEYS", "Shape Keys", "One mesh with a shape key per frame: vertices keep "
+             "their identity (UVs, morph-target export) but cannot change topology"),
+            ("MESH_SEQUENCE", "Mesh Sequence", "Each frame's own surface (topology free, with "
+             "velocities for motion blur), switched by Geometry Nodes"),
+        ),
+        default="AUTO",
+        description="How the baked frames are stored",
     )
     output_object: PointerProperty(
         name="Output",

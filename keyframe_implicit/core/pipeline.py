@@ -42,7 +42,17 @@ class Animation:
     vertices : (n, V, 3) float32 array, the template's vertex positions on each frame.
     faces : (F, 3) int array, the template's triangles (the same on every frame).
     grid : the `Grid` used.
-    stats : dict of figures (timings, solver iterations, volumes, uncovered area, ...).
+    stats : dict of figures (timings, solver iterations, volumes, uncovered area, ...), and
+        ``quality``: per output ("shape_keys", "mesh_sequence") one dict of
+        `quality.frame_quality` figures per frame (keyframe frames also carry
+        `quality.keyframe_distance` to the keyframe mesh given), ``output`` /
+        ``output_reason``: the output `quality.choose_output` picks.
+    surfaces : list, per frame, of (V_f, 3) float32 vertices and (F_f, 3) int32 triangles:
+        the frame's own surface (topology free), world units.
+    velocities : list, per frame, of (V_f, 3) float32: velocity of every vertex of
+        ``surfaces`` in world units per frame (the trajectories' rate, eq. 3.1).
+    levelsets : list, per frame, of float32 arrays of grid.shape: the in-between level sets
+        (eq. 3.4), kept when `animate` is called with ``levelsets=True``.
     """
 
     frames: np.ndarray
@@ -50,6 +60,9 @@ class Animation:
     faces: np.ndarray
     grid: object
     stats: dict = field(default_factory=dict)
+    surfaces: list = field(default_factory=list)
+    velocities: list = field(default_factory=list)
+    levelsets: list = field(default_factory=list)
 
 
 _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
@@ -294,6 +307,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         When ``cancel()`` returned True.
     """
     from .chain import animate_chain
+    from .quality import choose_output
     from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
     from .sdf import mesh_to_sdf
 
@@ -356,13 +370,33 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     stats["sdf_seconds"] = time.perf_counter() - t0
 
     chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
-                          progress=rep.sub(0.15, 1.0), cancel=cancel, **opts)
+                          progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
     _check_result(chain, grid, keyframes)
     stats.update(chain.stats)
     stats["loose_vertices"] = [s[2] for s in surfaces]
     stats["notes"] = _notes(keyframes, stats["loose_vertices"], stats["sdf"])
+    if "quality" in stats:
+        rep(0.98, "Measuring the keyframe frames")
+        _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing)
+        stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return Animation(frames=np.asarray(chain.frames, dtype=np.int64),
                      vertices=np.asarray(chain.vertices, dtype=np.float32),
-                     faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats)
+                     faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats,
+                     surfaces=chain.surfaces, velocities=chain.velocities,
+                     levelsets=chain.levelsets)
+
+
+def _measure_keyframes(quality, keyframes, chain, spacing):
+    """Add the two-way distance to the keyframe mesh the artist gave on every keyframe frame."""
+    from .quality import keyframe_distance
+    from .sdf import triangulate
+
+    for kf in keyframes:
+        i = int(kf.frame - chain.frames[0])
+        kv = np.asarray(kf.vertices, dtype=float).reshape(-1, 3)
+        kt = triangulate(kf.faces, len(kv))
+        quality["shape_keys"][i].update(keyframe_distance(chain.vertices[i], chain.faces, kv, kt,
+                                                          spacing))
+        quality["mesh_sequence"][i].update(keyframe_distance(*chain.surfaces[i], kv, kt, spacing))

@@ -325,6 +325,16 @@ class Transport:
         return out
 
 
+    def surface_motion(self, t, near, dt=1e-3):
+        """The nodes within ``near`` (world units) of the keyframe's surface at time t:
+        their positions (M, d) and velocities dx/dt (M, d), by a finite difference."""
+        nodes = self._corner_nodes[np.abs(self.field.reshape(-1)[self._corner_nodes]) <= near]
+        paths = self.trajectories
+        pos = paths.node_positions(t, nodes)
+        t1 = t + dt if t + dt <= 1.0 else t - dt
+        return pos, (paths.node_positions(t1, nodes) - pos) / (t1 - t)
+
+
 def _region_cells(grid, region):
     """The cells with all corners in ``region`` (bool, flat).
 

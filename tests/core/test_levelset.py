@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from inbetween_cases import bend_case, merge_case, rigid_case, rigid_expected, l_shape
+from inbetween_cases import RIGID_AXIS, bend_case, merge_case, rigid_case, rigid_expected, l_shape
 from keyframe_implicit.core.levelset import Inbetween
 from keyframe_implicit.core.sampling import sample
 from keyframe_implicit.core.surface import extract_surface, loop_area, mesh_volume
@@ -185,3 +185,32 @@ def test_in_between_is_a_distance_field_near_its_surface(rigid):
     shell = (np.abs(exact) > 0.5 * h) & (np.abs(exact) < min(2.5 * h, ib.outside_value - 0.5 * h))
     assert np.count_nonzero(shell) > 300
     assert np.abs(ls - exact)[shell].mean() <= 0.1 * h
+
+
+def test_velocity_is_the_rate_of_the_trajectories_and_rigid_for_a_rigid_motion(rigid):
+    """A point carried from A's surface to p at time s moves at velocity(p, s) (the
+    trajectories differentiated in s); on a rigid motion that field is a rigid one,
+    v = a + w x p, spinning at w = angle * axis (any rigid in-between turns at that rate)."""
+    grid, phi_a, phi_b, mapped, info, ib = rigid
+    V0, _ = extract_surface(ib.levelset(0.0), grid)
+    w_exact = info["angle"] * np.asarray(RIGID_AXIS)
+    for s in (0.0, 0.4, 1.0):
+        p = ib.trajectory(V0, s)
+        v = ib.velocity(p, s)
+        e = 1e-3
+        rate = (ib.trajectory(V0, min(1.0, s + e)) - ib.trajectory(V0, max(0.0, s - e))) / (
+            min(1.0, s + e) - max(0.0, s - e))
+        scale = np.linalg.norm(rate, axis=1).mean()
+        err = np.linalg.norm(v - rate, axis=1) / scale
+        assert err.mean() <= 0.01 and err.max() <= 0.05, (s, err.mean(), err.max())
+        # least-squares rigid field a + w x p (w x p = -[p]x w)
+        cross = np.zeros((len(p), 3, 3))
+        cross[:, 0, 1], cross[:, 0, 2], cross[:, 1, 2] = p[:, 2], -p[:, 1], p[:, 0]
+        cross -= cross.transpose(0, 2, 1)
+        A = np.concatenate([np.tile(np.eye(3), (len(p), 1, 1)), cross], axis=2).reshape(-1, 6)
+        sol, *_ = np.linalg.lstsq(A, v.reshape(-1), rcond=None)
+        assert np.linalg.norm(sol[3:] - w_exact) <= 0.02 * np.linalg.norm(w_exact), (s, sol[3:])
+        resid = np.linalg.norm((A @ sol - v.reshape(-1)).reshape(-1, 3), axis=1) / scale
+        assert resid.mean() <= 0.01, (s, resid.mean())
+    with pytest.raises(ValueError):
+        ib.velocity(V0, 1.5)
