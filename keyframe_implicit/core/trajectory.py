@@ -176,7 +176,8 @@ class Trajectories:
     ----------
     stats : dict
         ``active_nodes``, ``active_cells``, ``components``, ``factor_seconds``,
-        ``factor_nnz`` (global method).
+        ``factor_nnz`` (global method: entries SuperLU stores for the factor, its
+        supernodes' padding included).
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
@@ -367,13 +368,10 @@ class Trajectories:
         self._free = free
         Lr = L[free][:, free].tocsc()
         # L is symmetric positive definite: symmetric mode (no pivoting) with a minimum
-        # degree ordering of L + L^T. Measured (rigid L-shape, shared machine): 64^3,
-        # 10.8k nodes: factor 0.23 s, 2.4M nnz, 3-column solve 0.013 s; 128^3, 54k nodes:
-        # factor 5.5 s, 27M nnz, solve 0.51 s. COLAMD: 4.4M / 58M nnz, 23 s factor at
-        # 128^3; Jacobi-preconditioned CG at 128^3: 450 iterations, 0.56 s per column.
+        # degree ordering of L + L^T (the orderings measured: benchmarks/README.md)
         self._lu = splu(Lr, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                         options=dict(SymmetricMode=True))
-        self.stats["factor_nnz"] = int(self._lu.L.nnz + self._lu.U.nnz)
+        self.stats["factor_nnz"] = int(self._lu.nnz)
 
         # per-cell F (mean of parallel edge differences) and its polar decomposition
         yc = self._y[cnodes]  # (nc, 2^d, d)
