@@ -9,6 +9,13 @@ with p of degree 1, R(r) = r^2 log r in 2D (eq. 2.3) and r^3 in 3D (eq. 2.4).
 The saddle-point system of eq. 2.5 is what ``scipy.interpolate.RBFInterpolator``
 (kernel ``thin_plate_spline`` / ``cubic``, ``degree=1``) solves.
 
+The solver keeps whatever folds its start has (it refuses steps that add
+folds, and cannot remove them), so a start that folds the material is not
+used: in 3D, where the thesis's r^3 folds it (feature pairs asking for very
+different stretches, e.g. a merge seen backwards: the cubic overshoots
+between them), the biharmonic kernel R(r) = r (the 3D thin-plate spline,
+least bending, least overshoot) is used instead (`_rbf_map`).
+
 The map is built per connected component of A's material (``phi_a < 0``,
 face connectivity), each with the feature points that lie in it (a point
 slightly outside goes to the nearest component). Where the RBF cannot be used
@@ -35,6 +42,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.interpolate import RBFInterpolator
 
+from . import elements
 from .grid import Grid
 from .sampling import sample
 
@@ -92,11 +100,46 @@ def _rbf_map(fa, fb, pts, grid: Grid, material):
     grid (`_guarded`). Feature points that are nearly coplanar or
     almost on top of each other with different targets make the cubic's
     polynomial part explode far from them; the rigid start with a smooth
-    correction is used instead.
+    correction is used instead. In 3D a cubic that folds the material is
+    replaced by the biharmonic kernel (module docstring); if that folds too,
+    the less folded of the two is returned.
     """
-    kernel = "thin_plate_spline" if grid.dim == 2 else "cubic"
-    return _guarded(lambda: pts + RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)(pts),
-                    grid, material)
+    kernels = ("thin_plate_spline",) if grid.dim == 2 else ("cubic", "linear")
+    best, best_det = None, -np.inf
+    for kernel in kernels:
+        y = _guarded(lambda: pts + RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)(pts),
+                     grid, material)
+        if y is None:
+            continue
+        det = min_det(y, grid, material)
+        if det > 0:
+            return y
+        if det > best_det:
+            best, best_det = y, det
+    return best
+
+
+def min_det(mapped, grid: Grid, material):
+    """Smallest det F of a map over the cells touching ``material`` (bool, flat).
+
+    F is that of the multilinear cell (`elements`), at the cell centre and the
+    2**d Gauss points, as the solver measures it; <= 0 means the map folds.
+    """
+    d = grid.dim
+    shape = np.asarray(grid.shape)
+    mat = np.asarray(material, dtype=bool).reshape(grid.shape)
+    cs = elements.corners(d)
+    touch = np.zeros(tuple(shape - 1), dtype=bool)
+    for c in cs:
+        touch |= mat[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))]
+    lower = np.argwhere(touch)
+    if lower.size == 0:
+        return np.inf
+    y = np.asarray(mapped, dtype=float).reshape(grid.shape + (d,))
+    Y = np.stack([y[tuple((lower + c).T)] for c in cs], axis=1)  # (cells, 2**d, d)
+    h = grid.spacing
+    G = np.concatenate([elements.quadrature(d, h, "gauss").G, elements.quadrature(d, h, "centre").G])
+    return float(elements.determinant(elements.deformation_gradient(Y, G)).min())
 
 
 def _guarded(build, grid: Grid, material):

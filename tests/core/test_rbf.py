@@ -112,3 +112,24 @@ def test_fewer_than_d_plus_1_points_and_no_points_align_principal_axes():
         if len(fa):
             # multilinear interpolation of a rigid (affine) field is exact
             assert np.allclose(sample(m.mapped, g, fa), fb, atol=1e-9)
+
+
+def test_start_does_not_fold_a_merge_seen_backwards_3d():
+    # a capsule split into two balls (the example merge's backward map): the centre pairs
+    # ask for a 4x stretch, the pole pairs for 0.8x; the thesis's r^3 overshoots between
+    # them and folds the capsule's ends, which the solver could never undo
+    from keyframe_implicit.core.rbf import min_det
+
+    g = Grid((-2.0, -0.9, -0.9), 0.1, (41, 19, 19))
+    P = g.points()
+    axis = np.clip(P[..., 0], -0.35, 0.35)
+    capsule = np.sqrt((P[..., 0] - axis) ** 2 + P[..., 1] ** 2 + P[..., 2] ** 2) - 0.64
+    balls = np.minimum(np.linalg.norm(P - [-1.1, 0, 0], axis=-1),
+                       np.linalg.norm(P - [1.1, 0, 0], axis=-1)) - 0.6
+    fa = np.array([[-0.9, 0, 0], [0.9, 0, 0], [-0.25, 0, 0], [0.25, 0, 0],
+                   [-0.35, 0, 0.55], [0.35, 0, 0.55], [-0.35, -0.55, 0], [0.35, -0.55, 0]])
+    fb = np.array([[-1.64, 0, 0], [1.64, 0, 0], [-1.1, 0, 0], [1.1, 0, 0],
+                   [-1.1, 0, 0.54], [1.1, 0, 0.54], [-1.1, -0.54, 0], [1.1, -0.54, 0]])
+    m = initial_map(capsule, balls, g, fa, fb)
+    assert m.methods == ["rbf"]
+    assert min_det(m.mapped, g, (capsule < 0).reshape(-1)) > 0
