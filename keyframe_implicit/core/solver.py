@@ -439,6 +439,30 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     return y, history, len(history) - 1, cg_total, dets, terms
 
 
+def _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius, patch_rigidity,
+                       base, options):
+    """The `_Level` of grid ``g`` with feature patches no larger than the start allows.
+
+    A patch moves its nodes by one affine map. Where the features ask for a kink at a
+    feature point (stretched 4x on one side, squeezed on the other, as a body torn in
+    two seen backwards), no affine map fits both sides and the patch's rim folds the
+    start. The radius is then halved, down to the plain hard constraint on the
+    feature's cell, until imposing the constraints folds nothing the start did not.
+    """
+    d, chunk = g.dim, int(options["chunk_elements"])
+    diag = 1.01 * np.sqrt(d) * g.spacing  # a patch must hold its feature's cell
+    rad = max(float(radius), diag) if radius > 0 else 0.0
+    while True:
+        level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, patch_rigidity)
+        if rad == 0.0 or level.cons.n_patch == 0:
+            return level
+        raw = base.reshape(-1, d)[level.active]
+        floor = _det_floor(level.det_stats(raw, chunk), options["min_det"])
+        if _det_floor(level.det_stats(level.cons.enforce(raw), chunk), options["min_det"]) >= floor:
+            return level
+        rad = rad / 2 if rad / 2 >= diag else 0.0
+
+
 def _level_start(level, base, corr_prev, options):
     """Start of one level: its base map plus as much of the coarser level's correction as
     keeps the material's det F at ``min_det`` (or at the base's own minimum, if lower).
@@ -531,9 +555,9 @@ def _levels(grid: Grid, coarse_nodes: int):
 # ----------------------------------------------------------------------------
 # public entry point
 # ----------------------------------------------------------------------------
-#: Default weights of the three terms of eq. 2.6 (measured choice: see the module
+#: Default weights of the terms of eq. 2.6 (`terms.TERMS`; measured choice: see the module
 #: docstring). The Blender panel takes its defaults from here.
-DEFAULT_WEIGHTS = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
+DEFAULT_WEIGHTS = {t.name: t.default for t in TERMS}
 
 
 def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
@@ -609,7 +633,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
             raise ValueError(f"unknown option {k!r} for solve_map; known options: "
                              f"{sorted(set(options) | extra)}.")
     for t in TERMS:
-        weight_opts.setdefault(t.weight_option, 0.0)
+        weight_opts.setdefault(t.weight_option, t.default)
     weights = {}
     for t in TERMS:
         w = float(weight_opts[t.weight_option])
@@ -664,9 +688,8 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
             base = pts + sample(disp0, grid, pts)
         if not np.any(pa < 0):
             continue  # material too thin for this coarse level
-        # a patch must hold its feature's cell; feature_radius=0 asks for plain hard constraints
-        rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing) if radius > 0 else 0.0
-        level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, patch_rigidity)
+        level = _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius,
+                                   patch_rigidity, base, options)
         y_start_full, y = _level_start(level, base, corr_prev, options)
         timing["setup"] += time.perf_counter() - t0
         y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),

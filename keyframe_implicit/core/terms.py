@@ -7,7 +7,8 @@
 with F = dy/dx (discretised in `keyframe_implicit.core.elements`), H the
 smeared Heaviside of eq. 2.7 (middle case -eps <= phi <= eps as corrected in
 PAPER-NOTES section 2, eps = 1.5 h) and the weights given to `solve_map` as
-``volume_weight``, ``rigidity_weight``, ``levelset_weight``.
+``volume_weight``, ``rigidity_weight``, ``levelset_weight`` (each term's
+default is in `TERMS`).
 
 Every term returns a `TermValue`: its energy (the weighted integral, world
 units h**d per cell), its gradient and its Gauss-Newton Hessian blocks
@@ -30,8 +31,8 @@ Adding a fourth term
 Write ``def my_term(batch, hessian=True) -> TermValue`` for one of the two
 kinds (see `volume_term` for the pattern: residual, its derivative w.r.t. the
 corner positions, then energy / gradient / ``2 w J J^T``) and append
-``Term("my", "my_weight", "element", my_term)`` to `TERMS`. `solve_map` then
-accepts ``my_weight=...``, assembles the term into the Gauss-Newton system and
+``Term("my", "my_weight", "element", my_term, default=...)`` to `TERMS`.
+`solve_map` then accepts ``my_weight=...``, assembles the term into the Gauss-Newton system and
 reports its value per iteration in ``stats["terms"]``; nothing else changes.
 Rigid motions must cost nothing if the term is physical.
 """
@@ -96,12 +97,14 @@ class NodeBatch:
 
 @dataclass(frozen=True)
 class Term:
-    """Registry entry: name, option name of its weight, kind ("element"/"node"), function."""
+    """Registry entry: name, option name of its weight, kind ("element"/"node"), function,
+    and the weight `solve_map` uses when the caller gives none."""
 
     name: str
     weight_option: str
     kind: str
     function: Callable
+    default: float = 0.0
 
 
 def heaviside(phi, eps):
@@ -202,7 +205,7 @@ def _sample_sdf(psi, grid, y):
 
 #: The terms of eq. 2.6 in evaluation order. Append a `Term` to add one.
 TERMS = (
-    Term("volume", "volume_weight", "element", volume_term),
-    Term("rigidity", "rigidity_weight", "element", rigidity_term),
-    Term("levelset", "levelset_weight", "node", levelset_term),
+    Term("volume", "volume_weight", "element", volume_term, default=30.0),
+    Term("rigidity", "rigidity_weight", "element", rigidity_term, default=1.0),
+    Term("levelset", "levelset_weight", "node", levelset_term, default=10.0),
 )
