@@ -4,7 +4,7 @@ Run from the repository root with the bpy module of the OLDEST supported Blender
 so that every supported Blender opens the files (a .blend saved by 5.0 has a new header that
 4.x cannot read; newer versions read older files)::
 
-    KFI_VENV=~/.cache/keyframe_implicit/venv-bpy42 KFI_REQUIREMENTS=requirements-bpy42.txt \
+    KFI_PYTHON=3.11 KFI_REQUIREMENTS=requirements-bpy42.txt \
         bash -c 'source scripts/env.sh && python assets/make_assets.py'      # every scene
     ... python assets/make_assets.py bend rigid                               # some scenes
 
