@@ -31,7 +31,9 @@ seconds spent per stage, and the node map y(x) where the method defines one.
   fixed-point iteration x <- z - s d(x) diverges once s |grad d| > 1, which a
   90 degree rotation reaches (|R - I| = sqrt 2). Where the warp folds there is
   no inverse; the largest residual |x + s d(x) - z| is reported.
-- `project`: this project's `keyframe_implicit.core.inbetween`.
+- `project`: this project's `keyframe_implicit.core.inbetween` (two-sided transport).
+- `one_sided`: the same with ``transport="one-sided"``, the thesis's eq. 3.4 on A's
+  nodes only (what this project did before the two-sided transport).
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ from scipy.interpolate import RBFInterpolator
 
 from keyframe_implicit.core.sampling import sample
 
-__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project"]
+__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided"]
 
 
 @dataclass
@@ -191,12 +193,12 @@ def rbf_warp(phi_a, phi_b, grid, features_a, features_b, times, iterations=6):
 
 
 # -- this project --------------------------------------------------------------
-def project(phi_a, phi_b, grid, features_a, features_b, times):
+def project(phi_a, phi_b, grid, features_a, features_b, times, **options):
     """keyframe_implicit.core.inbetween, frames from its ``.levelset(s)``."""
     from keyframe_implicit.core import inbetween
 
     t0 = time.perf_counter()
-    res = inbetween(phi_a, phi_b, grid, features_a, features_b)
+    res = inbetween(phi_a, phi_b, grid, features_a, features_b, **options)
     t1 = time.perf_counter()
     frames = [np.asarray(res.levelset(s), float) for s in times]
     t2 = time.perf_counter()
@@ -211,4 +213,10 @@ def project(phi_a, phi_b, grid, features_a, features_b, times):
     return Run(frames, {"map": t1 - t0, "frames": t2 - t1}, np.asarray(res.mapped, float), info)
 
 
-METHODS = {"project": project, "blend": linear_blend, "morph": morph_flow, "rbf": rbf_warp}
+def one_sided(phi_a, phi_b, grid, features_a, features_b, times):
+    """`project` with the thesis's one-sided transport."""
+    return project(phi_a, phi_b, grid, features_a, features_b, times, transport="one-sided")
+
+
+METHODS = {"project": project, "one-sided": one_sided, "blend": linear_blend, "morph": morph_flow,
+           "rbf": rbf_warp}

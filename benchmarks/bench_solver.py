@@ -10,7 +10,7 @@ the input grids).
 
     python benchmarks/bench_solver.py                 # 32 48 64 96 128
     python benchmarks/bench_solver.py --sizes 32 64
-    python benchmarks/bench_solver.py --region        # 2D merge, band weight 0 / 0.1 / 1
+    python benchmarks/bench_solver.py --region        # 2D merge, margin weight 0 / 0.1 / 1
     python benchmarks/bench_solver.py --features --sizes 64 128   # det F near features
 
 Each size runs in its own process so that peak memory is per size.
@@ -111,12 +111,12 @@ def region_measure(n=48):
     base = np.argwhere(centre < 0)
     nodes = base[:, None, :] + cs[None]
     G = np.concatenate([elements.quadrature(2, h, "gauss").G, elements.quadrature(2, h, "centre").G])
-    print(f"2D merge, {n}x{n} grid, band_cells=3, default weights")
-    print(f"{'band_weight':>11} {'min detF':>9} {'in[.8,1.25]':>11} {'mapped>h/2 out of B':>19} "
+    print(f"2D merge, {n}x{n} grid, margin_cells=3, default weights")
+    print(f"{'margin_weight':>11} {'min detF':>9} {'in[.8,1.25]':>11} {'mapped>h/2 out of B':>19} "
           f"{'B uncovered(>h)':>15} {'levelset term':>13} {'rigidity':>9} {'s':>5}")
     for bw in (0.0, 0.1, 1.0):
         t0 = time.perf_counter()
-        res = solve_map(phi_a, phi_b, g, fa, fb, band_weight=bw)
+        res = solve_map(phi_a, phi_b, g, fa, fb, margin_weight=bw)
         sec = time.perf_counter() - t0
         Y = res.mapped[tuple(nodes[..., a] for a in range(2))]
         det = elements.determinant(elements.deformation_gradient(Y, G))

@@ -26,7 +26,7 @@ from keyframe_implicit.core.grid import Grid
 
 __all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "rotation"]
 
-CASE_NAMES = ("rigid", "merge", "bend", "squash", "splash")
+CASE_NAMES = ("rigid", "merge", "split", "bend", "squash", "morph", "splash")
 
 
 @dataclass
@@ -41,6 +41,7 @@ class Case:
     features : list of (features_a, features_b), one pair of (N, 3) arrays per segment.
     truth : callable(points (P, 3), s) -> signed distance, or None.
     expected_components : list of int, connected components of each keyframe.
+    info : dict of facts of the case's geometry (e.g. the merge's ``gap``, world units).
     """
 
     name: str
@@ -49,6 +50,7 @@ class Case:
     features: list
     truth: object = None
     expected_components: list = field(default_factory=list)
+    info: dict = field(default_factory=dict)
 
 
 def make_grid(n: int) -> Grid:
@@ -176,7 +178,51 @@ def _merge(grid):
     half = 3 * R / 8
     fa = np.vstack([ca + off, cb + off])
     fb = np.vstack([np.array([-half, 0, 0]) + off, np.array([half, 0, 0]) + off])
-    return Case("merge", grid, [phi_a, phi_b], [(fa, fb)], None, [2, 1])
+    gap = float(np.linalg.norm(cb - ca) - 2 * r)
+    return Case("merge", grid, [phi_a, phi_b], [(fa, fb)], None, [2, 1], {"gap": gap})
+
+
+def _split(grid):
+    """The merge played backwards: one ball tears into two (the thesis's future work)."""
+    merge = _merge(grid)
+    fa, fb = merge.features[0]
+    return Case("split", grid, merge.fields[::-1], [(fb, fa)], None, [1, 2], merge.info)
+
+
+# star: a ball with six thin arms along the axes, into a ball of equal volume
+_STAR_CORE = 0.22
+_STAR_ARM = (0.62, 0.08)  # arm reach from the centre and radius
+
+
+def _sd_star(p):
+    d = sd_sphere(p, (0, 0, 0), _STAR_CORE)
+    for a in range(3):
+        for sign in (-1.0, 1.0):
+            tip = np.zeros(3)
+            tip[a] = sign * _STAR_ARM[0]
+            d = np.minimum(d, sd_capsule(p, (0, 0, 0), tip, _STAR_ARM[1]))
+    return d
+
+
+def _star_volume():
+    """Volume of the star by midpoint sampling of its bounding cube (200^3 samples)."""
+    m = 200
+    r = _STAR_ARM[0] + _STAR_ARM[1]
+    t = (np.arange(m) + 0.5) / m * 2 * r - r
+    inside = 0
+    for z in t:  # slabs keep memory small
+        p = np.stack(np.meshgrid(t, t, [z], indexing="ij"), axis=-1)
+        inside += int(np.count_nonzero(_sd_star(p) < 0))
+    return inside * (2 * r / m) ** 3
+
+
+def _morph(grid):
+    """A star with six thin arms becomes a ball of the same volume (arms drawn in)."""
+    x = grid.points()
+    R = (3 * _star_volume() / (4 * np.pi)) ** (1 / 3)
+    fa = 0.1 * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    return Case("morph", grid, [_sd_star(x), sd_sphere(x, (0, 0, 0), R)], [(fa, fa.copy())], None,
+                [1, 1])
 
 
 def _bend(grid):
@@ -249,7 +295,8 @@ def _splash(grid):
     return Case("splash", grid, [k0, k1, k2, k3], segs, None, [2, 1, 1, 1])
 
 
-_BUILDERS = {"rigid": _rigid, "merge": _merge, "bend": _bend, "squash": _squash, "splash": _splash}
+_BUILDERS = {"rigid": _rigid, "merge": _merge, "split": _split, "bend": _bend, "squash": _squash,
+             "morph": _morph, "splash": _splash}
 
 
 def make_case(name: str, n: int) -> Case:

@@ -38,8 +38,9 @@ if str(HERE) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-METHOD_ORDER = ("project", "blend", "morph", "rbf")
-METHOD_LABEL = {"project": "this project", "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
+METHOD_ORDER = ("project", "one-sided", "blend", "morph", "rbf")
+METHOD_LABEL = {"project": "this project", "one-sided": "this project, one-sided (thesis eq. 3.4)",
+                "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
                 "rbf": "plain RBF warp"}
 
 
@@ -262,7 +263,7 @@ def _plots(results, outdir):
     if not ok:
         return
     from cases import CASE_NAMES
-    colours = {"project": "C3", "blend": "C0", "morph": "C2", "rbf": "C1"}
+    colours = {"project": "C3", "one-sided": "C4", "blend": "C0", "morph": "C2", "rbf": "C1"}
 
     # 1. quality: volume drift per case and method at the largest size run
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -337,7 +338,7 @@ def _plots(results, outdir):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", default="32,48,64", help="comma-separated nodes per axis (e.g. 32,48,64,96,128)")
-    p.add_argument("--cases", default="rigid,merge,bend,squash,splash")
+    p.add_argument("--cases", default=None, help="comma-separated case names (default: all)")
     p.add_argument("--methods", default=",".join(METHOD_ORDER))
     p.add_argument("--quick", action="store_true", help="smoke run at 32^3 only")
     p.add_argument("--frames", type=int, default=9, help="frames per keyframe pair including both ends")
@@ -358,9 +359,9 @@ def main(argv=None):
         print(f"wrote {write_results(json.loads((pathlib.Path(args.out) / 'results.json').read_text()), args.out)}")
         return 0
     sizes = [32] if args.quick else [int(s) for s in args.sizes.split(",") if s.strip()]
-    case_names = [c.strip() for c in args.cases.split(",") if c.strip()]
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     from cases import CASE_NAMES
+    case_names = list(CASE_NAMES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [c for c in case_names if c not in CASE_NAMES] + [m for m in methods if m not in METHOD_ORDER]
     if bad:
         raise ValueError(f"unknown case/method {bad}; cases: {CASE_NAMES}, methods: {METHOD_ORDER}.")

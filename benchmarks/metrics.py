@@ -3,9 +3,9 @@
 All lengths are reported in grid spacings h. A "sequence" is a list of level
 set grids at times ``s`` (negative inside), keyframe A at s = 0 and B at s = 1.
 
-- `volume`: material volume by a sub-voxel smoothed Heaviside of phi / |grad phi|
-  (a linear ramp one cell wide), so fields that are not distances (blends) are
-  measured as fairly as signed distances.
+- `volume`: volume inside the surface the artist gets (marching cubes of the
+  frame's field, `keyframe_implicit.core.surface.enclosed_volume`), the same for
+  every method whether its field is a distance or not.
 - `volume_drift`: max over s of |V(s) - V_lin(s)| / V_lin(s), V_lin the linear
   interpolation of the keyframe volumes.
 - `components`: connected pieces of {phi < 0} (6-connected voxels).
@@ -23,6 +23,7 @@ from scipy import ndimage
 from skimage import measure
 
 from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core.surface import enclosed_volume
 
 __all__ = [
     "volume", "volume_drift", "components", "spurious_components", "zero_set",
@@ -31,18 +32,8 @@ __all__ = [
 
 
 def volume(phi, grid):
-    """Volume of {phi < 0} in world units^3, with sub-voxel smoothing.
-
-    Each node contributes h^3 * clip(1/2 - d / h, 0, 1), d = phi / |grad phi|
-    (central differences; |grad phi| floored at 0.05 so flat regions do not
-    blow up). Exact for a plane at any offset, second order for curved surfaces.
-    """
-    phi = np.asarray(phi, dtype=float)
-    h = grid.spacing
-    g = np.gradient(phi, h)
-    norm = np.sqrt(sum(gi * gi for gi in g))
-    d = phi / np.maximum(norm, 0.05)
-    return float(np.clip(0.5 - d / h, 0.0, 1.0).sum() * grid.cell_volume)
+    """Volume inside the zero set of ``phi`` (marching cubes), world units^3."""
+    return enclosed_volume(np.asarray(phi, dtype=float), grid)
 
 
 def volume_drift(volumes, times, keyframe_volumes=None):

@@ -304,9 +304,13 @@ def run(scene_name=DEFAULT_SCENE, out="out", resolution=DEFAULT_RESOLUTION, fram
     _say(f"2/4 baking at resolution {resolution} (grid cells along the longest side)")
     obj = bake(scene, resolution)
     times["bake"] = time.perf_counter() - t
-    nkeys = len(obj.data.shape_keys.key_blocks) if obj.data.shape_keys else 0
-    _say(f"    baked '{obj.name}': {len(obj.data.vertices)} vertices, {nkeys} shape keys "
-         f"in {times['bake']:.1f} s")
+    if obj.get("kfi_output_kind") == "mesh_sequence":
+        span = obj["kfi_frames"]
+        stored = f"a mesh sequence of {span[1] - span[0] + 1} frames"
+    else:
+        nkeys = len(obj.data.shape_keys.key_blocks) - 1 if obj.data.shape_keys else 0
+        stored = f"{len(obj.data.vertices)} vertices with {nkeys} frame shape keys"
+    _say(f"    baked '{obj.name}': {stored} in {times['bake']:.1f} s")
 
     os.makedirs(out, exist_ok=True)
     blend = os.path.abspath(os.path.join(out, f"{scene_name}.blend"))

@@ -4,7 +4,7 @@
 #
 #   scripts/blender_chroot.sh [pytest args]     # default: -q tests
 #
-# 1. Makes the chroot once, or reuses it: $KFI_CHROOT (default
+# 1. Makes the chroot once, or reuses it (scripts/trixie_chroot.sh): $KFI_CHROOT (default
 #    /var/cache/keyframe_implicit/trixie, outside the clone): debootstrap --variant=minbase
 #    trixie, then apt-get install --no-install-recommends blender python3-numpy python3-pytest
 #    and an EGL/Mesa GL driver (numpy is what Blender's own builds bundle, Debian packages it
@@ -25,10 +25,8 @@
 # Exit status: non-zero on any failure, else pytest's.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-CHROOT="${KFI_CHROOT:-/var/cache/keyframe_implicit/trixie}"
 # libegl1 + Mesa: a GL driver (software llvmpipe here) for Workbench/EEVEE renders in -b.
 PACKAGES="blender python3-numpy python3-pytest libegl1 libegl-mesa0 libgl1-mesa-dri"
-MIRROR="${KFI_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 log() { echo "[blender_chroot] $*" >&2; }
 
 if [ "$(id -u)" != 0 ]; then
@@ -37,38 +35,12 @@ if [ "$(id -u)" != 0 ]; then
 fi
 
 # ---- 1. the chroot -------------------------------------------------------------------
-stamp="$CHROOT/.kfi-stamp"
-if [ ! -x "$CHROOT/usr/bin/blender" ]; then
-  t0=$(date +%s)
-  log "making the trixie chroot in $CHROOT (first run: ~1-2 min, ~1.8 GB)"
-  command -v debootstrap >/dev/null || { apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null; }
-  rm -rf "$CHROOT.tmp"
-  mkdir -p "$(dirname "$CHROOT")"
-  debootstrap --variant=minbase trixie "$CHROOT.tmp" "$MIRROR" >/dev/null
-  chroot "$CHROOT.tmp" apt-get install -y -qq --no-install-recommends $PACKAGES >/dev/null
-  chroot "$CHROOT.tmp" apt-get clean
-  echo "$PACKAGES" > "$CHROOT.tmp/.kfi-stamp"
-  rm -rf "$CHROOT"
-  mv "$CHROOT.tmp" "$CHROOT"
-  log "chroot ready in $(( $(date +%s) - t0 )) s"
-elif [ "$(cat "$stamp" 2>/dev/null)" != "$PACKAGES" ]; then
-  log "updating the packages of $CHROOT"
-  chroot "$CHROOT" apt-get update -qq
-  chroot "$CHROOT" apt-get install -y -qq --no-install-recommends $PACKAGES >/dev/null
-  chroot "$CHROOT" apt-get clean
-  echo "$PACKAGES" > "$stamp"
-fi
+source "$ROOT/scripts/trixie_chroot.sh"
+ensure_chroot $PACKAGES
 
-# ---- 2. the zip ----------------------------------------------------------------------
-run="$(mktemp -d "$CHROOT/tmp/kfi-run.XXXXXX")"
-inside="/tmp/$(basename "$run")"
-trap 'rm -rf "$run"' EXIT
-(
-  source "$ROOT/scripts/env.sh"
-  cd "$ROOT"
-  python scripts/build_extension.py --platform linux-x64 --out "$run/dist" --build-dir "$run/build" >&2
-)
-zip_name="$(cd "$run/dist" && ls keyframe_implicit-*-linux_x64.zip)"
+# ---- 2. the zip, installed with Blender's own CLI (step 3) -------------------------------
+make_run_dir
+install_zip "$ROOT"
 # Test-only dependencies of requirements-dev.txt that neither Blender, the zip nor the
 # chroot provide (e.g. matplotlib), as cp313 wheels for the chroot's Python, with the
 # chroot's numpy as a constraint and numpy itself removed again (Debian's stays in use).
@@ -86,16 +58,10 @@ zip_name="$(cd "$run/dist" && ls keyframe_implicit-*-linux_x64.zip)"
   fi
 )
 
-# ---- 3. install with Blender's own CLI ---------------------------------------------------
-mkdir -p "$run/src" "$run/home"
+# ---- 3. the checkout, and a check of the installed extension ----------------------------
+mkdir -p "$run/src"
 tar -C "$ROOT" --exclude=./.git --exclude=./dist --exclude=./build --exclude=./out \
     --exclude='__pycache__' --exclude='.pytest_cache' -cf - . | tar -C "$run/src" -xf -
-in_chroot() {
-  chroot "$CHROOT" /usr/bin/env -i HOME="${KFI_HOME:-$inside/home}" PATH=/usr/sbin:/usr/bin:/sbin:/bin \
-    LANG=C.UTF-8 KFI_EXTENSION_ZIP="$inside/dist/$zip_name" ${KFI_TEST_SITE:+KFI_TEST_SITE=$KFI_TEST_SITE} "$@"
-}
-log "$(in_chroot blender --version 2>/dev/null | head -1), installing $zip_name"
-in_chroot blender --command extension install-file -r user_default -e "$inside/dist/$zip_name"
 in_chroot blender -b --python-exit-code 1 --python-expr '
 import sys, bpy, addon_utils
 name = "bl_ext.user_default.keyframe_implicit"
@@ -113,11 +79,13 @@ site=( "$run"/home/.config/blender/*/extensions/.local/lib/python3*/site-package
 [ -d "${site[0]}" ] || { log "no unpacked wheels under $run/home after install-file"; exit 1; }
 cp -a "${site[0]}" "$run/testsite"
 mkdir -p "$run/home-tests"
-export KFI_HOME="$inside/home-tests" KFI_TEST_SITE="$inside/testsite"
+export KFI_HOME="$inside/home-tests"
+KFI_TEST_SITE="$inside/testsite"
 [ -d "$run/testdeps" ] && KFI_TEST_SITE="$KFI_TEST_SITE:$inside/testdeps"
 set +e
 [ $# -gt 0 ] || set -- -q tests
-in_chroot /bin/sh -c 'cd "$0" && exec blender -b --factory-startup --python-exit-code 1 \
+in_chroot KFI_EXTENSION_ZIP="$inside/dist/$zip_name" KFI_TEST_SITE="$KFI_TEST_SITE" \
+  /bin/sh -c 'cd "$0" && exec blender -b --factory-startup --python-exit-code 1 \
   -P tests/blender_runner.py -- -p no:cacheprovider "$@"' "$inside/src" "$@"
 code=$?
 set -e

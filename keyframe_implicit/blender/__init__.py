@@ -17,6 +17,14 @@ Module map (operators and panels are thin; logic lives in plain functions):
 """
 
 _registered = []
+_HANDLERS = ("depsgraph_update_post", "load_post")
+
+
+def _forget_surfaces(scene=None, depsgraph=None):
+    """Handler: kept pre-bake surface checks are stale after geometry updates and loads."""
+    from . import validate
+
+    validate.forget_surfaces(scene, depsgraph)
 
 
 def _class_lists():
@@ -41,6 +49,9 @@ def register():
     from . import ops
 
     bpy.types.VIEW3D_MT_object.append(ops.menu_func)
+    bpy.app.handlers.persistent(_forget_surfaces)  # kept across file loads
+    for name in _HANDLERS:
+        getattr(bpy.app.handlers, name).append(_forget_surfaces)
 
 
 def unregister():
@@ -51,6 +62,11 @@ def unregister():
 
     if not _registered:
         return
+    for name in _HANDLERS:
+        handlers = getattr(bpy.app.handlers, name)
+        if _forget_surfaces in handlers:
+            handlers.remove(_forget_surfaces)
+    _forget_surfaces()
     for job in list(ops._running):
         job.cancel()
     bpy.types.VIEW3D_MT_object.remove(ops.menu_func)

@@ -46,6 +46,7 @@ class BakeJob:
         self.result = None
         self.error = None
         self.seconds = 0.0
+        self.notes = []  # what the user should know about a successful bake (warnings)
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._thread = None
@@ -82,6 +83,7 @@ class BakeJob:
                 weights=inp.weights,
                 progress=self._progress,
                 cancel=self._cancel.is_set,
+                feature_names=inp.feature_names or None,
             )
             self.state = DONE
         except Cancelled:
@@ -128,14 +130,19 @@ class BakeJob:
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
+        self.notes = list(stats.pop("notes", []))
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
         return output.write_animation(scene, scene.keyframe_implicit, self.result,
-                                      material_name=self.inputs.material_name, stats=stats)
+                                      material_names=self.inputs.material_names, stats=stats,
+                                      notes=self.notes)
 
 
-def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None):
+def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None):
     """Blocking bake of ``scene``'s setup; returns the output object.
+
+    ``notes``, a list, receives what the user should be told about the result
+    (faces reoriented, loose vertices ignored, a previous output kept, ...).
 
     Raises ValueError (setup or input problems, with what to do), `Cancelled`
     (``on_progress`` called ``job.cancel()``), or the core's own exception.
@@ -155,4 +162,7 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None):
         raise Cancelled("Bake cancelled; the scene is unchanged.")
     if job.state == FAILED:
         raise job.error
-    return job.apply(scene)
+    obj = job.apply(scene)
+    if notes is not None:
+        notes.extend(job.notes)
+    return obj

@@ -183,12 +183,13 @@ def segment_objects(settings, segment):
         raise ValueError("Feature pairs join two keyframes: add at least two keyframes first.")
     if not 0 <= segment < n - 1:
         raise ValueError(f"Segment {segment} does not exist: with {n} keyframes the segments "
-                         f"are 0..{n - 2} (segment i lies between keyframe i and i+1).")
+                         f"are 0..{n - 2} (segment i lies between keyframes i+1 and i+2 of the "
+                         "list).")
     a = settings.keyframes[segment].object
     b = settings.keyframes[segment + 1].object
     for i, obj in ((segment, a), (segment + 1, b)):
         if obj is None:
-            raise ValueError(f"Keyframe {i} has no mesh object: pick one in the keyframe list.")
+            raise ValueError(f"Keyframe {i + 1} has no mesh object: pick one in the keyframe list.")
     return a, b
 
 

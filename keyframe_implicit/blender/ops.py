@@ -4,13 +4,28 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.progress import Cancelled
-from . import bake, features, scene_io, validate
+from . import bake, features, result_view, scene_io, validate
 
 _OPTS = {"REGISTER", "UNDO"}
+# Redo-panel ("Adjust Last Operation") hygiene: a property the panel fills in itself is not
+# remembered for the next run (SKIP_SAVE) and, when it means nothing to the artist, not shown.
+_INTERNAL = {"HIDDEN", "SKIP_SAVE"}
 
 
 def _settings(context):
     return context.scene.keyframe_implicit
+
+
+def _search_meshes(_op, context, text):
+    """Search list of Add Keyframe's Object field: the scene's mesh objects."""
+    text = text.lower()
+    return [o.name for o in context.scene.objects if o.type == "MESH" and text in o.name.lower()]
+
+
+def _kind(obj):
+    """"a Curve object", "an Empty": the object's type as the Add menu names it, with its article."""
+    kind = obj.bl_rna.properties["type"].enum_items[obj.type].name
+    return f"{'an' if kind[0] in 'AEIOU' else 'a'} {kind}"
 
 
 class KFI_OT_add_keyframe(bpy.types.Operator):
@@ -20,26 +35,32 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
     bl_label = "Add Keyframe"
     bl_options = _OPTS
 
-    object_name: StringProperty(name="Object", default="",
+    object_name: StringProperty(name="Object", default="", options={"SKIP_SAVE"},
+                                search=_search_meshes,
                                 description="Mesh object to add (empty: the active object)")
-    frame: IntProperty(name="Frame", default=-1, description="Timeline frame (-1: the current frame)")
+    frame: IntProperty(name="Frame", default=1, options={"SKIP_SAVE"},
+                       description="Timeline frame, negative ones included (not set: the current frame)")
 
     def execute(self, context):
         settings = _settings(context)
         name = self.object_name or (context.active_object.name if context.active_object else "")
         obj = context.scene.objects.get(name) if name else None
         if obj is None:
-            self.report({"ERROR"}, "No object to add: make a mesh object active "
-                                   "(or pass object_name) and try again.")
+            missing = f"There is no object '{name}' in this scene" if name else "No object to add"
+            self.report({"ERROR"}, f"{missing}: make a mesh object active (or pass object_name) "
+                                   "and try again.")
             return {"CANCELLED"}
         if obj.type != "MESH":
-            self.report({"ERROR"}, f"'{obj.name}' is a {obj.type.lower()}, not a mesh: "
-                                   "pick a mesh object.")
+            self.report({"ERROR"}, f"'{obj.name}' is {_kind(obj)}, not a mesh: pick a mesh object "
+                                   "(or convert it with Object > Convert > Mesh).")
             return {"CANCELLED"}
-        frame = context.scene.frame_current if self.frame < 0 else self.frame
+        given = self.properties.is_property_set("frame")
+        frame = self.frame if given else context.scene.frame_current
+        self.object_name, self.frame = obj.name, frame  # what the redo panel shows
         if any(kf.frame == frame for kf in settings.keyframes):
-            self.report({"ERROR"}, f"Frame {frame} already has a keyframe: change the current "
-                                   "frame (or pass frame=...) first.")
+            where = "the frame given" if given else "the current frame"
+            self.report({"ERROR"}, f"Frame {frame} ({where}) already has a keyframe: pick another "
+                                   "frame.")
             return {"CANCELLED"}
         # keep the list ordered by frame
         index = sum(1 for kf in settings.keyframes if kf.frame < frame)
@@ -50,7 +71,7 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
         if index != last:
             settings.keyframes.move(last, index)
         settings.active_keyframe_index = index
-        self.report({"INFO"}, f"Keyframe {index}: '{obj.name}' on frame {frame}.")
+        self.report({"INFO"}, f"Keyframe {index + 1}: '{obj.name}' on frame {frame}.")
         return {"FINISHED"}
 
 
@@ -61,21 +82,22 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
     bl_label = "Remove Keyframe"
     bl_options = _OPTS
 
-    index: IntProperty(name="Index", default=-1, description="Keyframe to remove (-1: the active one)")
+    index: IntProperty(name="Index", default=-1, options=_INTERNAL,
+                       description="Keyframe to remove, from 0 (-1: the active one)")
 
     def execute(self, context):
         settings = _settings(context)
         n = len(settings.keyframes)
         index = settings.active_keyframe_index if self.index < 0 else self.index
         if not 0 <= index < n:
-            self.report({"ERROR"}, f"No keyframe {index}: there are {n} (0..{n - 1}).")
+            self.report({"ERROR"}, f"No keyframe {index + 1}: there are {n}.")
             return {"CANCELLED"}
         gone = features.on_keyframe_removed(context.scene, index, n)
         settings.keyframes.remove(index)
         settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
-        msg = f"Removed keyframe {index}."
+        msg = f"Removed keyframe {index + 1}."
         if gone:
-            msg += f" Deleted {gone} feature pair(s) that used it."
+            msg += f" Deleted {validate.count(gone, 'feature pair')} that used it."
         self.report({"INFO"}, msg)
         return {"FINISHED"}
 
@@ -87,7 +109,8 @@ class KFI_OT_move_keyframe(bpy.types.Operator):
     bl_label = "Move Keyframe"
     bl_options = _OPTS
 
-    index: IntProperty(name="Index", default=-1, description="Keyframe to move (-1: the active one)")
+    index: IntProperty(name="Index", default=-1, options=_INTERNAL,
+                       description="Keyframe to move, from 0 (-1: the active one)")
     direction: EnumProperty(name="Direction", items=(("UP", "Up", ""), ("DOWN", "Down", "")))
 
     def execute(self, context):
@@ -133,7 +156,7 @@ class KFI_OT_add_feature_pair(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self.report({"INFO"}, f"Added feature pair {pid}: move 'KFI {pid} A' onto keyframe "
-                              f"{self.segment} and 'KFI {pid} B' onto keyframe {self.segment + 1}.")
+                              f"{self.segment + 1} and 'KFI {pid} B' onto keyframe {self.segment + 2}.")
         return {"FINISHED"}
 
 
@@ -144,7 +167,7 @@ class KFI_OT_pair_selected(bpy.types.Operator):
     bl_label = "Pair Selected"
     bl_options = _OPTS
 
-    segment: IntProperty(name="Segment", default=-1,
+    segment: IntProperty(name="Segment", default=-1, options=_INTERNAL,
                          description="Segment when the Empties are not parented to keyframe objects "
                                      "(-1: from their parents)")
 
@@ -209,6 +232,12 @@ class KFI_OT_select_pair(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _failed(what, detail):
+    """One sentence for a failed bake: the detail's own full stop is not doubled."""
+    detail = detail.strip().rstrip(".;")
+    return f"{what}: {detail}. The scene is unchanged."
+
+
 def _resolve_pair(op, context):
     """No pair id given (menu, F3, script): take the active feature Empty's pair."""
     if not op.pair and features.is_feature(context.active_object):
@@ -256,9 +285,11 @@ class KFI_OT_bake(bpy.types.Operator):
 
     bl_idname = "keyframe_implicit.bake"
     bl_label = "Bake"
-    bl_options = _OPTS
+    # No REGISTER: no redo panel, which would re-run a minutes-long bake blocking, without
+    # progress or ESC. UNDO alone still makes the finished bake one undo step.
+    bl_options = {"UNDO"}
 
-    resolution: IntProperty(name="Resolution", default=0, min=0,
+    resolution: IntProperty(name="Resolution", default=0, min=0, options=_INTERNAL,
                             description="Grid resolution for this run (0: the scene setting)")
 
     _job = None
@@ -269,17 +300,27 @@ class KFI_OT_bake(bpy.types.Operator):
         if _running:
             cls.poll_message_set("A bake is already running (ESC cancels it).")
             return False
-        return context.scene is not None
+        if context.scene is None:
+            return False
+        errs = validate.errors(validate.problems(context.scene))
+        if errs:
+            more = f" (and {len(errs) - 1} more, in the panel)" if len(errs) > 1 else ""
+            cls.poll_message_set(f"Cannot bake: {errs[0].message}{more}")
+            return False
+        return True
 
-    def _hints(self, context):
+    def _hints(self, context, notes=()):
         for p in validate.problems(context.scene):
             if p.level == validate.WARNING:
                 self.report({"WARNING"}, p.message)
+        for note in notes:
+            self.report({"WARNING"}, note)
 
     def execute(self, context):
+        notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
-                                  context.evaluated_depsgraph_get())
+                                  context.evaluated_depsgraph_get(), notes=notes)
         except Cancelled as exc:
             self.report({"WARNING"}, str(exc))
             return {"CANCELLED"}
@@ -287,11 +328,9 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         except Exception as exc:  # the core failed: tell the user, leave the scene as it was
-            self.report({"ERROR"}, f"Bake failed ({type(exc).__name__}: {exc}); the scene is unchanged.")
+            self.report({"ERROR"}, _failed("Bake failed", f"{type(exc).__name__}: {exc}"))
             return {"CANCELLED"}
-        self._hints(context)
-        self.report({"INFO"}, f"Baked '{obj.name}': {len(obj.data.shape_keys.key_blocks) - 1} frames.")
-        return {"FINISHED"}
+        return self._done(context, obj, notes=notes)
 
     def invoke(self, context, event):
         if context.window is None:
@@ -345,15 +384,26 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
             return {"CANCELLED"}
         if job.state == bake.FAILED:
-            self.report({"ERROR"}, f"Bake failed: {job.error_message()}; the scene is unchanged.")
+            self.report({"ERROR"}, _failed("Bake failed", job.error_message()))
             return {"CANCELLED"}
         try:
             obj = job.apply(context.scene)
         except Exception as exc:
-            self.report({"ERROR"}, f"Writing the result failed: {exc}; the scene is unchanged.")
+            self.report({"ERROR"}, _failed("Writing the result failed", str(exc)))
             return {"CANCELLED"}
-        self._hints(context)
-        self.report({"INFO"}, f"Baked '{obj.name}' in {job.seconds:.1f} s.")
+        return self._done(context, obj, job.seconds, notes=job.notes)
+
+    def _done(self, context, obj, seconds=None, notes=()):
+        """Show the result (selected, keyframes hidden, frame range) and say what was made where;
+        ``notes`` (faces reoriented, loose vertices ignored, ...) come as warnings."""
+        shown = result_view.present(context.scene, context.view_layer, _settings(context), obj)
+        self._hints(context, notes)
+        span = obj.get("kfi_frames")
+        frames = f"frames {span[0]}-{span[1]}" if span is not None else "no frames"
+        took = f" in {seconds:.1f} s" if seconds is not None else ""
+        where = ", ".join(f"'{c.name}'" for c in obj.users_collection)
+        self.report({"INFO"}, f"Baked '{obj.name}' ({frames}){took} into collection {where}; "
+                              + "; ".join(shown) + ". " + obj.get("kfi_report", ""))
         return {"FINISHED"}
 
     def cancel(self, context):  # window closed / file loaded while running

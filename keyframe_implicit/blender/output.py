@@ -1,14 +1,32 @@
-"""Write an `Animation` into the scene: one mesh object with a shape key per frame.
+"""Write an `Animation` into the scene: shape keys or a mesh sequence.
 
-Layout of the result (issue 5, item 4):
+Two outputs (`resolve_output` picks one: the artist's choice, or Auto, which
+takes the core's choice -- shape keys when every frame of the tracked
+template passes the cleanliness limits of `core.quality`, else the sequence).
 
-- a mesh whose Basis is the first frame's shape, smooth shaded, with the first
-  keyframe's material, in its own collection;
+Shape keys (issue 5, item 4):
+
+- a mesh whose Basis is the first frame's shape, smooth shaded, in its own
+  collection, with the keyframes' materials in its slots: the faces use the
+  first keyframe's, the others are there to pick from;
 - one relative shape key per timeline frame f ("Frame f"), keyed 1 on f and 0
   on f-1 and f+1 with LINEAR interpolation, so exactly one key is 1.0 on every
   integer frame and sub-frames (motion blur) blend the two neighbouring frames;
 - a link from the setup (``settings.output_object``) so that baking again
   replaces this object and only it.
+
+Mesh sequence (topology free, for merges and splits; PAPER-NOTES section 9):
+
+- every frame's own surface as a mesh object "<name> F<frame>" in a collection
+  "<name> Frames" that is not linked to any scene (hidden, never rendered
+  itself); each frame mesh carries the float3 point attribute ``velocity`` in
+  world units per second (scene fps / fps_base), which Cycles uses for motion
+  blur when the vertex count changes from frame to frame;
+- the output object holds a Geometry Nodes modifier (group "<name> Frame
+  Switch"): Collection Info of that collection with separated children,
+  the one instance whose index is the scene frame minus the first frame
+  (rounded, clamped to the range) is kept and realised. Only built-in nodes,
+  so the .blend plays and renders without the add-on.
 
 Geometry and shape keys are written with ``foreach_set`` (as glTF-Blender-IO's
 importer does); F-curves go through `fcurves`. If anything fails half way,
@@ -18,10 +36,12 @@ every data-block created here is removed again, so the scene is as before.
 import bpy
 import numpy as np
 
+from ..core.quality import describe_worst
 from . import fcurves
 
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
+SEQUENCE_TAG = "kfi_sequence"
 
 
 def frame_key_name(frame):
@@ -91,6 +111,110 @@ def add_frame_keys(obj, frames, vertices, action_name):
     return key
 
 
+def add_velocity(mesh, velocity):
+    """The float3 point attribute ``velocity`` (world units per second) on ``mesh``."""
+    attr = mesh.attributes.new("velocity", "FLOAT_VECTOR", "POINT")
+    attr.data.foreach_set("vector", np.ascontiguousarray(velocity, dtype=np.float32).ravel())
+    return attr
+
+
+def frame_object_name(name, index, frame):
+    """Name of the ``index``-th frame's object; zero padded so that name order is frame order."""
+    return f"{name} {int(index):05d} frame {int(frame)}"
+
+
+def _link(tree, a, out, b, inp):
+    tree.links.new(a.outputs[out], b.inputs[inp])
+
+
+def _math(tree, operation, a=None, value=None):
+    node = tree.nodes.new("ShaderNodeMath")
+    node.operation = operation
+    if value is not None:
+        node.inputs[1].default_value = float(value)
+    if a is not None:
+        tree.links.new(a, node.inputs[0])
+    return node
+
+
+def frame_switch_group(name, collection, first, count):
+    """Geometry Nodes group: the child of ``collection`` for the scene frame, realised.
+
+    Instance i of Collection Info (separate children, sorted by name) is frame
+    ``first + i``; the frame is rounded (sub-frames of motion blur keep their
+    frame's mesh) and clamped to the baked range.
+    """
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    info = tree.nodes.new("GeometryNodeCollectionInfo")
+    info.transform_space = "ORIGINAL"
+    info.inputs["Collection"].default_value = collection
+    info.inputs["Separate Children"].default_value = True
+    info.inputs["Reset Children"].default_value = True
+    time = tree.nodes.new("GeometryNodeInputSceneTime")
+    offset = _math(tree, "SUBTRACT", time.outputs["Frame"], first)
+    low = _math(tree, "MAXIMUM", _math(tree, "ROUND", offset.outputs[0]).outputs[0], 0)
+    pick = _math(tree, "MINIMUM", low.outputs[0], count - 1)
+    index = tree.nodes.new("GeometryNodeInputIndex")
+    same = _math(tree, "COMPARE", index.outputs[0], None)
+    _link(tree, pick, 0, same, 1)
+    same.inputs[2].default_value = 0.25
+    keep = tree.nodes.new("GeometryNodeSeparateGeometry")
+    keep.domain = "INSTANCE"
+    _link(tree, info, "Instances", keep, "Geometry")
+    _link(tree, same, 0, keep, "Selection")
+    real = tree.nodes.new("GeometryNodeRealizeInstances")
+    _link(tree, keep, "Selection", real, "Geometry")
+    out = tree.nodes.new("NodeGroupOutput")
+    _link(tree, real, "Geometry", out, "Geometry")
+    for i, node in enumerate(tree.nodes):  # readable when an artist opens the group
+        node.location = (200 * i, 0)
+    return tree
+
+
+def build_sequence(name, frames, surfaces, velocities, fps, material=None, created=None):
+    """Per-frame meshes (with ``velocity`` per second) in an unlinked collection, and
+    the Geometry Nodes group that shows the frame's mesh. Returns (collection, group);
+    every data-block made is appended to ``created`` (for cleanup on failure)."""
+    created = [] if created is None else created
+    coll = bpy.data.collections.new(f"{name} Frames")
+    created.append(coll)
+    for i, (f, (verts, faces), vel) in enumerate(zip(frames, surfaces, velocities)):
+        mesh = build_mesh(frame_object_name(name, i, f), verts, faces)
+        created.append(mesh)
+        add_velocity(mesh, np.asarray(vel, dtype=np.float64) * fps)
+        if material is not None:
+            mesh.materials.append(material)
+        obj = bpy.data.objects.new(frame_object_name(name, i, f), mesh)
+        created.append(obj)
+        coll.objects.link(obj)
+    group = frame_switch_group(f"{name} Frame Switch", coll, frames[0], len(frames))
+    created.append(group)
+    return coll, group
+
+
+def resolve_output(mode, stats):
+    """("shape_keys" | "mesh_sequence", reason) for the setting ``mode`` (AUTO,
+    SHAPE_KEYS, MESH_SEQUENCE) and the core's figures (``Animation.stats``)."""
+    if mode == "SHAPE_KEYS":
+        return "shape_keys", "chosen in the output settings"
+    if mode == "MESH_SEQUENCE":
+        return "mesh_sequence", "chosen in the output settings"
+    if "output" in stats:
+        return stats["output"], stats.get("output_reason", "")
+    return "shape_keys", "no per-frame surfaces to choose from"
+
+
+def bake_report(kind, reason, frames, stats):
+    """What the artist reads after a bake: the output, why, and its worst frame."""
+    label = "shape keys" if kind == "shape_keys" else "a mesh sequence"
+    text = f"Stored as {label}" + (f": {reason}." if reason else ".")
+    quality = (stats or {}).get("quality")
+    if quality:
+        text += f" {describe_worst(frames, quality[kind]).capitalize()}."
+    return text
+
+
 def _ensure_collection(scene, name):
     """The output collection, created/linked to the scene if missing: (collection, created, linked)."""
     coll = bpy.data.collections.get(name)
@@ -116,14 +240,17 @@ def _in_scene(scene, coll):
 
 
 def remove_output(obj):
-    """Delete a baked object with its mesh, shape keys and their action (only if unused elsewhere)."""
+    """Delete a baked object with its mesh, shape keys and their action, or its frame meshes
+    and frame switch (only what is unused elsewhere)."""
     if obj is None:
         return
     mesh = obj.data if obj.type == "MESH" else None
     key = mesh.shape_keys if mesh is not None else None
     action = key.animation_data.action if key is not None and key.animation_data else None
     colls = list(obj.users_collection)
+    sequence = _sequence_blocks(obj) if obj.get(SEQUENCE_TAG) else []
     bpy.data.objects.remove(obj)
+    _remove_sequence(sequence)
     if mesh is not None and mesh.users == 0:
         if key is not None and key.animation_data is not None:
             key.animation_data.action = None
@@ -135,12 +262,42 @@ def remove_output(obj):
             bpy.data.collections.remove(coll)
 
 
-def write_animation(scene, settings, animation, *, material_name="", stats=None):
+def _uses(scene, settings, obj):
+    """How the setup still reaches ``obj``: as a keyframe or as the parent of a feature point."""
+    from . import features
+
+    found = [f"keyframe {i}" for i, kf in enumerate(settings.keyframes, start=1) if kf.object == obj]
+    found += [f"feature point '{e.name}'" for e in features.feature_objects(scene) if e.parent == obj]
+    return found
+
+
+def retire_output(scene, settings, old):
+    """Remove the previous output, or keep it renamed if the setup still uses it.
+
+    A baked object the artist made a keyframe (or put feature points on) is the
+    artist's object now: deleting it would lose data. Returns a note for the
+    user when it was kept, else "".
+    """
+    uses = _uses(scene, settings, old)
+    if not uses:
+        remove_output(old)
+        return ""
+    name = old.name
+    old.name = f"{name} (kept)"
+    return (f"The previous result '{name}' is used as {', '.join(uses)}, so it was kept as "
+            f"'{old.name}' instead of being replaced.")
+
+
+def write_animation(scene, settings, animation, *, material_names=(), stats=None, notes=None):
     """Create the output object for ``animation`` and make it the setup's output.
 
-    The previous output (``settings.output_object``) is removed only once the
-    new one is complete; on any error everything created here is removed and
-    the scene is left as it was.
+    The output is shape keys or a mesh sequence (`resolve_output` with
+    ``settings.output_mode``); the choice and its reason are stored on the
+    object (``kfi_output_kind``, ``kfi_output_reason``). The previous output
+    (``settings.output_object``) is removed only once the new one is
+    complete, and only if the setup no longer uses it (`retire_output`; its
+    note, if any, is appended to ``notes``). On any error everything created
+    here is removed and the scene is left as it was.
 
     Returns the new object.
     """
@@ -149,21 +306,47 @@ def write_animation(scene, settings, animation, *, material_name="", stats=None)
     if verts.ndim != 3 or verts.shape[0] != len(frames) or verts.shape[2] != 3:
         raise ValueError(f"Animation has vertices of shape {verts.shape} for {len(frames)} frames; "
                          "expected (frames, V, 3).")
+    kind, reason = resolve_output(getattr(settings, "output_mode", "AUTO"),
+                                  getattr(animation, "stats", {}) or {})
+    surfaces = getattr(animation, "surfaces", None) or []
+    if kind == "mesh_sequence" and len(surfaces) != len(frames):
+        raise ValueError("This bake holds no per-frame surfaces: choose Shape Keys as the output.")
     name = settings.output_name or "KFI Animation"
     coll_name = settings.output_collection or "Keyframe Implicit"
     mesh = obj = coll = None
+    created = []
     coll_created = coll_linked = False
     try:
-        mesh = build_mesh(name, verts[0], animation.faces)
-        mat = bpy.data.materials.get(material_name) if material_name else None
-        if mat is not None:
-            mesh.materials.append(mat)
+        mats = [m for m in map(bpy.data.materials.get, material_names) if m is not None]
+        mat = mats[0] if mats else None  # the faces' material; the others ride in the slots
+        if kind == "shape_keys":
+            mesh = build_mesh(name, verts[0], animation.faces)
+        else:
+            mesh = bpy.data.meshes.new(name)
+        for m in mats:
+            mesh.materials.append(m)
         obj = bpy.data.objects.new(name, mesh)
-        add_frame_keys(obj, frames, verts, f"{name} Frames")
+        if kind == "shape_keys":
+            add_frame_keys(obj, frames, verts, f"{name} Frames")
+            key = mesh.shape_keys
+            names = ((key, bpy.data.shape_keys, f"{name} Key"),
+                     (key.animation_data.action, bpy.data.actions, f"{name} Frames"))
+        else:
+            fps = scene.render.fps / scene.render.fps_base
+            frames_coll, group = build_sequence(name, frames, surfaces, animation.velocities,
+                                                fps, mat, created)
+            mod = obj.modifiers.new("Frame Switch", "NODES")
+            mod.node_group = group
+            obj[SEQUENCE_TAG] = True
+            names = ((frames_coll, bpy.data.collections, f"{name} Frames"),
+                     (group, bpy.data.node_groups, f"{name} Frame Switch"))
         coll, coll_created, coll_linked = _ensure_collection(scene, coll_name)
         coll.objects.link(obj)
         obj[OUTPUT_TAG] = True
         obj["kfi_frames"] = [frames[0], frames[-1]]
+        obj["kfi_output_kind"] = kind
+        obj["kfi_output_reason"] = reason
+        obj["kfi_report"] = bake_report(kind, reason, frames, getattr(animation, "stats", {}))
         grid = getattr(animation, "grid", None)
         if grid is not None:
             obj["kfi_spacing"] = float(grid.spacing)
@@ -176,18 +359,53 @@ def write_animation(scene, settings, animation, *, material_name="", stats=None)
                 obj[f"kfi_{k}"] = float(v)
         old = settings.output_object
         if old is not None and old != obj:
-            remove_output(old)
+            note = retire_output(scene, settings, old)
+            if note and notes is not None:
+                notes.append(note)
         settings.output_object = obj
-        key = mesh.shape_keys
-        for block, coll_, wanted in ((obj, bpy.data.objects, name), (mesh, bpy.data.meshes, name),
-                                     (key, bpy.data.shape_keys, f"{name} Key"),
-                                     (key.animation_data.action, bpy.data.actions, f"{name} Frames")):
+        for block, coll_, wanted in ((obj, bpy.data.objects, name),
+                                     (mesh, bpy.data.meshes, name)) + names:
             if block.name != wanted and coll_.get(wanted) is None:
                 block.name = wanted  # the old output is gone: take back the plain names
     except Exception:
         _undo_partial(scene, obj, mesh, coll, coll_created, coll_linked)
+        _remove_blocks(created)
         raise
     return obj
+
+
+def _remove_blocks(blocks):
+    """Remove data-blocks made by `build_sequence` (objects before their meshes)."""
+    order = (bpy.types.Object, bpy.types.Mesh, bpy.types.Collection, bpy.types.NodeTree)
+    stores = (bpy.data.objects, bpy.data.meshes, bpy.data.collections, bpy.data.node_groups)
+    for kind, store in zip(order, stores):
+        for block in blocks:
+            if isinstance(block, kind):
+                store.remove(block)
+
+
+def _sequence_blocks(obj):
+    """The frame-switch group, frame collection, frame objects and meshes of a sequence output."""
+    groups = [m.node_group for m in obj.modifiers if m.type == "NODES" and m.node_group]
+    blocks = []
+    for group in groups:
+        for node in group.nodes:
+            if node.bl_idname == "GeometryNodeCollectionInfo":
+                coll = node.inputs["Collection"].default_value
+                if coll is not None:
+                    blocks += [o for o in coll.objects] + [o.data for o in coll.objects] + [coll]
+        blocks.append(group)
+    return blocks
+
+
+def _remove_sequence(blocks):
+    """Remove the blocks of `_sequence_blocks` that nothing else uses any more."""
+    for kind, store in ((bpy.types.NodeTree, bpy.data.node_groups),
+                        (bpy.types.Collection, bpy.data.collections),
+                        (bpy.types.Object, bpy.data.objects), (bpy.types.Mesh, bpy.data.meshes)):
+        for block in blocks:
+            if isinstance(block, kind) and block.users == 0:
+                store.remove(block)
 
 
 def _undo_partial(scene, obj, mesh, coll, coll_created, coll_linked):

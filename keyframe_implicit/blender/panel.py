@@ -1,25 +1,40 @@
 """Sidebar: View3D > Sidebar > "Keyframe Implicit".
 
 Main panel: keyframe list, problems (from `validate`, before baking), grid
-resolution, output and Bake. Sub-panels: feature pairs per segment with
-select buttons, and the objective weights ("Advanced", collapsed).
+resolution, output and Bake. Sub-panels: feature pairs per pair of keyframes
+with select buttons, and the weights of the three goals ("Advanced", collapsed).
+
+The sidebar does not wrap labels: `wrap` breaks messages at the region's real
+width, measured with the UI font at the UI scale.
 """
 
 import bpy
 
 from . import features, validate
 
+# Width (px at UI scale 1) a sidebar label loses to the category tabs, the panel's and a
+# box's margins and the label's own padding (measured on a 4.3 window: 81 without a box),
+# and to its icon: what is left is the text's.
+LABEL_MARGIN = 76
+ICON_WIDTH = 20
+
 
 class KFI_UL_keyframes(bpy.types.UIList):
-    """One row per keyframe: object and frame."""
+    """One row per keyframe: its object's name (editable in place) and its frame, compact."""
 
     bl_idname = "KFI_UL_keyframes"
+    NAME_SHARE = 0.72  # the frame number keeps the rest: room for five digits at 291 px
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        row = layout.row(align=True)
-        row.label(text=f"{index}", icon="KEYFRAME" if item.object else "ERROR")
-        row.prop(item, "object", text="")
-        row.prop(item, "frame", text="")
+        if self.layout_type == "GRID":
+            layout.label(text=item.object.name if item.object else "?")
+            return
+        split = layout.split(factor=self.NAME_SHARE, align=True)
+        if item.object is not None:  # the name, as Blender's lists show it: no clear button
+            split.prop(item.object, "name", text="", emboss=False, icon="OUTLINER_OB_MESH")
+        else:
+            split.label(text="No object", icon="ERROR")
+        split.prop(item, "frame", text="", emboss=False)
 
 
 class _Sidebar:
@@ -51,33 +66,39 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         op = col.operator("keyframe_implicit.move_keyframe", icon="TRIA_DOWN", text="")
         op.index, op.direction = settings.active_keyframe_index, "DOWN"
 
-        found = validate.problems(scene, settings)
+        found = validate.problems(scene, settings, context.view_layer.depsgraph)
         if found:
             box = layout.box()
             for p in found:
-                _wrapped(box, p.message, p.icon)
+                _wrapped(box, context, p.message, p.icon)
 
-        layout.prop(settings, "resolution")
         col = layout.column(align=True)
+        col.use_property_split = True  # labels in a column of their own: not cut at 291 px
+        col.use_property_decorate = False
+        col.prop(settings, "resolution")
+        col.separator()
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
+        col.prop(settings, "output_mode")
         from .ops import _running
 
         if _running:
             fraction, message = _running[0].status()
-            layout.label(text=f"Baking {100 * fraction:.0f}%: {message}", icon="SORTTIME")
-            layout.label(text="Press ESC in the 3D view to cancel.")
+            _wrapped(layout, context, f"Baking {100 * fraction:.0f}%: {message}", "SORTTIME")
+            layout.label(text="ESC in the 3D view cancels.", icon="BLANK1")
         row = layout.row()
         row.scale_y = 1.4
-        row.enabled = not validate.errors(found) and not _running
-        row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
+        row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")  # poll says why not
         out = settings.output_object
         if out is not None:
+            col = layout.column(align=True)
+            _wrapped(col, context, f"Output: {out.name}", "OUTLINER_OB_MESH")
             span = out.get("kfi_frames")
-            text = f"Output: {out.name}"
-            if span is not None:
-                text += f" (frames {span[0]}-{span[1]})"
-            layout.label(text=text, icon="OUTLINER_OB_MESH")
+            if span is not None:  # a line of its own: wrapped, "1-25)" was left alone
+                col.label(text=f"Frames {span[0]}-{span[1]}", icon="BLANK1")
+            if out.get("kfi_report"):  # how it is stored (shape keys / mesh sequence) and why
+                _wrapped(col, context, out["kfi_report"], "INFO")
+            layout.prop(settings, "show_keyframes", icon="MOD_WIREFRAME")
 
 
 class KFI_PT_features(_Sidebar, bpy.types.Panel):
@@ -99,7 +120,7 @@ class KFI_PT_features(_Sidebar, bpy.types.Panel):
             a, b = kfs[seg].object, kfs[seg + 1].object
             box = layout.box()
             head = box.row()
-            head.label(text=f"{seg}: {a.name if a else '?'} -> {b.name if b else '?'}")
+            head.label(text=f"{a.name if a else '?'} \u2192 {b.name if b else '?'}")
             op = head.operator("keyframe_implicit.add_feature_pair", icon="ADD", text="")
             op.segment = seg
             seg_pairs = [p for p in all_pairs if p.segment == seg]
@@ -118,7 +139,7 @@ class KFI_PT_features(_Sidebar, bpy.types.Panel):
         orphans = [p for p in all_pairs if not 0 <= p.segment < len(kfs) - 1]
         for pair in orphans:
             row = layout.row(align=True)
-            row.label(text=f"{pair.pair_id}: no such segment", icon="ERROR")
+            row.label(text=f"{pair.pair_id}: its keyframes are gone", icon="ERROR")
             op = row.operator("keyframe_implicit.remove_feature_pair", icon="X", text="")
             op.pair = pair.pair_id
 
@@ -132,24 +153,57 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
     def draw(self, context):
         settings = context.scene.keyframe_implicit
         col = self.layout.column(align=True)
-        col.label(text="Objective weights (eq. 2.6)")
+        col.label(text="What the in-betweens keep:")
         col.prop(settings, "volume_weight")
         col.prop(settings, "rigidity_weight")
         col.prop(settings, "levelset_weight")
 
 
-def _wrapped(layout, text, icon, width=48):
-    """Multi-line label (the sidebar does not wrap)."""
-    words, line, first = text.split(), "", True
-    col = layout.column(align=True)
-    for word in words:
-        if line and len(line) + 1 + len(word) > width:
-            col.label(text=line, icon=icon if first else "BLANK1")
-            line, first = word, False
+def ui_scale(context):
+    """The UI scale factor (1 in background mode, where it reads 0)."""
+    return context.preferences.system.ui_scale or 1.0
+
+
+def text_width(text, scale):
+    """Width in pixels of ``text`` in the UI font at ``scale`` (blf measures it)."""
+    import blf
+
+    blf.size(0, bpy.context.preferences.ui_styles[0].widget.points * scale)
+    return blf.dimensions(0, text)[0]
+
+
+def wrap(text, width, scale=1.0):
+    """Lines of ``text`` (broken at spaces) that each fit ``width`` pixels of label text.
+
+    Greedy, like a text editor: each line takes as many words as fit. A word
+    wider than the line gets a line of its own.
+    """
+    lines, line = [], ""
+    for word in text.split():
+        wider = f"{line} {word}" if line else word
+        if line and text_width(wider, scale) > width:
+            lines.append(line)
+            line = word
         else:
-            line = f"{line} {word}" if line else word
+            line = wider
     if line:
-        col.label(text=line, icon=icon if first else "BLANK1")
+        lines.append(line)
+    return lines
+
+
+def label_width(context):
+    """Pixels of text a sidebar label with an icon has, in a box, in this region."""
+    scale = ui_scale(context)
+    region = context.region
+    width = region.width if region is not None and region.width > 1 else 291 * scale
+    return max(width - (LABEL_MARGIN + ICON_WIDTH) * scale, 60 * scale)
+
+
+def _wrapped(layout, context, text, icon):
+    """A message as labels wrapped to the region's width; the icon on the first line."""
+    col = layout.column(align=True)
+    for i, line in enumerate(wrap(text, label_width(context), ui_scale(context))):
+        col.label(text=line, icon=icon if i == 0 else "BLANK1")
 
 
 classes = (KFI_UL_keyframes, KFI_PT_main, KFI_PT_features, KFI_PT_advanced)

@@ -2,13 +2,17 @@
 
 One `KFI_Settings` per scene holds the ordered keyframe list, the grid
 resolution, the objective weights of thesis eq. 2.6 (see
-``keyframe_implicit/core/terms.py``), the output options and a pointer to the
-baked output object, so that baking again replaces that object and only it.
+``keyframe_implicit/core/terms.py``; the panel calls them Volume, Rigidity and
+Shape Match), the output options, a pointer to the baked output object, so that
+baking again replaces that object and only it, and whether the keyframes are
+shown over it (`result_view`).
 """
 
 import bpy
 from bpy.props import (
+    BoolProperty,
     CollectionProperty,
+    EnumProperty,
     FloatProperty,
     IntProperty,
     PointerProperty,
@@ -22,6 +26,12 @@ def _is_mesh(_self, obj):
     return obj is not None and obj.type == "MESH"
 
 
+def _show_keyframes_changed(settings, context):
+    from . import result_view
+
+    result_view.show_keyframes(settings, context.view_layer, settings.show_keyframes)
+
+
 class KFI_Keyframe(bpy.types.PropertyGroup):
     """One keyframe: a mesh object and the timeline frame its shape must be matched on."""
 
@@ -32,6 +42,10 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
         description="Mesh object whose (evaluated, world-space) shape is this keyframe",
     )
     frame: IntProperty(name="Frame", default=1, description="Timeline frame of this keyframe")
+    display_type: StringProperty(
+        name="Display As", default="", options={"HIDDEN"},
+        description="The object's own viewport display type while the bake shows it as a wireframe",
+    )
 
 
 class KFI_Settings(bpy.types.PropertyGroup):
@@ -48,18 +62,23 @@ class KFI_Settings(bpy.types.PropertyGroup):
         description="Grid cells along the longest side of the keyframes' bounding box "
         "(memory and time grow with its cube)",
     )
-    # Weights of the three terms of thesis eq. 2.6 (core/terms.py).
+    # Weights of the three terms of thesis eq. 2.6 (core/terms.py), in an artist's words.
     volume_weight: FloatProperty(
         name="Volume", default=DEFAULT_WEIGHTS["volume"], min=0.0, soft_max=100.0,
-        description="Weight of the volume term (det F - 1)^2: keeps the volume of every part",
+        description="How strictly every part keeps its volume while it moves. Raise it when "
+        "in-betweens shrink or swell (thesis eq. 2.6: the volume term (det F - 1)^2)",
     )
     rigidity_weight: FloatProperty(
         name="Rigidity", default=DEFAULT_WEIGHTS["rigidity"], min=0.0, soft_max=100.0,
-        description="Weight of the rigidity term ||F^T F - I||^2: rigid parts move rigidly",
+        description="How stiffly the parts move, without stretching or shearing. Raise it when "
+        "in-betweens look rubbery; lower it for soft, fluid shapes (thesis eq. 2.6: the "
+        "rigidity term ||F^T F - I||^2)",
     )
     levelset_weight: FloatProperty(
-        name="Level Set", default=DEFAULT_WEIGHTS["levelset"], min=0.0, soft_max=100.0,
-        description="Weight of the level-set term: the mapped surface of keyframe A lands on keyframe B",
+        name="Shape Match", default=DEFAULT_WEIGHTS["levelset"], min=0.0, soft_max=100.0,
+        description="How closely the first keyframe's shape is pulled onto the next one's. "
+        "Raise it when parts of the motion miss the next keyframe's shape (thesis eq. 2.6: "
+        "the level-set matching term)",
     )
     output_collection: StringProperty(
         name="Collection",
@@ -69,10 +88,29 @@ class KFI_Settings(bpy.types.PropertyGroup):
     output_name: StringProperty(
         name="Name", default="KFI Animation", description="Name of the baked object"
     )
+    output_mode: EnumProperty(
+        name="Output",
+        items=(
+            ("AUTO", "Auto", "Shape keys when every frame of the tracked mesh is clean, "
+             "a mesh sequence otherwise (the bake report says which and why)"),
+            ("SHAPE_KEYS", "Shape Keys", "One mesh with a shape key per frame: vertices keep "
+             "their identity (UVs, morph-target export) but cannot change topology"),
+            ("MESH_SEQUENCE", "Mesh Sequence", "Each frame's own surface (topology free, with "
+             "velocities for motion blur), switched by Geometry Nodes"),
+        ),
+        default="AUTO",
+        description="How the baked frames are stored",
+    )
     output_object: PointerProperty(
         name="Output",
         type=bpy.types.Object,
         description="The baked object; Bake replaces it (and nothing else)",
+    )
+    show_keyframes: BoolProperty(
+        name="Show Keyframes", default=False,
+        description="Show the keyframe objects as wireframes over the baked result, to compare "
+        "them (they stay out of renders)",
+        update=_show_keyframes_changed,
     )
 
     def weights(self):

@@ -1,10 +1,15 @@
 """Scene -> numpy: keyframe meshes (evaluated, world space) and feature points.
 
-Only reads; never modifies the keyframe objects or their data. Evaluated
-meshes come from ``Object.evaluated_get(depsgraph).to_mesh()`` (a temporary
-mesh outside ``bpy.data``) and are read with ``foreach_get``.
+Only reads; never modifies the keyframe objects or their data. Each keyframe is
+read on its own frame: its object's transform, shape keys and modifiers may be
+animated (the same object may even be several keyframes), so the scene is
+evaluated on every keyframe frame in turn (`Scene.frame_set`, as exporters do)
+and put back on the frame it was on. Evaluated meshes come from
+``Object.evaluated_get(depsgraph).to_mesh()`` (a temporary mesh outside
+``bpy.data``) and are read with ``foreach_get``.
 """
 
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,8 +26,9 @@ class BakeInput:
     features: list  # per segment (points_a (N,3), points_b (N,3))
     resolution: int
     weights: dict
-    material_name: str = ""
+    material_names: list = field(default_factory=list)  # the keyframes' materials, first use first
     pair_ids: list = field(default_factory=list)  # per segment, the pair ids in row order
+    feature_names: list = field(default_factory=list)  # per segment, (Empty A, Empty B) per row
 
     @property
     def frames(self):
@@ -46,49 +52,88 @@ def mesh_arrays(obj, depsgraph):
     return verts, tris.reshape(-1, 3).astype(np.int64)
 
 
-def feature_arrays(scene, settings, depsgraph):
-    """Per segment: (points_a (N, 3), points_b (N, 3)) world positions, and the pair ids."""
-    n_seg = max(len(settings.keyframes) - 1, 0)
+def _segment_pairs(scene, n_seg):
+    """The complete feature pairs of each segment, in order."""
     rows = [[] for _ in range(n_seg)]
     for pair in features.pairs(scene).values():
         if pair.complete and 0 <= pair.segment < n_seg:
             rows[pair.segment].append(pair)
-    out, ids = [], []
-    for seg_pairs in rows:
-        a = np.array([_world(p.a, depsgraph) for p in seg_pairs], dtype=np.float64).reshape(-1, 3)
-        b = np.array([_world(p.b, depsgraph) for p in seg_pairs], dtype=np.float64).reshape(-1, 3)
-        out.append((a, b))
-        ids.append([p.pair_id for p in seg_pairs])
-    return out, ids
+    return rows
 
 
 def _world(obj, depsgraph):
     return tuple(obj.evaluated_get(depsgraph).matrix_world.translation)
 
 
+@contextmanager
+def _restoring_frame(scene):
+    """Evaluate ``scene`` on other frames inside the block; back on its frame afterwards."""
+    frame, subframe = scene.frame_current, scene.frame_subframe
+    try:
+        yield
+    finally:
+        scene.frame_set(frame, subframe=subframe)
+
+
+def read_keyframes(scene, settings, depsgraph):
+    """Keyframe meshes and feature points, each evaluated on its keyframe's frame.
+
+    Returns (keyframes, features, pair ids): the `Keyframe` list, per segment
+    (points_a (N, 3), points_b (N, 3)) in world space -- side A read on keyframe
+    i's frame, side B on keyframe i+1's, where the Empties sit on their keyframe
+    objects -- and per segment the pair ids in row order.
+    """
+    kfs = list(settings.keyframes)
+    rows = _segment_pairs(scene, max(len(kfs) - 1, 0))
+    keyframes = []
+    side_a = [[] for _ in rows]
+    side_b = [[] for _ in rows]
+    with _restoring_frame(scene):
+        for i, kf in enumerate(kfs):
+            scene.frame_set(int(kf.frame))
+            verts, tris = mesh_arrays(kf.object, depsgraph)
+            if len(tris) == 0:
+                raise ValueError(f"Keyframe {i} ('{kf.object.name}', frame {kf.frame}) has no "
+                                 "faces after modifiers on that frame: check its modifier stack "
+                                 "(a keyframe must be a closed surface).")
+            keyframes.append(Keyframe(vertices=verts, faces=tris, frame=int(kf.frame),
+                                      name=kf.object.name))
+            if i < len(rows):
+                side_a[i] = [_world(p.a, depsgraph) for p in rows[i]]
+            if i > 0:
+                side_b[i - 1] = [_world(p.b, depsgraph) for p in rows[i - 1]]
+    feats = [(np.array(a, dtype=np.float64).reshape(-1, 3), np.array(b, dtype=np.float64).reshape(-1, 3))
+             for a, b in zip(side_a, side_b)]
+    return keyframes, feats, [[p.pair_id for p in seg] for seg in rows]
+
+
+def feature_names(scene, settings):
+    """Per segment, the (A, B) Empty names of each pair in row order (for messages)."""
+    rows = _segment_pairs(scene, max(len(settings.keyframes) - 1, 0))
+    return [[(p.a.name, p.b.name) for p in seg] for seg in rows]
+
+
 def collect(scene, depsgraph, resolution=0):
     """Validate ``scene``'s setup and copy it out as a `BakeInput`.
 
     ``resolution`` <= 0 means the scene setting. Raises ValueError (what is
-    wrong and what to do) when validation finds a blocking problem.
+    wrong and what to do) when validation finds a blocking problem. The scene
+    is evaluated on each keyframe's frame and left on the frame it was on.
     """
     settings = scene.keyframe_implicit
     validate.raise_on_errors(scene, settings)
-    keyframes = []
+    keyframes, feats, ids = read_keyframes(scene, settings, depsgraph)
+    materials = []
     for kf in settings.keyframes:
-        verts, tris = mesh_arrays(kf.object, depsgraph)
-        if len(tris) == 0:
-            raise ValueError(f"Keyframe '{kf.object.name}' has no faces after modifiers: a keyframe "
-                             "must be a closed surface.")
-        keyframes.append(Keyframe(vertices=verts, faces=tris, frame=int(kf.frame)))
-    feats, ids = feature_arrays(scene, settings, depsgraph)
-    first = settings.keyframes[0].object
-    material = first.active_material if first.material_slots else None
+        mat = kf.object.active_material if kf.object.material_slots else None
+        if mat is not None and mat.name not in materials:
+            materials.append(mat.name)
     return BakeInput(
         keyframes=keyframes,
         features=feats,
         resolution=int(resolution) if resolution and resolution > 0 else int(settings.resolution),
         weights=settings.weights(),
-        material_name=material.name if material is not None else "",
+        material_names=materials,
         pair_ids=ids,
+        feature_names=feature_names(scene, settings),
     )

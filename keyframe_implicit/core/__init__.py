@@ -12,7 +12,10 @@ Pipeline (thesis "Keyframe Animation of Implicit Models", 2006), one module per 
 ``constraints``        feature-point constraints C y = d (eq. 2.14-2.20)
 ``solver``             constrained Gauss-Newton -> `solve_map` (sec. 2.5)
 ``trajectory``         as-rigid-as-possible trajectories (sec. 3.1)
-``levelset``           in-between level sets (eq. 3.2-3.4) -> `inbetween`
+``transport``          a keyframe's field carried along its trajectories
+``levelset``           in-between level sets: two transports blended (eq. 3.4
+                       read two-sided, PAPER-NOTES section 8) -> `inbetween`
+``isovolume``          the iso-value that keeps an in-between's volume
 ``surface``            marching cubes / contours -> `extract_surface`
 ``template``           one mesh tracked through all frames (shape keys)
 ``chain``              several keyframes in sequence
@@ -43,6 +46,7 @@ _EXPORTS = {
     "MapResult": "solver",
     "inbetween": "levelset",
     "Inbetween": "levelset",
+    "Transport": "transport",
     "extract_surface": "surface",
     "track_template": "template",
     "animate_chain": "chain",

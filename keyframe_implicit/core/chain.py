@@ -7,6 +7,11 @@ frame of segment k -- which lie on keyframe k+1's surface -- are the template
 of segment k+1. So the frame of keyframe k shows the template on keyframe k's
 surface, and vertex identity is kept across the whole animation.
 
+Where topology changes one template cannot stay clean (PAPER-NOTES section
+9), so every frame's own surface is also kept, with the velocity of its
+vertices for motion blur, and both outputs are measured against it
+(`quality`): the caller picks the output.
+
 The thesis's own limitation remains (its chapter 5): there is no inertial
 term, so velocities jump at every inner keyframe.
 """
@@ -20,7 +25,9 @@ import numpy as np
 
 from .grid import Grid
 from .progress import Reporter
-from .template import _initial_template, track_template
+from .quality import frame_quality
+from .surface import extract_surface
+from .template import _initial_template, track_template, uncovered_area
 
 __all__ = ["animate_chain", "ChainResult"]
 
@@ -34,17 +41,26 @@ class ChainResult:
     faces : (F, 3) int triangles (3D) or (E, 2) segments (2D), the same on every frame.
     stats : dict: ``segments`` (one dict per keyframe pair: map / trajectory / level-set
         figures), per-frame lists ``max_abs_phi``, ``uncovered_area``,
-        ``uncovered_fraction``, and ``seconds``.
+        ``uncovered_fraction``, and ``seconds``; with surfaces, ``quality``: per output
+        ("shape_keys", "mesh_sequence") a list of `quality.frame_quality` dicts, one per frame.
+    surfaces : list of (V_f, 3) float32 vertices and (F_f, 3) int32 triangles, each
+        frame's own surface (empty when not asked for).
+    velocities : list of (V_f, 3) float32, velocity of every vertex of ``surfaces`` in
+        world units per frame.
+    levelsets : list of float32 arrays of grid.shape, each frame's level set (when asked for).
     """
 
     frames: np.ndarray
     vertices: np.ndarray
     faces: np.ndarray
     stats: dict = field(default_factory=dict)
+    surfaces: list = field(default_factory=list)
+    velocities: list = field(default_factory=list)
+    levelsets: list = field(default_factory=list)
 
 
-def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, progress=None,
-                  cancel=None, **options):
+def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
+                  levelsets=False, progress=None, cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -65,9 +81,15 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, pro
     coverage : bool
         Measure each frame's surface area the template does not reach
         (one marching cubes per frame).
+    surfaces : bool
+        3D only: also keep every frame's own surface (marching cubes of its
+        level set) with its vertices' velocities (`Inbetween.velocity`), and
+        measure both outputs against it (`quality.frame_quality`).
+    levelsets : bool
+        Also keep every frame's level set (float32, grid.shape), e.g. for a volume export.
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
-        Passed to `levelset.inbetween` (solver weights and options, ``band``,
+        Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
         ``resample``, ...) or to `Inbetween.from_map` when ``maps`` is given.
 
     Returns
@@ -102,6 +124,10 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, pro
     verts, faces = _initial_template(phis[0], grid)
     out = np.empty((all_frames.size,) + verts.shape)
     stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [], "uncovered_fraction": []}
+    per_frame = surfaces and grid.dim == 3
+    if per_frame:
+        stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
+    meshes, velocities, fields = [], [], []
     for k in range(nk - 1):  # loop over segments (keyframe pairs)
         seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
         if maps is not None:
@@ -112,16 +138,32 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, pro
                             cancel=cancel, **options)
         f0, f1 = frames[k], frames[k + 1]
         local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
-        times = (local - f0) / float(f1 - f0)
-        tr = track_template(inb, times, template=(verts, faces), coverage=coverage,
-                            progress=seg.sub(0.5, 1.0), cancel=cancel)
-        out[local - frames[0]] = tr.vertices
-        verts = tr.vertices[-1]
-        for key in ("max_abs_phi", "uncovered_area", "uncovered_fraction"):
-            stats[key].extend(tr.stats[key])
-        stats["segments"].append(dict(inb.stats, template_seconds=tr.stats["seconds"]))
+        frame_rep = seg.sub(0.5, 1.0)
+        t_seg = time.perf_counter()
+        for i, f in enumerate(local):  # loop over the segment's frames
+            s = (f - f0) / float(f1 - f0)
+            tr = track_template(inb, [s], template=(verts, faces), coverage=False)
+            p = out[f - frames[0]] = tr.vertices[0]
+            stats["max_abs_phi"].extend(tr.stats["max_abs_phi"])
+            if levelsets:
+                fields.append(inb.levelset(s).astype(np.float32))
+            if coverage or per_frame:
+                ls = inb.levelset(s)
+                surf = extract_surface(ls, grid)
+            if coverage:
+                unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
+                stats["uncovered_area"].append(unc)
+                stats["uncovered_fraction"].append(unc / tot if tot > 0 else 0.0)
+            if per_frame:
+                stats["quality"]["shape_keys"].append(frame_quality(ls, grid, p, faces, surf))
+                stats["quality"]["mesh_sequence"].append(frame_quality(ls, grid, *surf, surf))
+                meshes.append((surf[0].astype(np.float32), surf[1].astype(np.int32)))
+                velocities.append((inb.velocity(surf[0], s) / float(f1 - f0)).astype(np.float32))
+            frame_rep((i + 1) / local.size, f"frame {f} ({i + 1}/{local.size})")
+        verts = out[local[-1] - frames[0]]
+        stats["segments"].append(dict(inb.stats, template_seconds=time.perf_counter() - t_seg))
         del inb
     stats["seconds"] = time.perf_counter() - t0
     stats["vertices"] = int(len(verts))
     stats["faces"] = int(len(faces))
-    return ChainResult(all_frames, out, faces, stats)
+    return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)

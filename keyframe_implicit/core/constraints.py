@@ -11,7 +11,7 @@ Bounded distortion near a feature point
 ---------------------------------------
 Constraining only the 2**d nodes of one cell is a point load: the optimal map
 has a strain singularity there, and min det F near the point drops as the
-grid is refined (a prototype measured 0.67 at 64^3 and 0.09 at 128^3). Here a
+grid is refined. Here a
 feature's influence reaches a fixed *physical* radius ``radius``: all solved
 nodes within that distance of x'_i (a "patch") move by one affine map
 
@@ -27,30 +27,14 @@ own cell (``radius`` below the cell diagonal), falls back to the plain hard
 constraint on its cell's nodes, enforced by the orthogonal projection
 ``z -> z - C^T (C C^T)^+ C z`` in the null space of C.
 
-Measured (``benchmarks/bench_solver.py --features``; sphere r = 0.3 ->
-equal-volume ellipsoid, 6 pole features, min det F over the material cells
-within 0.1 of a feature point):
-
-    =====  ======================  ===================================
-    n^3    patches (radius 0.08)   hard cell constraints (radius 0)
-    =====  ======================  ===================================
-    32     0.869                   0.891
-    64     0.838                   0.831
-    96     0.806                   0.252
-    128    0.791                   0.153
-    =====  ======================  ===================================
-
-A harder local pull (one pole feature moved 0.06 outward, the rest fixed,
-96^3) gave min det F 0.004 with hard constraints and 0.35 / 0.62 / 0.77 with
-patch radius 0.04 / 0.08 / 0.12: the bound depends on how far the point is
-pulled relative to the radius, not on the resolution. `solve_map` defaults
-to 8 % of the grid's largest extent (``feature_radius``).
+The bound on the distortion depends on how far a point is pulled relative to
+the radius, not on the resolution (measurements: benchmarks/README.md,
+"Feature patches"). `solve_map` defaults to 8 % of the grid's largest extent
+(``feature_radius``).
 
 The patch cells' rigidity weight is multiplied by `solve_map`'s
 ``patch_rigidity`` (default 10; the free A_i otherwise let a patch shear and
-scale as a whole -- see `keyframe_implicit.core.solver`). The table above was
-measured with factor 1; with 10 the patch column reads 0.797 (32^3) and
-0.824 (64^3) against 0.877 and 0.841 (same run, shared machine).
+scale as a whole -- see `keyframe_implicit.core.solver`).
 """
 
 from __future__ import annotations

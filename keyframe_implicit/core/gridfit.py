@@ -3,7 +3,7 @@
 The thesis samples all keyframes on one regular grid (section 2.1); the map y(x)
 and the in-betweens live on the same nodes, so the grid must hold every keyframe,
 every feature point and the room the motion needs, with some padding so that the
-signed distance fields have a band of positive values around the material.
+signed distance fields have a margin of positive values around the material.
 
 `fit_grid` builds that grid from a resolution (cells along the longest side of the
 box). `estimate_memory` predicts the peak memory of the whole bake on a grid from
@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .grid import Grid
+from .renamed import take_renamed
 
 __all__ = ["MemoryLimitError", "fit_grid", "estimate_memory", "check_memory"]
 
@@ -68,7 +69,7 @@ def _points(vertex_arrays, extra_points):
             arrays.append(e)
     pts = np.concatenate(arrays)
     if not np.all(np.isfinite(pts)):
-        raise ValueError("keyframe vertices or extra points contain NaN or infinity; fix them first.")
+        raise ValueError("keyframe vertices or feature points contain NaN or infinity; fix them first.")
     return pts
 
 
@@ -164,14 +165,14 @@ def _refusal(grid, resolution, need, limit, fits):
 # ---------------------------------------------------------------------------
 # Signed distance stage (mesh_to_sdf): per grid node the unsigned and signed
 # float64 fields, EDT distances and nearest-node indices, labels, masks; plus the
-# chunked band work (candidate tables of sdf._CHUNK nodes, winding-number pair
+# chunked exact-distance work (candidate tables of sdf._CHUNK nodes, winding-number pair
 # lists), bounded independently of the grid. Measured with tracemalloc on a
 # 5120-triangle sphere: 64 / 89 / 115 / 145 MB at 41^3 / 57^3 / 73^3 / 105^3 nodes;
 # this model gives 70 / 76 / 86 / 123 MB.
 _SDF_BYTES_PER_NODE = {2: 40, 3: 48}
 _SDF_FIXED = 64 * 2 ** 20
 # Solver (solve_map, default options): fixed + per grid node (per dimension) + per
-# active node (material of A plus its band: the 3**d-block stencil Hessian, the
+# active node (material of A plus its margin: the 3**d-block stencil Hessian, the
 # neighbour tables, gradient and CG vectors over all levels). Fitted to tracemalloc
 # peaks of solve_map on a sphere -> ellipsoid case (tests/core/test_gridfit.py):
 # measured 99 / 141 / 203 / 437 MB at 33^3 / 41^3 / 49^3 / 65^3 nodes, this model
@@ -182,7 +183,7 @@ _SOLVER_BYTES_PER_NODE_PER_DIM = 45
 _SOLVER_BYTES_PER_ACTIVE = {2: 1000, 3: 4600}
 _SOLVER_FIXED = 43_400_000
 # In-between stage (levelset.Inbetween.from_map: trajectories over A's material
-# plus a 4-cell band, whose Laplacian is factored once with scipy's splu, then the
+# plus a 4-cell margin, whose Laplacian is factored once with scipy's splu, then the
 # level sets and the template): per node plus a fill-in term c * M_t ** p, M_t the
 # trajectory nodes. p = 4/3 is the fill growth of a sparse 3D factorisation with a
 # good ordering; c fitted to tracemalloc peaks of the whole `animate` (two UV
@@ -191,26 +192,36 @@ _SOLVER_FIXED = 43_400_000
 # this model 95 / 330 / 808 / 1,662 MB. 2D: linear guess, not measured.
 _INBETWEEN_BYTES_PER_NODE = {2: 64, 3: 44}
 _INBETWEEN_FILL = {2: (2000.0, 1.0), 3: (330.0, 4.0 / 3.0)}  # bytes * M_t ** power
-_INBETWEEN_BAND = 4.0
+_TRAJECTORY_MARGIN_CELLS = 4.0
+# The two-sided in-betweens solve two maps at once (on two cores) and hold two
+# transports, each with its trajectories' factor. The two solves do not peak together,
+# and B's region is often the smaller: refitted to the tracemalloc peaks of the same
+# `animate` case with the two-sided transport at resolution 32 / 48 (measured 137 / 465 MB,
+# this model 142 / 477 MB), the solver counts 1.5 times and the factor's fill 1.4 times.
+_CONCURRENT_SOLVES = 1.5
+_TRANSPORT_FILL = 1.4
 
 
-def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_cells=3):
+def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
+                    **renamed):
     """Estimated peak bytes of a bake on ``grid``, per stage, from array sizes.
 
     Model (N = grid nodes, d = dimension, M = active solver nodes):
 
     - ``keyframes``: the distance grids kept for the whole bake, ``n_keyframes * N * 8``;
     - ``sdf``: transient arrays of one `mesh_to_sdf` call, ``N * c_sdf(d) + c_chunk``;
-    - ``solver``: ``N * d * c_node + M * c_active(d)``, M = ``material_fraction * N``
-      plus a band of ``band_cells`` around the material (surface ~ N^((d-1)/d));
-    - ``inbetween``: ``N * c_node(d) + c_fill * M_t ** p``, M_t the trajectory nodes
-      (material plus a 4-cell band), p = 4/3 in 3D (sparse LU fill-in).
+    - ``solver``: one map, ``N * d * c_node + M * c_active(d)``, M =
+      ``material_fraction * N`` plus the map's margin of ``margin_cells`` around the
+      material (surface ~ N^((d-1)/d));
+    - ``inbetween``: ``N * c_node(d) + 1.4 c_fill * M_t ** p``, M_t the trajectory
+      nodes of one keyframe (material plus a 4-cell margin), p = 4/3 in 3D (sparse LU
+      fill-in); one factor per keyframe.
 
     The constants (module source) were fitted to tracemalloc peaks; the solver part
     is checked to stay within 30 % of `solve_map`'s measured peak by the tests.
 
     Stages run one after another while the keyframe grids stay, so
-    ``peak = keyframes + max(sdf, solver, inbetween)``.
+    ``peak = keyframes + max(sdf, 1.5 solver, inbetween)`` (two maps solved at once).
 
     Parameters
     ----------
@@ -221,8 +232,8 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
         it from the keyframes' box).
     n_keyframes : int
         Distance grids held at once.
-    band_cells : float
-        Width of the band around the material the solver also works on.
+    margin_cells : float
+        Width of the map's margin around the material the solver also works on.
 
     Returns
     -------
@@ -235,11 +246,15 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
     f = 0.25 if material_fraction is None else float(material_fraction)
     if not 0.0 <= f <= 1.0:
         raise ValueError(f"material_fraction must lie in [0, 1], got {material_fraction}.")
+    renamed = take_renamed(dict(renamed), {"band_cells": "margin_cells"}, "estimate_memory")
+    margin_cells = renamed.pop("margin_cells", margin_cells)
+    if renamed:
+        raise TypeError(f"estimate_memory got unexpected options {sorted(renamed)}.")
     N, d = grid.size, grid.dim
-    # band nodes around a compact blob holding f * N nodes: its surface ~ (f N)^((d-1)/d)
+    # margin nodes around a compact blob holding f * N nodes: its surface ~ (f N)^((d-1)/d)
     surface = (f * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
-    M = min(N, f * N + 2 * band_cells * surface)
-    M_t = min(N, f * N + 2 * _INBETWEEN_BAND * surface)
+    M = min(N, f * N + 2 * margin_cells * surface)
+    M_t = min(N, f * N + 2 * _TRAJECTORY_MARGIN_CELLS * surface)
     fill, power = _INBETWEEN_FILL[d]
     out = {
         "nodes": int(N),
@@ -248,9 +263,10 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, band_c
         "sdf": int(N * _SDF_BYTES_PER_NODE[d] + _SDF_FIXED),
         "solver": int(N * d * _SOLVER_BYTES_PER_NODE_PER_DIM + M * _SOLVER_BYTES_PER_ACTIVE[d]
                       + _SOLVER_FIXED),
-        "inbetween": int(N * _INBETWEEN_BYTES_PER_NODE[d] + fill * M_t ** power),
+        "inbetween": int(N * _INBETWEEN_BYTES_PER_NODE[d] + _TRANSPORT_FILL * fill * M_t ** power),
     }
-    out["peak"] = out["keyframes"] + max(out["sdf"], out["solver"], out["inbetween"])
+    out["peak"] = out["keyframes"] + max(out["sdf"], _CONCURRENT_SOLVES * out["solver"],
+                                         out["inbetween"])
     return out
 
 

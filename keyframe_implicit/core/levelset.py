@@ -1,283 +1,78 @@
-"""In-between level sets (thesis section 3.2, eq. 3.2-3.4; PAPER-NOTES section 6).
+"""In-between level sets (thesis section 3.2, eq. 3.2-3.4; PAPER-NOTES sections 6 and 8).
 
-Every grid node x of the region (material of A plus a band) carries
+Two transports, one per keyframe (default, ``transport="two-sided"``)
+----------------------------------------------------------------------
+Keyframe A's field Phi is carried forward along A's as-rigid-as-possible
+trajectories (the map A -> B, `trajectory.Trajectories`), and keyframe B's
+field Psi backward along B's (the map B -> A), each from its own region only
+(`transport.Transport`). At time s the two are blended at fixed grid nodes z,
+in the spirit of the warp-and-blend of Cohen-Or, Levin and Solomovici (1998):
 
-    v_s(x) = (1 - s) Phi(x) + s Psi(y(x))            (eq. 3.4, weights normalised)
+    L_s(z) = (1 - s) Phi_s(z) + s Psi_s(z),
+    Phi_s(x_A(s)) = Phi(x),   Psi_s(x_B(1 - s)) = Psi(x),
 
-and sits at x(s) on its as-rigid-as-possible trajectory (`trajectory.py`). The
-in-between level set at time s is the field whose value at the moved point
-x(s) is v_s(x). These are scattered values; they are brought back onto the
-regular grid by one of two methods:
+with x_A(t), x_B(t) the node paths of A and B (material a map tears fades on
+the way: `transport.Transport.carry`). Both transported fields are truncated
+at one value w > 0, the smallest value either field has on the border of its
+region (a few cells around the material). Where a transport does not reach
+z, z lies beyond that border of the moved keyframe, so its value is w: "not
+reached" and "far outside" agree, the blend is continuous where one
+transport's region ends, and far from both keyframes L_s = w, never drifting
+to zero. Neither transport hands depth from one keyframe to the empty space
+of the other (the swelling of the one-sided form below in merges). Each
+in-between is then shifted by the iso-value that keeps its volume on the
+linear path between the keyframes' (`isovolume`). The ends are the keyframes
+themselves: L_0 = Phi, L_1 = Psi.
 
-``resample="splat"`` (default): semi-Lagrangian inverse lookup by cells. Every
-cell of the region is moved to time s (its corners follow their trajectories;
-inside, the cell is the multilinear image of the unit cell). For every grid
-node z inside a moved cell's bounding box the local coordinates u with
-T_cell(u) = z are found (affine start, then Newton steps), which gives z's
-source point x; z then receives v_s at x, with Phi, y and Psi read at the
-off-grid points by cubic B-splines (``interpolation="cubic"``) or
-multilinearly. Moved cells tile the image of the region without gaps
-(neighbouring cells share their faces), so no node inside the image is missed
-(no holes); where cells overlap (two parts pressed into each other, as in a
-merge) the smaller value wins, i.e. the union of the material. Nodes that no
-cell reaches lie outside the image of the band and get the constant
-``outside_value`` (the band width in world units, which also caps the carried
-values): far from the material the field is positive and never drifts to zero.
+The backward map is solved like the forward one with the feature pairs
+swapped (`inbetween`), or, with `Inbetween.from_map`, given, or else
+obtained by inverting the forward map (`invert_map`).
 
-``resample="idw"``: the thesis's inverse-distance weights (eq. 3.2-3.3),
-w = 1 / (r^2 + eps^2), over the moved nodes within ``idw_radius`` cells of each
-grid node. Kept as the baseline.
-
-Measured (rigid L-shape of tests/core/inbetween_cases.py turned 90 degrees,
-36^3, zero set against the exact turned solid at s = 0.25, 0.5, 0.75):
-splat + cubic: mean 0.03 h, max 0.17 h, volume within 0.4 %; IDW: mean
-0.10-0.13 h, max 0.4-0.6 h, volume 2-2.2 % low (it also smears the keyframes
-themselves: 0.08 h at s = 0); splat with multilinear reads: error at the nodes
-near the surface twice that of cubic reads (mean 0.048 h against 0.027 h).
+The thesis's one-sided form (``transport="one-sided"``)
+-------------------------------------------------------
+Only A's nodes move, each carrying v_s(x) = (1 - s) Phi(x) + s Psi(y(x))
+(eq. 3.4, weights normalised). Kept for comparison: an empty-space node of
+A's margin that maps deep into B carries B's depth, so gaps fill with
+material long before the parts arrive, and B's material outside the image of
+A's region appears only at s = 1. ``resample="idw"`` (one-sided only)
+replaces the inverse lookup by the thesis's inverse-distance weights
+(eq. 3.2-3.3), w = 1 / (r^2 + eps^2), over the moved nodes within
+``idw_radius`` cells of each grid node. Measurements of every form:
+benchmarks/README.md.
 """
 
 from __future__ import annotations
 
-import itertools
+import os
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy import ndimage
 
 from .grid import Grid
+from .isovolume import volume_offset
 from .progress import Reporter
-from .sampling import sample
+from .renamed import take_renamed
+from .surface import enclosed_volume
 from .trajectory import Trajectories
+from .transport import Transport
 
-__all__ = ["Inbetween", "inbetween", "inverse_lookup", "idw_resample"]
+__all__ = ["Inbetween", "inbetween", "invert_map", "idw_resample"]
 
-_TRAJ_OPTIONS = ("trajectory_method", "trajectory_band", "trajectory_band_weight")
-_LS_OPTIONS = ("resample", "idw_radius", "newton_steps", "interpolation")
-
-
-def _corners(d):
-    return np.array(list(itertools.product((0, 1), repeat=d)))
-
-
-def _multilinear(u, corners=None):
-    """Weights (M, 2^d) and their derivatives (M, 2^d, d) of the unit-cell interpolant at u (M, d).
-
-    Corner order is that of ``itertools.product((0, 1), repeat=d)`` (first axis slowest).
-    """
-    m, d = u.shape
-    A = [np.stack([1.0 - u[:, a], u[:, a]], axis=1) for a in range(d)]  # (M, 2) per axis
-    dA = np.array([-1.0, 1.0])
-
-    def outer(factors):
-        if d == 2:
-            f0, f1 = factors
-            return (f0[..., :, None] * f1[..., None, :]).reshape(m, 4)
-        f0, f1, f2 = factors
-        return (f0[..., :, None, None] * f1[..., None, :, None]
-                * f2[..., None, None, :]).reshape(m, 8)
-
-    w = outer(A)
-    dw = np.empty((m, 2 ** d, d))
-    for a in range(d):
-        f = list(A)
-        f[a] = np.broadcast_to(dA, (m, 2))
-        dw[:, :, a] = outer(f)
-    return w, dw
-
-
-def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
-                   max_candidates=2_000_000):
-    """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
-
-    Every cell listed in ``cells`` is moved (its corners to
-    ``corner_positions``; its interior is the multilinear image of the unit
-    cell). Each grid node z in the moved cell's bounding box is first placed
-    with the cell's affine part (candidates clearly outside are dropped), then
-    refined by Newton steps on the multilinear map; z is kept when its local
-    coordinates fall inside the unit cell and the residual vanishes. Moved
-    cells share faces, so every node of the moved region is found (no holes);
-    a node inside several moved cells (overlap) is returned once per cell.
-
-    Parameters
-    ----------
-    grid : Grid
-    corner_positions : ndarray, shape (C, 2^d, d)
-        Moved corners of every cell (corner order of ``itertools.product((0, 1), repeat=d)``),
-        world units.
-    cells : ndarray of int, shape (C,)
-        Flat node index of the lower corner of every cell.
-    newton_steps : int
-        Newton iterations at most per candidate (the affine start makes 1-2 enough
-        for near-rigid cells; converged candidates drop out).
-    max_candidates : int
-        Cells are processed in chunks of at most this many candidate nodes.
-
-    Returns
-    -------
-    target : ndarray of int, shape (M,)
-        Flat index of the grid node found.
-    source : ndarray, shape (M, d)
-        Its source point x in continuous node-index coordinates.
-    """
-    d = grid.dim
-    shape = np.asarray(grid.shape)
-    P = (np.asarray(corner_positions, dtype=float) - grid.origin) / grid.spacing
-    # monomial coefficients of the multilinear map T(u) = sum_S a_S prod_{a in S} u_a
-    subsets = _corners(d)  # subset S <-> corner with bits S
-    coef = _moebius(P, subsets)  # (C, 2^d, d)
-    lo = np.maximum(np.ceil(P.min(axis=1) - tol), 0).astype(np.int64)
-    hi = np.minimum(np.floor(P.max(axis=1) + tol), shape - 1).astype(np.int64)
-    ext = np.maximum(hi - lo + 1, 0)
-    cnt = np.prod(ext, axis=1)
-    half = np.full((cells.size, d), 0.5)
-    T0, J0 = _poly_eval(coef, half, subsets)
-    Jinv = _inverse_small(J0)
-    # cells in chunks of at most ``max_candidates`` bounding-box nodes (bounded memory
-    # even where a bad map stretches cells over many nodes)
-    bounds = np.searchsorted(np.cumsum(cnt), np.arange(1, int(cnt.sum()) // max_candidates + 1)
-                             * max_candidates)
-    edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
-    targets, sources = [], []
-    for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over a few chunks
-        sel = np.arange(c0, c1)
-        t, u = _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps)
-        targets.append(t)
-        sources.append(u)
-    cc_all = np.concatenate([t[0] for t in targets]) if targets else np.zeros(0, np.int64)
-    zi = np.concatenate([t[1] for t in targets]) if targets else np.zeros((0, d), np.int64)
-    u_all = np.concatenate(sources) if sources else np.zeros((0, d))
-    target = np.ravel_multi_index(tuple(zi[:, a] for a in range(d)), grid.shape)
-    base = np.stack(np.unravel_index(cells[cc_all], grid.shape), axis=-1)
-    return target, base + u_all
-
-
-def _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps):
-    """Inverse lookup for the cells ``sel``: ((cell, node index), local coordinates) found."""
-    d = lo.shape[1]
-    n = cnt[sel]
-    # every grid node inside every moved cell's bounding box (variable-size boxes, vectorised)
-    cc = np.repeat(sel, n)
-    start = np.cumsum(n) - n
-    rem = np.arange(int(n.sum())) - np.repeat(start, n)
-    z = np.empty((cc.size, d))
-    for a in reversed(range(d)):
-        e = ext[cc, a]
-        z[:, a] = lo[cc, a] + rem % e
-        rem = rem // e
-    # affine guess from the cell centre; drop candidates clearly outside the cell
-    u = 0.5 + np.einsum("mab,mb->ma", Jinv[cc], z - T0[cc])
-    keep = np.all((u > -0.35) & (u < 1.35), axis=1)
-    cc, z, u = cc[keep], z[keep], u[keep]
-    a_c = coef[cc]
-    todo = np.arange(cc.size)  # Newton only on candidates not yet converged
-    res = np.full(cc.size, np.inf)
-    for it in range(newton_steps + 1):
-        T, J = _poly_eval(a_c[todo], u[todo], subsets, jacobian=it < newton_steps)
-        r = T - z[todo]
-        res[todo] = np.einsum("md,md->m", r, r)
-        if it == newton_steps:
-            break
-        live = res[todo] > 1e-20
-        todo, J, r = todo[live], J[live], r[live]
-        if todo.size == 0:
-            break
-        u[todo] = np.clip(u[todo] - _solve_small(J, r), -0.5, 1.5)
-    inside = np.all((u >= -1e-4) & (u <= 1 + 1e-4), axis=1) & (res < 1e-8)
-    return (cc[inside], z[inside].astype(np.int64)), u[inside]
-
-
-def _moebius(P, subsets):
-    """Monomial coefficients a_S = sum_{T subset S} (-1)^{|S|-|T|} P_T of a multilinear cell.
-
-    One difference pass per axis (the fast Moebius transform over subsets).
-    """
-    coef = np.array(P, dtype=float, copy=True)
-    index = {tuple(S): i for i, S in enumerate(subsets)}
-    for a in range(subsets.shape[1]):
-        for i, S in enumerate(subsets):
-            if S[a]:
-                T = S.copy()
-                T[a] = 0
-                coef[:, i] -= coef[:, index[tuple(T)]]
-    return coef
-
-
-def _poly_eval(coef, u, subsets, jacobian=True):
-    """T(u) (M, d) and its Jacobian dT/du (M, d, d) from monomial coefficients (M, 2^d, d)."""
-    m, d = u.shape
-    index = {tuple(S): i for i, S in enumerate(subsets)}
-    mono = [None] * len(subsets)
-    for i, S in enumerate(subsets):  # monomials prod_{a in S} u_a, built from smaller ones
-        on = np.flatnonzero(S)
-        if on.size == 0:
-            mono[i] = None  # the constant 1
-        elif on.size == 1:
-            mono[i] = u[:, on[0]]
-        else:
-            smaller = S.copy()
-            smaller[on[-1]] = 0
-            mono[i] = mono[index[tuple(smaller)]] * u[:, on[-1]]
-    T = coef[:, 0].copy()
-    for i in range(1, len(subsets)):
-        T += coef[:, i] * mono[i][:, None]
-    if not jacobian:
-        return T, None
-    J = np.empty((m, d, d))
-    for b in range(d):  # d T / d u_b = sum_{S containing b} a_S prod_{S - b} u
-        col = None
-        for i, S in enumerate(subsets):
-            if not S[b]:
-                continue
-            rest = S.copy()
-            rest[b] = 0
-            k = index[tuple(rest)]
-            term = coef[:, i] if k == 0 else coef[:, i] * mono[k][:, None]
-            col = term.copy() if col is None else col + term
-        J[:, :, b] = col
-    return T, J
-
-
-def _inverse_small(J):
-    """Inverse of a batch of 2x2 / 3x3 matrices by the adjugate (identity where singular)."""
-    d = J.shape[-1]
-    if d == 2:
-        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-        adj = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
-                        np.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], -2)
-    else:
-        c0, c1, c2 = J[:, :, 0], J[:, :, 1], J[:, :, 2]
-        adj = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=1)
-        det = np.einsum("md,md->m", c0, adj[:, 0])
-    ok = np.abs(det) > 1e-12
-    out = adj / np.where(ok, det, 1.0)[:, None, None]
-    out[~ok] = np.eye(d)
-    return out
-
-
-def _solve_small(J, r):
-    """Solve J x = r for a batch of 2x2 / 3x3 systems by Cramer's rule (x = 0 where singular)."""
-    d = r.shape[1]
-    if d == 2:
-        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-        x0 = r[:, 0] * J[:, 1, 1] - J[:, 0, 1] * r[:, 1]
-        x1 = J[:, 0, 0] * r[:, 1] - r[:, 0] * J[:, 1, 0]
-        x = np.stack([x0, x1], axis=1)
-    else:
-        c0, c1, c2 = J[:, :, 0], J[:, :, 1], J[:, :, 2]
-        x12 = np.cross(c1, c2)
-        det = np.einsum("md,md->m", c0, x12)
-        x = np.stack([np.einsum("md,md->m", r, x12),
-                      np.einsum("md,md->m", c0, np.cross(r, c2)),
-                      np.einsum("md,md->m", c0, np.cross(c1, r))], axis=1)
-    ok = np.abs(det) > 1e-12
-    return np.where(ok[:, None], x / np.where(ok, det, 1.0)[:, None], 0.0)
+_TRAJ_OPTIONS = ("trajectory_method", "trajectory_margin_cells", "trajectory_margin_weight")
+_RENAMED = {"trajectory_band": "trajectory_margin_cells",
+            "trajectory_band_weight": "trajectory_margin_weight"}
+_LS_OPTIONS = ("transport", "keep_volume", "resample", "idw_radius", "newton_steps", "interpolation")
+TRANSPORTS = ("two-sided", "one-sided")
 
 
 def idw_resample(grid: Grid, positions, values, *, fill, radius=1.5, eps=0.25):
     """Thesis eq. 3.2-3.3: inverse-distance weights 1 / (r^2 + eps^2) of nearby moved nodes.
 
     ``radius`` and ``eps`` are in cells. Grid nodes with no moved node within
-    ``radius`` get ``fill``. Returns (field, covered) like `splat_cells`.
+    ``radius`` get ``fill``. Returns the field and a mask of the nodes reached, both of grid.shape.
     """
     from scipy.spatial import cKDTree
 
@@ -296,70 +91,93 @@ def idw_resample(grid: Grid, positions, values, *, fill, radius=1.5, eps=0.25):
     return out.reshape(grid.shape), covered.reshape(grid.shape)
 
 
-class Inbetween:
-    """In-between frames of one keyframe pair: trajectories and level sets at any s in [0, 1].
+def invert_map(grid: Grid, forward: Transport):
+    """The map B -> A as the inverse of the map A -> B (``forward``'s trajectories at t = 1).
 
-    Build with `Inbetween.from_map` (a map you already have) or `inbetween`
-    (solves the map first).
+    Every node z in the image of A's region gets the source x with y(x) = z
+    (the inverse lookup of the moved cells); nodes outside that image take
+    the displacement of the nearest node inside it. Where the forward map
+    folds, several sources share one z and the first found is kept.
+
+    Returns
+    -------
+    ndarray, grid.shape + (d,)
+    """
+    d = grid.dim
+    target, source = forward.sources(1.0)
+    back = np.full((grid.size, d), np.nan)
+    back[target] = grid.to_world(source)
+    reached = ~np.isnan(back[:, 0])
+    if not reached.any():
+        raise ValueError("the map sends keyframe A's region outside the grid; "
+                         "it cannot be inverted.")
+    disp = back - grid.points().reshape(-1, d)
+    _, idx = ndimage.distance_transform_edt(~reached.reshape(grid.shape), return_indices=True)
+    nearest = np.ravel_multi_index(tuple(idx), grid.shape).reshape(-1)
+    return (grid.points().reshape(-1, d) + disp[nearest]).reshape(grid.shape + (d,))
+
+
+class Inbetween:
+    """In-between frames of one keyframe pair: level sets and trajectories at any s in [0, 1].
+
+    Build with `Inbetween.from_map` (maps you already have) or `inbetween`
+    (solves the maps first).
 
     Attributes
     ----------
     grid : Grid
     mapped : ndarray, grid.shape + (d,)
-        The map y(x).
+        The map A -> B, y(x).
+    mapped_back : ndarray or None
+        The map B -> A (two-sided transport).
     trajectories : Trajectories
+        Paths of A's nodes (A -> B); `trajectory` interpolates them.
+    outside_value : float
+        The value wherever no transport reaches (world units, > 0).
     stats : dict
-        Figures of the map (when solved here), the trajectories and the
-        level sets (timings in seconds, coverage).
+        Figures of the maps (when solved here), the trajectories and the
+        level sets (timings in seconds, coverage, map agreement).
     """
 
-    def __init__(self, phi_a, phi_b, grid, mapped, trajectories, *, resample="splat",
-                 idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None):
-        if interpolation not in ("cubic", "linear"):
-            raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
+    def __init__(self, phi_a, phi_b, grid, forward, backward=None, *, keep_volume=True,
+                 resample="splat", idw_radius=1.5, stats=None, map_result=None,
+                 map_result_back=None):
         self.grid = grid
         self.phi_a = phi_a
         self.phi_b = phi_b
-        self.mapped = mapped
-        self.trajectories = trajectories
+        self.forward = forward
+        self.backward = backward
+        self.trajectories = forward.trajectories
+        self.mapped = forward.trajectories.mapped
+        self.mapped_back = None if backward is None else backward.trajectories.mapped
+        self.transport = "one-sided" if backward is None else "two-sided"
+        self.keep_volume = bool(keep_volume) and backward is not None
+        self._end_volumes = None
         self.resample = resample
         self.idw_radius = float(idw_radius)
-        self.newton_steps = int(newton_steps)
         self.map_result = map_result
+        self.map_result_back = map_result_back
+        self.outside_value = forward.truncation  # both transports share it (from_map)
         self.stats = dict(stats or {})
         self.stats.setdefault("levelset_seconds", 0.0)
         self.stats.setdefault("levelset_calls", 0)
-        self.stats["trajectory"] = trajectories.stats
-        h = grid.spacing
-        self.outside_value = trajectories.band * h
-        self.interpolation = interpolation
-        if interpolation == "cubic":
-            self._coef_a = ndimage.spline_filter(phi_a, order=3, mode="nearest")
-            self._coef_b = ndimage.spline_filter(phi_b, order=3, mode="nearest")
-        self._psi_y = self._psi(mapped.reshape(-1, grid.dim))
-        dist = trajectories._dist
-        shape = np.asarray(grid.shape)
-        near = (dist <= trajectories.band).reshape(grid.shape)
-        cell_ok = np.ones(tuple(shape - 1), dtype=bool)
-        for c in _corners(grid.dim):
-            cell_ok &= near[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(grid.dim))]
-        self._cells = np.ravel_multi_index(
-            np.unravel_index(np.flatnonzero(cell_ok), tuple(shape - 1)), grid.shape)
-        strides = np.array([int(np.prod(shape[a + 1:])) for a in range(grid.dim)])
-        cnodes = self._cells[:, None] + (_corners(grid.dim) @ strides)[None, :]
-        self._corner_nodes, inv = np.unique(cnodes, return_inverse=True)
-        self._cnodes_local = inv.reshape(cnodes.shape)
+        self.stats["transport"] = self.transport
+        self.stats["trajectory"] = forward.trajectories.stats
+        if backward is not None:
+            self.stats["trajectory_back"] = backward.trajectories.stats
+            self.stats["map_agreement_h"] = map_agreement(grid, self.mapped, self.mapped_back,
+                                                          phi_a < 0)
+        self._coef_b = None  # Psi's spline coefficients, for the one-sided form
         self._cache = {}
 
     # ------------------------------------------------------------------
     @classmethod
-    def from_map(cls, phi_a, phi_b, grid, mapped, *, material=None, components=None,
-                 trajectory_method="global", trajectory_band=4.0, trajectory_band_weight=0.1,
-                 resample="splat",
+    def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, transport="two-sided",
+                 keep_volume=True, material=None, components=None, trajectory_method="global",
+                 trajectory_margin_cells=4.0, trajectory_margin_weight=0.1, resample="splat",
                  idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None):
-        """In-betweens from a given map y(x).
+                 map_result=None, map_result_back=None, **renamed):
+        """In-betweens from given maps.
 
         Parameters
         ----------
@@ -367,30 +185,37 @@ class Inbetween:
             Signed distance grids of keyframes A and B (negative inside).
         grid : Grid
         mapped : ndarray, grid.shape + (d,)
-            y(x) for every node (world units).
+            The map A -> B, y(x) for every node (world units).
+        mapped_back : ndarray, grid.shape + (d,), optional
+            The map B -> A (two-sided transport); `invert_map` of ``mapped``
+            when omitted.
+        transport : {"two-sided", "one-sided"}
+            Both keyframes' fields carried and blended (default), or the
+            thesis's eq. 3.4 on A's nodes only (module docstring).
+        keep_volume : bool
+            Two-sided only: shift each in-between by the iso-value that gives
+            it the linearly interpolated volume of the keyframes (`isovolume`).
         material : bool ndarray, optional
             A's material; ``phi_a < 0`` when omitted.
         components : int ndarray, optional
             Labels of A's material components (see `Trajectories`).
         trajectory_method : {"global", "local"}
             See `trajectory.Trajectories`.
-        trajectory_band : float
-            Cells around the material that carry trajectories and values; also
-            sets the far-field value ``trajectory_band * h``. (Named apart from
-            the solver's ``band_cells`` / ``band_weight``, which `inbetween`
-            passes on to `solve_map`.)
-        trajectory_band_weight : float
-            Weight of band cells in the trajectory solve.
+        trajectory_margin_cells : float
+            The trajectories' margin in cells around each keyframe's material
+            (`Trajectories` ``margin_cells``): the region each transport
+            carries (its field is truncated at its value on the border).
+        trajectory_margin_weight : float
+            Weight of margin cells in the trajectory solve.
         resample : {"splat", "idw"}
-            How scattered values return to the grid (module docstring).
+            How scattered values return to the grid; "idw" only with the
+            one-sided transport.
         idw_radius : float
             Search radius in cells for ``resample="idw"``.
         newton_steps : int
             Newton iterations of the inverse lookup.
         interpolation : {"cubic", "linear"}
-            How Phi, Psi are read at off-grid points (cubic B-spline by
-            default: it halves the zero-set error of multilinear reads on
-            rotated shapes, see benchmarks/bench_inbetween.py).
+            How Phi, Psi are read at off-grid points.
         """
         if not isinstance(grid, Grid):
             raise ValueError("grid must be a keyframe_implicit.core.Grid.")
@@ -399,100 +224,206 @@ class Inbetween:
         mapped = np.asarray(mapped, dtype=float)
         if resample not in ("splat", "idw"):
             raise ValueError(f'resample must be "splat" or "idw", got {resample!r}.')
-        if material is None:
-            material = phi_a < 0
-        t0 = time.perf_counter()
-        traj = Trajectories(grid, mapped, material, components, method=trajectory_method,
-                            band=trajectory_band, band_weight=trajectory_band_weight)
+        if transport not in TRANSPORTS:
+            raise ValueError(f"transport must be one of {TRANSPORTS}, got {transport!r}.")
+        if resample == "idw" and transport != "one-sided":
+            raise ValueError('resample="idw" is the thesis\'s one-sided form: '
+                             'use it with transport="one-sided".')
+        if not np.any(phi_b < 0):
+            raise ValueError("phi_b has no node inside (< 0): keyframe B is empty on this grid.")
+        renamed = take_renamed(dict(renamed), _RENAMED, "Inbetween.from_map")
+        unknown = set(renamed) - set(_RENAMED.values())
+        if unknown:
+            raise TypeError(f"Inbetween.from_map got unexpected options {sorted(unknown)}.")
+        traj_opts = dict(method=trajectory_method,
+                         margin_cells=renamed.get("trajectory_margin_cells", trajectory_margin_cells),
+                         margin_weight=renamed.get("trajectory_margin_weight",
+                                                   trajectory_margin_weight))
+        lookup_opts = dict(interpolation=interpolation, newton_steps=newton_steps)
         st = dict(stats or {})
+        t0 = time.perf_counter()
+        material = phi_a < 0 if material is None else material
+        forward = Transport(phi_a, Trajectories(grid, mapped, material, components, **traj_opts),
+                            **lookup_opts)
+        backward = None
+        if transport == "two-sided":
+            if mapped_back is None:
+                mapped_back = invert_map(grid, forward)
+            back_traj = Trajectories(grid, np.asarray(mapped_back, dtype=float), phi_b < 0,
+                                     **traj_opts)
+            backward = Transport(phi_b, back_traj, **lookup_opts)
+            # one truncation for both, so that the far field is one value
+            w = min(forward.border_value, backward.border_value)
+            forward.truncation = backward.truncation = w
         st["trajectory_setup_seconds"] = time.perf_counter() - t0
-        return cls(phi_a, phi_b, grid, mapped, traj, resample=resample, idw_radius=idw_radius,
-                   newton_steps=newton_steps, interpolation=interpolation, stats=st,
-                   map_result=map_result)
+        return cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume, resample=resample,
+                   idw_radius=idw_radius, stats=st, map_result=map_result,
+                   map_result_back=map_result_back)
 
     # ------------------------------------------------------------------
-    def _field_at(self, field, coef, u):
-        """Value of a keyframe field at continuous node-index coordinates u (M, d).
-
-        Cubic B-spline (``interpolation="cubic"``) or multilinear; outside the
-        grid the distance to the grid box is added (the field stays outside).
-        """
-        hi = np.asarray(self.grid.shape) - 1
-        uc = np.clip(u, 0, hi)
-        extra = self.grid.spacing * np.linalg.norm(u - uc, axis=-1)
-        if self.interpolation == "cubic":
-            val = ndimage.map_coordinates(coef, uc.T, order=3, mode="nearest", prefilter=False)
-        else:
-            val = sample(field, self.grid, self.grid.to_world(uc))
-        return val + extra
-
-    def _psi(self, points):
-        """Psi (keyframe B) at world points (P, d)."""
-        return self._field_at(self.phi_b, getattr(self, "_coef_b", None),
-                              self.grid.to_index(points))
-
-    def _value_at_source(self, u, s):
-        """(1 - s) Phi(x) + s Psi(y(x)) at source points x given in index coordinates (eq. 3.4)."""
-        phi = self._field_at(self.phi_a, getattr(self, "_coef_a", None), u)
-        if s == 0.0:
-            return phi
-        y = sample(self.mapped, self.grid, self.grid.to_world(u))
-        return (1.0 - s) * phi + s * self._psi(y)
-
-    def values(self, s):
-        """Values (1 - s) Phi(x) + s Psi(y(x)) carried by every node (eq. 3.4), flat."""
-        v = (1.0 - s) * self.phi_a.reshape(-1) + s * self._psi_y
-        return np.minimum(v, self.outside_value)
-
     def levelset(self, s):
         """The in-between signed distance field at time s in [0, 1], array of grid.shape.
 
-        Negative inside; equal to ``outside_value`` (> 0) wherever no part of
-        the band reaches.
+        Negative inside; Phi at s = 0 and Psi at s = 1 exactly; equal to
+        ``outside_value`` (> 0) wherever no transport reaches.
         """
         s = float(s)
         if not 0.0 <= s <= 1.0:
             raise ValueError(f"time s must lie in [0, 1], got {s}.")
+        if s == 0.0:
+            return self.phi_a.copy()
+        if s == 1.0:
+            return self.phi_b.copy()
         if s in self._cache:
             return self._cache[s]
         t0 = time.perf_counter()
-        if self.resample == "splat":
-            pos = self.trajectories.node_positions(s, self._corner_nodes)
-            target, source = inverse_lookup(self.grid, pos[self._cnodes_local], self._cells,
-                                            newton_steps=self.newton_steps)
-            vals = np.minimum(self._value_at_source(source, s), self.outside_value)
-            out = np.full(self.grid.size, np.inf)
-            np.minimum.at(out, target, vals)
-            covered = np.isfinite(out)
-            out[~covered] = self.outside_value
-            field = out.reshape(self.grid.shape)
+        if self.backward is not None:
+            field = self._two_sided(s)
+        elif self.resample == "splat":
+            field = self._one_sided(s)
         else:
-            band_nodes = np.flatnonzero(self.trajectories._dist <= self.trajectories.band)
-            pos = self.trajectories.node_positions(s, band_nodes)
-            vals = self.values(s)
-            field, covered = idw_resample(self.grid, pos, vals[band_nodes],
-                                          fill=self.outside_value, radius=self.idw_radius)
+            field = self._one_sided_idw(s)
+        field = field.reshape(self.grid.shape)
+        if self.keep_volume:
+            field = self._keep_volume(field, s)
         self.stats["levelset_seconds"] += time.perf_counter() - t0
         self.stats["levelset_calls"] += 1
-        self.stats["covered_nodes"] = int(covered.sum())
         if len(self._cache) > 4:
             self._cache.pop(next(iter(self._cache)))
         self._cache[s] = field
         return field
 
-    def trajectory(self, points, s):
-        """Positions at time s of points given at time 0: (P, d) -> (P, d).
+    def _two_sided(self, s):
+        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach."""
+        w = self.outside_value
+        phi_s = self.forward.carry(s, other=self.backward)
+        psi_s = self.backward.carry(1.0 - s, other=self.forward)
+        self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
+        return (1.0 - s) * np.nan_to_num(phi_s, nan=w) + s * np.nan_to_num(psi_s, nan=w)
 
-        Multilinear interpolation of the node trajectories.
+    def _keep_volume(self, field, s):
+        """Shift by the iso-value that gives the volume (1 - s) V_A + s V_B (`isovolume`)."""
+        if self._end_volumes is None:
+            self._end_volumes = (enclosed_volume(self.phi_a, self.grid),
+                                 enclosed_volume(self.phi_b, self.grid))
+        va, vb = self._end_volumes
+        c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
+        self.stats.setdefault("volume_offset_h", {})[s] = c / self.grid.spacing
+        self.stats.setdefault("volume_error", {})[s] = err
+        return field - c
+
+    def _one_sided_values(self, s):
+        """v_s = (1 - s) Phi(x) + s Psi(y(x)) at source points given in index coordinates."""
+        fw = self.forward
+        if fw.interpolation == "cubic" and self._coef_b is None:
+            self._coef_b = ndimage.spline_filter(self.phi_b, order=3, mode="nearest")
+        coef_b = self._coef_b
+
+        def values(u):
+            phi = fw.read(self.phi_a, u, fw._coef)
+            y = self.trajectories(self.grid.to_world(u), 1.0)
+            return (1.0 - s) * phi + s * fw.read(self.phi_b, self.grid.to_index(y), coef_b)
+        return values
+
+    def _one_sided(self, s):
+        out = self.forward.carry(s, values=self._one_sided_values(s))
+        self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(out)))
+        return np.nan_to_num(out, nan=self.outside_value)
+
+    def _one_sided_idw(self, s):
+        tr = self.trajectories
+        nodes = np.flatnonzero(tr.region_nodes())
+        u = self.grid.to_index(self.grid.points().reshape(-1, self.grid.dim)[nodes])
+        vals = np.minimum(self._one_sided_values(s)(u), self.outside_value)
+        field, covered = idw_resample(self.grid, tr.node_positions(s, nodes), vals,
+                                      fill=self.outside_value, radius=self.idw_radius)
+        self.stats["covered_nodes"] = int(covered.sum())
+        return field
+
+    def trajectory(self, points, s):
+        """Positions at time s of points of keyframe A given at time 0: (P, d) -> (P, d).
+
+        Multilinear interpolation of A's node trajectories.
         """
         return self.trajectories(points, s)
+
+    def velocity(self, points, s, ds=1e-3, near_cells=2.5, neighbours=12):
+        """Velocity dx/ds (world units per unit s) at world points on the level set at time s.
+
+        The surface at time s is made of the material each transport carries:
+        the nodes near each keyframe's own surface, moved along their paths,
+        with velocities from finite differences of the paths (eq. 3.1
+        differentiated in s; B's nodes run backward, so their velocity is
+        -dx_B/dt at t = 1 - s). Each point gets the value at it of a weighted
+        least-squares affine fit of the velocities of its ``neighbours``
+        nearest moved nodes (moving least squares, exact for any rigid or
+        affine motion); A's nodes weigh (1 - s), B's s, as in the blend, so
+        the velocity hands over from A's motion to B's without a jump.
+
+        Parameters
+        ----------
+        points : (P, d) array, world units (e.g. the vertices of ``levelset(s)``'s surface).
+        s : float in [0, 1]
+        ds : float
+            Step of the finite difference.
+        near_cells : float
+            Nodes within this many cells of their keyframe's surface take part.
+        neighbours : int
+            Moved nodes in each point's fit.
+
+        Returns
+        -------
+        (P, d) array, world units per unit s (divide by the frames of the segment for
+        units per frame).
+        """
+        from scipy.spatial import cKDTree
+
+        s = float(s)
+        if not 0.0 <= s <= 1.0:
+            raise ValueError(f"time s must lie in [0, 1], got {s}.")
+        p = np.asarray(points, dtype=float)
+        d = self.grid.dim
+        if p.ndim != 2 or p.shape[1] != d:
+            raise ValueError(f"points must have shape (P, {d}), got {p.shape}.")
+        h = self.grid.spacing
+        parts = [self.forward.surface_motion(s, near_cells * h, ds) + (1.0 - s,)]
+        if self.backward is not None:
+            pos, vel = self.backward.surface_motion(1.0 - s, near_cells * h, ds)
+            parts.append((pos, -vel, s))
+        parts = [(pos, vel, np.full(len(pos), wt)) for pos, vel, wt in parts if wt > 0]
+        pos, vel, weight = (np.concatenate(a) for a in zip(*parts))
+        if p.shape[0] == 0 or pos.shape[0] == 0:
+            return np.zeros_like(p)
+        k = min(int(neighbours), pos.shape[0])
+        dist, idx = cKDTree(pos).query(p, k=k, workers=-1)
+        dist, idx = dist.reshape(len(p), k), idx.reshape(len(p), k)
+        w = weight[idx] / (dist ** 2 + (0.5 * h) ** 2)
+        X = np.concatenate([np.ones((len(p), k, 1)), (pos[idx] - p[:, None]) / h], axis=2)
+        XtW = X.transpose(0, 2, 1) * w[:, None, :]
+        A = XtW @ X + 1e-6 * np.diag(np.r_[0.0, np.ones(d)])
+        coef = np.linalg.solve(A, XtW @ vel[idx])
+        return coef[:, 0, :]
+
+
+def map_agreement(grid, mapped, mapped_back, material):
+    """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max)."""
+    from .sampling import sample
+
+    x = grid.points()[material]
+    if x.size == 0:
+        return (float("nan"), float("nan"))
+    there = mapped[material]
+    back = sample(mapped_back, grid, there)
+    err = np.linalg.norm(back - x, axis=-1) / grid.spacing
+    return (float(err.mean()), float(err.max()))
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
               **options):
-    """Solve the map between two keyframes and return their in-betweens.
+    """Solve the maps between two keyframes and return their in-betweens.
 
-    ``inbetween = solve_map + Inbetween.from_map``.
+    ``inbetween = solve_map (A -> B, and B -> A with the feature pairs swapped
+    for the two-sided transport) + Inbetween.from_map``.
 
     Parameters
     ----------
@@ -503,26 +434,68 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         Feature points of A and their targets in B.
     progress, cancel : callables, optional (see `progress.Reporter`).
     **options
-        ``trajectory_method``, ``trajectory_band``, ``trajectory_band_weight``, ``resample``,
-        ``idw_radius``, ``newton_steps`` go to `Inbetween.from_map`; all
-        others are passed to `solve_map`.
+        ``transport``, ``keep_volume``, ``trajectory_method``,
+        ``trajectory_margin_cells``, ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
+        ``newton_steps``, ``interpolation`` go to `Inbetween.from_map`;
+        ``parallel`` (True: solve the two maps at once when two cores are
+        free); all others are passed to `solve_map`.
 
     Returns
     -------
     Inbetween
     """
-    from .solver import solve_map
-
     rep = Reporter(progress, cancel)
+    take_renamed(options, _RENAMED, "inbetween")
     mine = {k: options.pop(k) for k in list(options) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
+    parallel = options.pop("parallel", True)
+    two_sided = mine.get("transport", "two-sided") == "two-sided"
     t0 = time.perf_counter()
-    res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.8),
-                    cancel=cancel, **options)
-    st = {"map_seconds": time.perf_counter() - t0, "map": getattr(res, "stats", {})}
+    res, back = _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided,
+                            parallel, rep.sub(0.0, 0.8), cancel, options)
+    st = {"map_seconds": time.perf_counter() - t0, "map": res.stats}
+    if back is not None:
+        st["map_back"] = back.stats
     rep(0.8, "trajectories")
     out = Inbetween.from_map(phi_a, phi_b, grid, res.mapped,
-                             material=getattr(res, "material", None),
-                             components=getattr(res, "components", None),
-                             stats=st, map_result=res, **mine)
+                             mapped_back=None if back is None else back.mapped,
+                             material=res.material, components=res.components,
+                             stats=st, map_result=res, map_result_back=back, **mine)
     rep(1.0, "in-betweens ready")
     return out
+
+
+def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel, rep, cancel,
+                options):
+    """The map A -> B and, for the two-sided transport, B -> A (feature pairs swapped).
+
+    The two solves are independent: with ``parallel`` and two cores free the
+    backward one runs in a second thread (numpy and scipy release the GIL in
+    their kernels); it reports no progress of its own and stops when the
+    forward one fails or the caller cancels.
+    """
+    from .solver import solve_map
+
+    if not two_sided:
+        return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
+                         cancel=cancel, **options), None
+    if not (parallel and (os.cpu_count() or 1) >= 2):
+        res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
+                        cancel=cancel, **options)
+        back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),
+                         cancel=cancel, **options)
+        return res, back
+    failed = threading.Event()
+
+    def stop():
+        return failed.is_set() or (cancel is not None and cancel())
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        job = pool.submit(solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
+                          **options)
+        try:
+            res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
+                            cancel=cancel, **options)
+        except BaseException:
+            failed.set()
+            raise
+        return res, job.result()

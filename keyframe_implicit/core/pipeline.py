@@ -25,11 +25,13 @@ class Keyframe:
     vertices : (V, 3) float array, world coordinates.
     faces : sequence of index sequences (triangles or polygons), or an (F, k) int array.
     frame : int, the timeline frame this shape must be matched on.
+    name : str, optional; the object's name, used in messages about this keyframe.
     """
 
     vertices: np.ndarray
     faces: object
     frame: int
+    name: str = ""
 
 
 @dataclass
@@ -40,7 +42,17 @@ class Animation:
     vertices : (n, V, 3) float32 array, the template's vertex positions on each frame.
     faces : (F, 3) int array, the template's triangles (the same on every frame).
     grid : the `Grid` used.
-    stats : dict of figures (timings, solver iterations, volumes, uncovered area, ...).
+    stats : dict of figures (timings, solver iterations, volumes, uncovered area, ...), and
+        ``quality``: per output ("shape_keys", "mesh_sequence") one dict of
+        `quality.frame_quality` figures per frame (keyframe frames also carry
+        `quality.keyframe_distance` to the keyframe mesh given), ``output`` /
+        ``output_reason``: the output `quality.choose_output` picks.
+    surfaces : list, per frame, of (V_f, 3) float32 vertices and (F_f, 3) int32 triangles:
+        the frame's own surface (topology free), world units.
+    velocities : list, per frame, of (V_f, 3) float32: velocity of every vertex of
+        ``surfaces`` in world units per frame (the trajectories' rate, eq. 3.1).
+    levelsets : list, per frame, of float32 arrays of grid.shape: the in-between level sets
+        (eq. 3.4), kept when `animate` is called with ``levelsets=True``.
     """
 
     frames: np.ndarray
@@ -48,6 +60,9 @@ class Animation:
     faces: np.ndarray
     grid: object
     stats: dict = field(default_factory=dict)
+    surfaces: list = field(default_factory=list)
+    velocities: list = field(default_factory=list)
+    levelsets: list = field(default_factory=list)
 
 
 _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
@@ -74,7 +89,57 @@ def _material_fraction(keyframe, grid):
     return float(min(1.0, vol / np.prod(grid.upper - grid.origin)))
 
 
-def _check_inputs(keyframes, features):
+def _keyframe_label(k, kf):
+    """"Keyframe 1 ('Ball', frame 1)" for keyframes[0]: numbered from 1, as in the panel."""
+    name = getattr(kf, "name", "")
+    n = k + 1
+    return f"Keyframe {n} ('{name}', frame {kf.frame})" if name else f"Keyframe {n} (frame {kf.frame})"
+
+
+def _segment_label(i):
+    """"keyframes 1 → 2" for segment 0 (keyframes[0] -> keyframes[1]), as in the panel."""
+    return f"keyframes {i + 1} → {i + 2}"
+
+
+def _surface_vertices(k, kf):
+    """(vertices (V, 3), triangles, loose) of a keyframe; loose counts vertices of no face."""
+    from .sdf import _check_vertices, triangulate
+
+    label = _keyframe_label(k, kf)
+    try:
+        v = _check_vertices(kf.vertices)
+        tris = triangulate(kf.faces, len(v))
+    except ValueError as exc:
+        raise ValueError(f"{label}: {exc}") from None
+    used = np.zeros(len(v), dtype=bool)
+    used[tris.reshape(-1)] = True
+    return v, tris, int(len(v) - used.sum()), v[used]
+
+
+def _feature_array(points, what):
+    """A feature array as (N, 3) float; ValueError for any other shape (never reshaped)."""
+    try:
+        a = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be numbers in an (N, 3) array.") from None
+    if a.size == 0:
+        return np.zeros((0, 3))
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{what} must have shape (N, 3), one row of x, y, z per point; got "
+                         f"shape {a.shape}.")
+    return a
+
+
+def _feature_label(names, i, j, side):
+    """'KFI 0.3 A' (the Empty) when names are known, else "feature point 1 of keyframes 1 → 2
+    (on keyframe 1)" for row 0 of segment 0's side 0."""
+    if names is not None and i < len(names) and j < len(names[i]):
+        return f"feature point '{names[i][j][side]}'"
+    return f"feature point {j + 1} of {_segment_label(i)} (on keyframe {i + side + 1})"
+
+
+def _check_inputs(keyframes, features, feature_names=None):
+    """Keyframes and (N, 3) feature arrays, every problem named before any work."""
     keyframes = list(keyframes)
     if len(keyframes) < 2:
         raise ValueError(f"Need at least two keyframes, got {len(keyframes)}: add another keyframe.")
@@ -90,18 +155,122 @@ def _check_inputs(keyframes, features):
                          f"pairs (one per segment), got {len(features)}.")
     clean = []
     for i, pair in enumerate(features):
-        fa, fb = (np.asarray(p, dtype=float).reshape(-1, 3) for p in pair)
+        try:
+            pa, pb = pair
+        except (TypeError, ValueError):
+            raise ValueError(f"Features of {_segment_label(i)}: they must be a pair "
+                             "(points_a, points_b).") from None
+        fa = _feature_array(pa, f"Features of {_segment_label(i)}: the points on keyframe {i + 1}")
+        fb = _feature_array(pb, f"Features of {_segment_label(i)}: the points on keyframe {i + 2}")
         if len(fa) != len(fb):
-            raise ValueError(f"Segment {i}: {len(fa)} feature points on keyframe {i} but "
-                             f"{len(fb)} on keyframe {i + 1}; every point needs a partner.")
-        if not (np.all(np.isfinite(fa)) and np.all(np.isfinite(fb))):
-            raise ValueError(f"Segment {i}: a feature point has a NaN or infinite coordinate.")
+            raise ValueError(f"Features of {_segment_label(i)}: {len(fa)} points on keyframe {i + 1} "
+                             f"but {len(fb)} on keyframe {i + 2}; every point needs a partner.")
+        for side, arr in ((0, fa), (1, fb)):
+            bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+            if len(bad):
+                raise ValueError(f"The {_feature_label(feature_names, i, int(bad[0]), side)} has a "
+                                 "NaN or infinite coordinate: move it onto its keyframe.")
         clean.append((fa, fb))
     return keyframes, clean
 
 
+def _check_feature_reach(features, lo, hi, feature_names):
+    """Refuse feature points farther outside the keyframes' box than the box's size.
+
+    Such a point (an Empty left far away) would stretch the grid around
+    nothing and leave the keyframes a few cells wide.
+    """
+    size = float(np.max(hi - lo))
+    for i, pair in enumerate(features):
+        for side, pts in enumerate(pair):
+            if not len(pts):
+                continue
+            out = np.linalg.norm(np.maximum(np.maximum(lo - pts, pts - hi), 0.0), axis=1)
+            j = int(np.argmax(out))
+            if out[j] > size:
+                raise ValueError(
+                    f"The {_feature_label(feature_names, i, j, side)} is {out[j]:.3g} away from "
+                    f"the keyframes (which are {size:.3g} across): move it onto keyframe "
+                    f"{i + side + 1}, or delete the pair.")
+
+
+def _check_feature_spacing(features, h, feature_names):
+    """Refuse two feature points closer than one grid cell whose partners are farther apart.
+
+    The grid cannot tell the two points apart, yet the map would have to pull
+    them more than two cells apart (or the reverse): it tears space between
+    them, and the initial map sends points far off.
+    """
+    for i, (fa, fb) in enumerate(features):
+        if len(fa) < 2:
+            continue
+        da = np.linalg.norm(fa[:, None] - fa[None], axis=2)
+        db = np.linalg.norm(fb[:, None] - fb[None], axis=2)
+        for side, near, other in ((0, da, db), (1, db, da)):
+            close = np.argwhere(np.triu((near < h) & (other > 2 * h), k=1))
+            if not len(close):
+                continue
+            j, k = (int(x) for x in close[0])
+            first = _feature_label(feature_names, i, j, side)
+            second = _feature_label(feature_names, i, k, side)
+            raise ValueError(
+                f"The {first} and the {second} are {near[j, k]:.3g} apart on keyframe {i + side + 1}, "
+                f"less than one grid cell ({h:.3g}), but their partners are {other[j, k]:.3g} "
+                "apart: move them apart or delete one of the pairs (or raise the resolution).")
+
+
+def _no_volume_message(k, kf, v, tris, grid):
+    """Why a keyframe has no inside node on the grid, with the advice that fits."""
+    label = _keyframe_label(k, kf)
+    cells = float(np.max(np.ptp(v[np.unique(tris)], axis=0))) / grid.spacing
+    if cells < 3:
+        return (f"{label} is only {cells:.1f} grid cells across: the grid spans all keyframes and "
+                "feature points, which are far apart compared to this keyframe. Move them closer "
+                "together or raise the resolution.")
+    edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    _, count = np.unique(edges, axis=0, return_counts=True)
+    open_edges = int(np.sum(count == 1))
+    if open_edges:
+        return (f"{label} encloses no volume: its surface has {open_edges} open edges. Close the "
+                "mesh (e.g. Mesh > Clean Up > Fill Holes).")
+    return (f"{label} encloses no volume on a grid of cell size {grid.spacing:.3g}: it is thinner "
+            "than a cell. Raise the resolution or give it thickness (Solidify modifier).")
+
+
+def _check_result(chain, grid, keyframes):
+    """Last guard: every frame's vertices finite and on the grid (where the shapes live)."""
+    verts = np.asarray(chain.vertices)
+    ok = np.all(np.isfinite(verts), axis=-1) & grid.contains(verts, margin=-grid.spacing)
+    if ok.all():
+        return
+    f = int(np.argwhere(~ok)[0][0])
+    frame = int(chain.frames[f])
+    seg = int(np.searchsorted([kf.frame for kf in keyframes], frame, side="left")) - 1
+    seg = min(max(seg, 0), len(keyframes) - 2)
+    raise ValueError(f"On frame {frame} the shape left the working box: the feature pairs between "
+                     f"{_segment_label(seg)} ask for a tearing or folding motion. Check that "
+                     "each pair joins matching points, and delete pairs that cross each other.")
+
+
+def _notes(keyframes, loose, sdf_stats):
+    """What the user should know about a bake that succeeded (plain sentences)."""
+    notes = []
+    for k, (kf, n_loose, st) in enumerate(zip(keyframes, loose, sdf_stats)):
+        label = _keyframe_label(k, kf)
+        if n_loose:
+            notes.append(f"{label}: ignored {n_loose} loose vertices (not part of any face).")
+        if st.get("reoriented_faces"):
+            notes.append(f"{label}: {st['reoriented_faces']} triangles faced the wrong way and were "
+                         "read flipped; fix them with Mesh > Normals > Recalculate Outside.")
+        if st.get("non_orientable_faces"):
+            notes.append(f"{label}: {st['non_orientable_faces']} triangles cannot be given a consistent "
+                         "inside and outside (a twisted or non-manifold surface); the result there "
+                         "may be wrong: check that part of the mesh.")
+    return notes
+
+
 def animate(keyframes, features, *, resolution=48, weights=None, progress=None, cancel=None,
-            padding_cells=4, max_bytes=None, **options):
+            padding_cells=4, max_bytes=None, feature_names=None, **options):
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -121,6 +290,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     cancel : callable() -> bool, optional; when it returns True, `Cancelled` is raised.
     padding_cells : int, empty cells around the keyframes' bounding box.
     max_bytes : int, optional memory limit for the bake; default: 75% of physical memory.
+    feature_names : per segment, a sequence of (name_a, name_b) per feature row, optional;
+        used in messages (e.g. the Empties' names).
     **options : passed to `chain.animate_chain` (solver, trajectory and level-set options).
 
     Returns
@@ -136,12 +307,13 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         When ``cancel()`` returned True.
     """
     from .chain import animate_chain
+    from .quality import choose_output
     from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
     from .sdf import mesh_to_sdf
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
-    keyframes, features = _check_inputs(keyframes, features)
+    keyframes, features = _check_inputs(keyframes, features, feature_names)
     opts = dict(options)
     for key, value in (weights or {}).items():
         if key not in _WEIGHT_NAMES:
@@ -152,9 +324,14 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         max_bytes = int(0.75 * phys) if phys else None
 
     rep(0.0, "Choosing the grid")
+    surfaces = [_surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
+    pts = [s[3] for s in surfaces]  # the box holds the faces; loose vertices are ignored
+    lo = np.min([p.min(axis=0) for p in pts], axis=0)
+    hi = np.max([p.max(axis=0) for p in pts], axis=0)
+    _check_feature_reach(features, lo, hi, feature_names)
     extra = np.concatenate([np.concatenate(pair) for pair in features]) if features else None
-    pts = [np.asarray(kf.vertices, dtype=float).reshape(-1, 3) for kf in keyframes]
     grid = fit_grid(pts, resolution, padding_cells=padding_cells, extra_points=extra)
+    _check_feature_spacing(features, grid.spacing, feature_names)
     if max_bytes is not None:
         # refuse before any work; the largest keyframe's share of the box sets the solver's
         # and the trajectories' size (estimate_memory's model)
@@ -181,23 +358,45 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         sub = rep.sub(0.15 * k / n, 0.15 * (k + 1) / n)
         sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
         sdf_stats = {}
+        v, tris = surfaces[k][:2]
         try:
-            phi = mesh_to_sdf(kf.vertices, kf.faces, grid, progress=sub, cancel=cancel,
-                              stats=sdf_stats)
+            phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=sdf_stats)
         except ValueError as exc:
-            raise ValueError(f"Keyframe {k + 1} (frame {kf.frame}): {exc}") from exc
+            raise ValueError(f"{_keyframe_label(k, kf)}: {exc}") from exc
         if not np.any(phi < 0):
-            raise ValueError(f"Keyframe {k + 1} (frame {kf.frame}) encloses no volume on the "
-                             f"{grid.shape} grid: close the mesh or raise the resolution.")
+            raise ValueError(_no_volume_message(k, kf, v, tris, grid))
         phis.append(phi)
         stats["sdf"].append(sdf_stats)
     stats["sdf_seconds"] = time.perf_counter() - t0
 
     chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
-                          progress=rep.sub(0.15, 1.0), cancel=cancel, **opts)
+                          progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
+    _check_result(chain, grid, keyframes)
     stats.update(chain.stats)
+    stats["loose_vertices"] = [s[2] for s in surfaces]
+    stats["notes"] = _notes(keyframes, stats["loose_vertices"], stats["sdf"])
+    if "quality" in stats:
+        rep(0.98, "Measuring the keyframe frames")
+        _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing)
+        stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return Animation(frames=np.asarray(chain.frames, dtype=np.int64),
                      vertices=np.asarray(chain.vertices, dtype=np.float32),
-                     faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats)
+                     faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats,
+                     surfaces=chain.surfaces, velocities=chain.velocities,
+                     levelsets=chain.levelsets)
+
+
+def _measure_keyframes(quality, keyframes, chain, spacing):
+    """Add the two-way distance to the keyframe mesh the artist gave on every keyframe frame."""
+    from .quality import keyframe_distance
+    from .sdf import triangulate
+
+    for kf in keyframes:
+        i = int(kf.frame - chain.frames[0])
+        kv = np.asarray(kf.vertices, dtype=float).reshape(-1, 3)
+        kt = triangulate(kf.faces, len(kv))
+        quality["shape_keys"][i].update(keyframe_distance(chain.vertices[i], chain.faces, kv, kt,
+                                                          spacing))
+        quality["mesh_sequence"][i].update(keyframe_distance(*chain.surfaces[i], kv, kt, spacing))

@@ -12,7 +12,8 @@ The saddle-point system of eq. 2.5 is what ``scipy.interpolate.RBFInterpolator``
 The map is built per connected component of A's material (``phi_a < 0``,
 face connectivity), each with the feature points that lie in it (a point
 slightly outside goes to the nearest component). Where the RBF cannot be used
--- fewer than d+1 points, or all of them on one line (2D) / plane (3D) -- the
+-- fewer than d+1 points, all of them on one line (2D) / plane (3D), or an
+interpolant that would carry the material out of the grid (`_rbf_map`) -- the
 component gets a rigid alignment onto keyframe B instead (centroid and
 principal axes; sign/permutation of the axes chosen to best overlap B's
 material, pinned by whatever feature points exist), plus a smooth Gaussian
@@ -80,6 +81,38 @@ def _affinely_independent(points, d):
     c = points - points.mean(axis=0)
     s = np.linalg.svd(c, compute_uv=False)
     return s[-1] > 1e-6 * max(s[0], 1e-300)
+
+
+def _rbf_map(fa, fb, pts, grid: Grid, material):
+    """y(x) = x + RBF displacement (eq. 2.1-2.5) at ``pts``, or None where it cannot be trusted.
+
+    Guard on the map's conditioning and range: the interpolant is refused when
+    its saddle-point system is singular, when its result is not finite, or when
+    it sends any of the component's material nodes (``material``) out of the
+    grid (`_guarded`). Feature points that are nearly coplanar or
+    almost on top of each other with different targets make the cubic's
+    polynomial part explode far from them; the rigid start with a smooth
+    correction is used instead.
+    """
+    kernel = "thin_plate_spline" if grid.dim == 2 else "cubic"
+    return _guarded(lambda: pts + RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)(pts),
+                    grid, material)
+
+
+def _guarded(build, grid: Grid, material):
+    """``build()`` if it succeeds with a finite map keeping ``material`` near the grid, else None.
+
+    "Near": out of the grid box by at most a quarter of its size (the solver
+    pulls a start that overshoots a little back onto B).
+    """
+    try:
+        y = build()
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    slack = 0.25 * float(np.max(grid.upper - grid.origin))
+    if not np.all(np.isfinite(y)) or not np.all(grid.contains(y[material], margin=-slack)):
+        return None
+    return y
 
 
 def _principal_frame(points):
@@ -186,13 +219,13 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
     for k in range(1, n + 1):
         sel = comp_of == k
         fa, fb = xa[sel], ya[sel]
-        if _affinely_independent(fa, d):
-            kernel = "thin_plate_spline" if d == 2 else "cubic"
-            rbf = RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)
-            maps.append(pts + rbf(pts))
-            methods.append("rbf")
-            continue
         mask = labels == k
+        if _affinely_independent(fa, d):
+            y = _rbf_map(fa, fb, pts, grid, mask.reshape(-1))
+            if y is not None:
+                maps.append(y)
+                methods.append("rbf")
+                continue
         comp_pts = grid.to_world(np.argwhere(mask))
         if len(fb):
             tlab = _nearest_label(labels_b, grid, fb)
@@ -208,8 +241,12 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
             if np.max(np.abs(resid)) > 0:
                 _, _, s = _principal_frame(comp_pts)
                 sigma = max(float(np.sqrt(np.sum(s ** 2))), 2 * grid.spacing)
-                corr = RBFInterpolator(fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)
-                y = y + corr(pts)
+                rigid = y
+                y = _guarded(lambda: rigid + RBFInterpolator(
+                    fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)(pts),
+                    grid, mask.reshape(-1))
+                if y is None:  # an ill-conditioned correction: the solver's constraints do it
+                    y = rigid
         maps.append(y)
         methods.append("rigid")
 

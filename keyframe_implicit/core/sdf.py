@@ -22,6 +22,9 @@ Magnitude (`mesh_to_sdf`, steps 1-3)
        nearest sample is used too; with no band node at all, it alone.
 
 Sign (steps 4-5)
+    0. First every connected part's faces are made to agree (`orient_faces`): the
+       winding number of a closed sphere with every other face reversed is ~0
+       everywhere, so without this the inside silently disappears.
     4. The generalised winding number w (Jacobson et al. 2013) at the nodes within
        one cell of the surface, evaluated hierarchically (Barill et al. 2018, "fast
        winding numbers": an octree over the triangles, far clusters replaced by
@@ -58,7 +61,7 @@ from scipy.spatial import cKDTree
 from .grid import Grid
 from .progress import Reporter
 
-__all__ = ["mesh_to_sdf", "polygon_to_sdf", "triangulate", "winding_number"]
+__all__ = ["mesh_to_sdf", "orient_faces", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
 _SAMPLE_RADIUS = 0.7      # triangle points lie within this many cells of a sample
@@ -175,6 +178,85 @@ def _clean_triangles(v, tris, stats):
             f"all {len(tris)} triangles have zero area (collapsed or repeated vertices); "
             f"the mesh has no surface to measure distance to.")
     return tris[good]
+
+
+# ---------------------------------------------------------------------------
+# consistent face orientation
+# ---------------------------------------------------------------------------
+def orient_faces(vertices, tris):
+    """Make the triangles of every connected part face the same way, outward where repaired.
+
+    The winding number reads a closed part as inside only when its faces agree
+    (a sphere with every other face reversed has w ~ 0 everywhere). Two
+    triangles sharing a manifold edge (used by exactly two triangles) agree when
+    they run along it in opposite directions. Orientations are propagated
+    through a double cover of the face graph -- node (f, s) is face f flipped
+    (s = 1) or not, an agreeing edge joins (f, s)-(g, s), a disagreeing one
+    (f, s)-(g, 1 - s) -- whose connected components (`scipy.sparse.csgraph`)
+    give each part its two consistent orientations at once, without a walk over
+    the faces. A part whose (f, 0) and (f, 1) fall in one component is
+    non-orientable (Moebius strip, or made inconsistent by its non-manifold
+    edges) and is left as it is. A consistent part is left as it is (so an
+    inner shell facing its cavity stays a cavity); a part that needed repair is
+    turned outward, by the sign of its volume about its centroid.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float array
+    tris : (T, 3) int array
+
+    Returns
+    -------
+    tris : (T, 3) int array, reoriented.
+    disagreeing : int
+        Faces that disagreed with the rest of their part (the smaller side of
+        each repaired part).
+    non_orientable : int
+        Faces in parts that cannot be oriented consistently.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    tris = np.asarray(tris, dtype=np.int64)
+    nt = len(tris)
+    a = tris.reshape(-1)
+    b = tris[:, [1, 2, 0]].reshape(-1)
+    face = np.repeat(np.arange(nt), 3)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    order = np.lexsort((hi, lo))
+    lo, hi, face, forward = lo[order], hi[order], face[order], (a < b)[order]
+    same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1])
+    run_start = np.flatnonzero(np.concatenate([[True], ~same]))
+    run_len = np.diff(np.append(run_start, len(lo)))
+    pair = run_start[run_len == 2]  # manifold edges: first of their two half-edges
+    f, g = face[pair], face[pair + 1]
+    agree = forward[pair] != forward[pair + 1]
+    # double cover: node f (not flipped) and nt + f (flipped)
+    src = np.concatenate([f, f + nt])
+    dst = np.concatenate([np.where(agree, g, g + nt), np.where(agree, g + nt, g)])
+    graph = coo_matrix((np.ones(len(src), dtype=np.int8), (src, dst)), shape=(2 * nt, 2 * nt))
+    _, label = connected_components(graph, directed=False)
+    keep_label, flip_label = label[:nt], label[nt:]
+    bad = keep_label == flip_label
+    part = np.minimum(keep_label, flip_label)
+    flip = (keep_label > flip_label) & ~bad  # one of the two consistent choices per part
+    size = np.bincount(part, minlength=2 * nt)
+    n_flip = np.bincount(part, weights=flip, minlength=2 * nt)
+    fewer = n_flip > size / 2  # the choice that flips fewer faces
+    flip ^= fewer[part] & ~bad
+    n_flip = np.where(fewer, size - n_flip, n_flip)
+    repaired = (n_flip > 0)[part] & ~bad
+    if repaired.any():  # turn each repaired part outward: volume about its centroid
+        out = np.where(flip[:, None], tris[:, ::-1], tris)
+        p0, p1, p2 = vertices[out[:, 0]], vertices[out[:, 1]], vertices[out[:, 2]]
+        tri_centre = (p0 + p1 + p2) / 3.0
+        c = np.stack([np.bincount(part, weights=tri_centre[:, i], minlength=2 * nt)
+                      for i in range(3)], axis=1)[part] / size[part, None]
+        vol = np.einsum("ij,ij->i", p0 - c, np.cross(p1 - c, p2 - c))
+        inward = np.bincount(part, weights=vol, minlength=2 * nt) < 0
+        flip ^= inward[part] & repaired
+    out = np.where(flip[:, None], tris[:, ::-1], tris)
+    return out, int(n_flip[np.unique(part[repaired])].sum()), int(bad.sum())
 
 
 # ---------------------------------------------------------------------------
@@ -612,8 +694,9 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     progress, cancel : callables, optional
         See `keyframe_implicit.core.progress`.
     stats : dict, optional
-        Filled with counts (triangles, degenerate_triangles, samples, band_nodes,
-        winding_nodes, leaky_regions) and seconds per step.
+        Filled with counts (triangles, degenerate_triangles, reoriented_faces,
+        non_orientable_faces, samples, band_nodes, winding_nodes, leaky_regions) and
+        seconds per step.
     beta : float
         Opening criterion of the fast winding number (see `winding_number`).
 
@@ -642,6 +725,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     t_start = time.perf_counter()
     v = _check_vertices(vertices)
     tris = _clean_triangles(v, triangulate(faces, len(v)), st)
+    tris, st["reoriented_faces"], st["non_orientable_faces"] = orient_faces(v, tris)
     h = grid.spacing
     rep(0.02, "triangle samples")
 

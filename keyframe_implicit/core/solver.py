@@ -3,7 +3,8 @@
 `solve_map` minimises eq. 2.6 (terms in `keyframe_implicit.core.terms`, cells
 in `keyframe_implicit.core.elements`) subject to the feature constraints of
 eq. 2.8 / 2.14-2.20 (`keyframe_implicit.core.constraints`), starting from the
-RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.rbf`).
+RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.rbf`). The measurements
+behind every default below are in benchmarks/README.md ("Solver").
 
 Algorithm
 ---------
@@ -11,102 +12,49 @@ Algorithm
   least ``coarse_nodes`` (24) nodes per side (128 -> 65 -> 33, 64 -> 33,
   32 alone). Each level solves for a correction of the (fine) RBF map; the
   correction is prolonged multilinearly to the next level, and the
-  constraints are re-imposed exactly. Levels of 17 nodes cost more in fixed
-  overhead than they saved (32^3: 4.9 s with the 17-level vs 3.5 s without,
-  same final energy, measured on the loaded machine).
+  constraints are re-imposed exactly.
 * Gauss-Newton (eq. 2.11-2.13) on the reduced unknowns of the constraint
   null space (eq. 2.16 by elimination rather than a KKT system). Energy,
   gradient and the Gauss-Newton Hessian are assembled per element in closed
   form straight into a fixed 3**d-neighbour block stencil (no Jacobian is
   formed), then handed to scipy as a block-sparse (BSR) matrix.
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
-  preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2;
-  at 64^3 it needs 35 % fewer CG iterations than 1e-2 for the same final
-  energy and GN iteration count),
+  preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2),
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
   unpinned rigid modes stay bounded.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
-  energy (Armijo) that also rejects any step increasing the number of folded
-  material cells (det F <= 0 at any quadrature point).
+  energy (Armijo) that also refuses any step taking det F of the material
+  (any quadrature point) below ``min_det`` (0.2), or below its current
+  minimum where the start is lower. A level starts from the coarser
+  correction only as far as that keeps det F there (`_level_start`): the
+  transports of the in-betweens assume maps that do not fold.
 * Stop when an accepted step lowers the energy by less than ``tolerance``
   (relative, 1 %) or after ``max_iterations`` per level.
 
 Default weights
 ---------------
-``volume_weight=30, rigidity_weight=1, levelset_weight=10`` (the thesis
-uses no weights). The material is nearly incompressible: with equal weights
-the optimiser trades volume for rigidity -- sphere -> equal-volume ellipsoid
-at 28^3 had only 95.7 % of the cells with det F in [0.8, 1.25] (volume weight
-1), 100 % with 10 and 30; the 2D merge below had 95.5 % with 10 and 99.4 %
-with 30. ``levelset_weight`` 1 left 0.7 % of the sphere's material mapped
-outside the ellipsoid, 10 none.
+``volume_weight=30, rigidity_weight=1, levelset_weight=10`` (the thesis uses
+no weights): the material is nearly incompressible; with equal weights the
+optimiser trades volume for rigidity.
 
 Feature patches are stiffer than the material (``patch_rigidity``)
 -------------------------------------------------------------------
 Each feature point moves the solved nodes within ``feature_radius`` by one
 affine map y'_i + A_i (x - x'_i) (`keyframe_implicit.core.constraints`).
-A_i is a free d x d matrix, so a patch can shear and scale as a whole. With
-the material's own rigidity weight there, the patches gave way: a rod bent
-90 degrees at its middle (2D, n = 40, six features on the axis and off it,
-``bend_case`` in tests/core/inbetween_cases.py) must lose area at the inner
-corner of the joint, the nearly incompressible volume term (30 vs 1) extrudes
-that material along the arms, and the arm patches absorbed it (singular
-values of A_i 1.09 / 0.90 at x = 0.35, 1.04 / 0.95 at x = 0.55): the
-"rigid" half x in [0.2, 0.6] came out 2.2 % short. With volume weight 0 it
-was 0.06 % (the volume term drives it); more iterations gave 2.0 %,
-``feature_radius`` 0.04 1.9 %, band weight 0 1.7 %: no other knob fixes it.
-A feature marks material that must follow the user's point, so the patch
-cells' rigidity weight is multiplied by ``patch_rigidity``:
-
-    ==============  ==============  ==============  =====================================
-    patch_rigidity  bend 2D (n=40)  bend 3D (n=32)  2D merge: min det F / det F in
-                    worst half      worst half      [0.8, 1.25] / B uncovered
-    ==============  ==============  ==============  =====================================
-    1               2.22 %          1.12 %          0.696 / 100 %   / 0.0 %
-    5               1.25 %          1.22 %          0.616 / 99.4 %  / 0.0 %
-    10              0.99 %          1.26 %          0.618 / 99.4 %  / 0.9 %
-    30              0.89 %          1.29 %          0.475 / 99.4 %  / 1.5 %
-    100             0.79 %          1.30 %          0.473 / 98.3 %  / 1.8 %
-    ==============  ==============  ==============  =====================================
-
-(worst relative length change of the halves' parts |x| in [0.2, 0.6] at
-s = 1; the merge is the 2D case of the table below). Rigid patches (100) cost the merge its det F
-range; default ``patch_rigidity = 10``. In 3D the two joint features are too
-close for patches (hard constraints), and the remaining ~1.3 % of the left
-half is the volume term's extrusion from the joint, which patch stiffness
-does not reach.
+A_i is a free d x d matrix, so with the material's own rigidity a patch can
+shear and scale as a whole and absorb what the volume term pushes into it (a
+bent rod's "rigid" half came out 2.2 % short). A feature marks material that
+must follow the user's point, so the patch cells' rigidity weight is
+multiplied by ``patch_rigidity`` (10).
 
 Integration region (PAPER-NOTES section 2)
 ------------------------------------------
 Cells whose centre is inside A's material (phi_a < 0) have weight 1; cells
-within ``band_cells`` cells outside it have weight ``band_weight``; the feature
-points' cells are always solved. Nodes outside the region carry a smooth
-extension of the solved correction (never NaN). Measured on the 2D merge case
-(two discs of radius 0.16 at +-0.18 -> one disc of the same area, 48^2 grid,
-4 boundary features per disc), band_cells = 3 (see
-``benchmarks/bench_solver.py --region``):
-
-    ===========  ========  ============  ===========  ============  =========
-    band_weight  min detF  detF in       A mapped     B uncovered   rigidity
-                           [0.8, 1.25]   > h/2 out    (> h from     term
-                                         of B         mapped A)
-    ===========  ========  ============  ===========  ============  =========
-    0            -0.286    98.9 %        0.0 %        0.3 %         0.198
-    0.1          0.696     100 %         0.0 %        0.0 %         0.255
-    1            0.411     93.8 %        0.0 %        3.0 %         0.628
-    ===========  ========  ============  ===========  ============  =========
-
-Without a band (0) the nodes on the material boundary are held by nothing
-but their inner cells and the map folds there (min det F < 0 at the fine
-level; the line search only forbids folds that are not there yet)
-(earlier runs of the same case, before ``reuse_hessian``: 0.180 / 0.695 /
-0.556 min det F for band weight 0 / 0.1 / 1 -- the ranking is stable); a
-full-weight band (1) makes the empty gap between the discs resist the merge
-(rigidity doubles, det F range and coverage get worse). The table was
-measured with ``patch_rigidity`` 1; with 10 (``--region``): min det F
-0.020 / 0.618 / 0.377, det F in range 98.9 / 99.4 / 92.7 %, B uncovered
-2.4 / 0.9 / 3.3 % -- the same ranking. Default:
-``band_weight = 0.1``, ``band_cells = 3``.
+within ``margin_cells`` (3) cells outside it, the map's margin, have weight
+``margin_weight`` (0.1); the feature points' cells are always solved. Nodes
+outside the region carry a smooth extension of the solved correction (never
+NaN). Without a margin the material's boundary nodes are held by nothing and
+fold; at full weight the empty gap of a merge resists it.
 """
 
 from __future__ import annotations
@@ -123,6 +71,7 @@ from .constraints import FeatureConstraints
 from .grid import Grid
 from .progress import Reporter
 from .rbf import initial_map
+from .renamed import take_renamed
 from .sampling import sample, cell_weights
 from .terms import TERMS, ElementBatch, NodeBatch, heaviside
 
@@ -130,7 +79,7 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 
 #: Default options of `solve_map` (besides the term weights).
 DEFAULTS = dict(
-    band_weight=0.1,
+    margin_weight=0.1,
     feature_radius=None,
     patch_rigidity=10.0,
     coarse_nodes=24,
@@ -141,6 +90,7 @@ DEFAULTS = dict(
     extension_passes=8,
     initial=None,
     reuse_hessian=True,
+    min_det=0.2,
 )
 
 
@@ -227,7 +177,8 @@ def _check_inputs(phi_a, phi_b, grid, features_a, features_b):
 class _Level:
     """Region, elements, stencil and constraints of one grid level."""
 
-    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, band_cells, band_weight, radius, patch_rigidity=1.0):
+    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, margin_cells, margin_weight, radius,
+                 patch_rigidity=1.0):
         d = grid.dim
         self.grid, self.d = grid, d
         self.phi_b = phi_b
@@ -240,14 +191,15 @@ class _Level:
             centre += phi_a[tuple(slice(int(o), int(o) + n) for o, n in zip(c, cshape))]
         centre /= len(cs)
         mat = centre < 0
-        band = (~mat) & (centre < band_cells * h) if (band_weight > 0 and band_cells > 0) else np.zeros_like(mat)
-        weight = np.where(mat, 1.0, np.where(band, band_weight, 0.0))
+        margin = ((~mat) & (centre < margin_cells * h) if (margin_weight > 0 and margin_cells > 0)
+                  else np.zeros_like(mat))
+        weight = np.where(mat, 1.0, np.where(margin, margin_weight, 0.0))
         forced = np.zeros(cshape, dtype=bool)
         if len(xa):
             flat, _ = cell_weights(grid, xa)
             base = np.stack(np.unravel_index(flat[:, 0], grid.shape), axis=-1)
             forced[tuple(base.T)] = True
-        act_cell = mat | band | forced
+        act_cell = mat | margin | forced
         cells = np.argwhere(act_cell)  # (E, d)
         self.cell_weight = weight[act_cell]
         self.cell_material = mat[act_cell]
@@ -423,7 +375,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
     timing["assembly"] += time.perf_counter() - t0
     dets = level.det_stats(y, chunk)
-    folded = int(np.sum(dets[0] <= 0))
+    floor = _det_floor(dets, opts["min_det"])
     history = [dict(energy=E, **terms)]
     it = 0
     cg_total = 0
@@ -460,8 +412,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False)
             if E_new <= E + 1e-4 * alpha * slope:
                 dets_new = level.det_stats(y_new, chunk)
-                folded_new = int(np.sum(dets_new[0] <= 0))
-                if folded_new <= folded:
+                if _det_floor(dets_new, opts["min_det"]) >= floor:
                     accepted = True
                     break
             alpha *= 0.5
@@ -469,7 +420,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         if not accepted:
             break
         rel = (E - E_new) / max(E, 1e-300)
-        y, folded, dets, terms = y_new, folded_new, dets_new, terms_new
+        y, dets, terms = y_new, dets_new, terms_new
+        floor = _det_floor(dets, opts["min_det"])
         history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **terms_new))
         E = E_new
         if rel < tolerance or it == max_iterations:
@@ -485,6 +437,42 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms
+
+
+def _level_start(level, base, corr_prev, options):
+    """Start of one level: its base map plus as much of the coarser level's correction as
+    keeps the material's det F at ``min_det`` (or at the base's own minimum, if lower).
+
+    The correction comes from coarser cells and is extended past their region, so at
+    the finer level's material boundary it can fold cells the coarse level never saw;
+    it is halved until it does not. Returns the start on every node and on the active ones.
+    """
+    d, chunk = level.d, int(options["chunk_elements"])
+
+    def start(scale):
+        full = base if scale == 0 else base + scale * _prolong(corr_prev, level.grid.shape)
+        return full, level.cons.enforce(full.reshape(-1, d)[level.active])
+
+    full, y = start(0.0)
+    if corr_prev is None:
+        return full.copy(), y
+    floor = _det_floor(level.det_stats(y, chunk), options["min_det"])
+    for scale in (1.0, 0.5, 0.25, 0.125):
+        full_s, y_s = start(scale)
+        if _det_floor(level.det_stats(y_s, chunk), options["min_det"]) >= floor:
+            return full_s, y_s
+    return full.copy(), y
+
+
+def _det_floor(dets, min_det):
+    """What a step may not lower: the material's smallest det F, counted up to ``min_det``.
+
+    A step is refused if it takes any quadrature point of the material below
+    ``min_det`` (or below the current minimum, where the start is already
+    lower), so the map never folds and never comes close to folding.
+    """
+    low = dets[0]
+    return float(min(low.min(), min_det)) if low.size else float(min_det)
 
 
 def _extend(full, known, passes):
@@ -550,7 +538,7 @@ DEFAULT_WEIGHTS = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
 
 def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
               volume_weight=DEFAULT_WEIGHTS["volume"], rigidity_weight=DEFAULT_WEIGHTS["rigidity"],
-              levelset_weight=DEFAULT_WEIGHTS["levelset"], max_iterations=20, tolerance=1e-2, band_cells=3, progress=None,
+              levelset_weight=DEFAULT_WEIGHTS["levelset"], max_iterations=20, tolerance=1e-2, margin_cells=3, progress=None,
               cancel=None, **opts) -> MapResult:
     """Map keyframe A's grid nodes onto keyframe B (thesis chapter 2).
 
@@ -570,12 +558,13 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     tolerance : float
         Stop a level when an iteration lowers the energy by less than this
         fraction.
-    band_cells : float
-        Width (cells) of the band outside A's material solved with weight
-        ``band_weight``.
+    margin_cells : float
+        Width (cells) of the map's margin: the cells outside A's material
+        solved with weight ``margin_weight``.
     progress, cancel : callables, see `keyframe_implicit.core.progress`.
     **opts
-        ``band_weight`` (0.1), ``feature_radius`` (world units; default 4 % of
+        ``margin_weight`` (0.1), ``min_det`` (0.2, see the module docstring),
+        ``feature_radius`` (world units; default 4 % of
         the largest grid extent, never less than one cell diagonal; 0 gives
         plain hard constraints on each feature's cell) -- see
         `keyframe_implicit.core.constraints`; ``patch_rigidity`` (10, factor
@@ -604,6 +593,8 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         When ``cancel()`` returned True.
     """
     t_start = time.perf_counter()
+    take_renamed(opts, {"band_weight": "margin_weight", "band_cells": "margin_cells"}, "solve_map")
+    margin_cells = opts.pop("margin_cells", margin_cells)
     phi_a, phi_b, xa, yb = _check_inputs(phi_a, phi_b, grid, features_a, features_b)
     weight_opts = {"volume_weight": volume_weight, "rigidity_weight": rigidity_weight,
                    "levelset_weight": levelset_weight}
@@ -628,7 +619,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     if int(max_iterations) < 0:
         raise ValueError("max_iterations must be >= 0.")
     d = grid.dim
-    band_weight = float(options["band_weight"])
+    margin_weight = float(options["margin_weight"])
     patch_rigidity = float(options["patch_rigidity"])
     if not np.isfinite(patch_rigidity) or patch_rigidity < 0:
         raise ValueError(f"patch_rigidity must be a finite number >= 0 (a factor on rigidity_weight inside "
@@ -657,7 +648,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (d * i) for i in range(nlev)])
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
-    corr_prev, grid_prev = None, None
+    corr_prev = None
     level_stats = []
     for li, g in enumerate(grids):
         lrep = rep.sub(edges[li], edges[li + 1])
@@ -671,16 +662,12 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
             pa = sample(phi_a, grid, pts, outside="distance")
             pb = sample(phi_b, grid, pts, outside="distance")
             base = pts + sample(disp0, grid, pts)
-        if corr_prev is not None:
-            y_start_full = base + _prolong(corr_prev, g.shape)
-        else:
-            y_start_full = base.copy()
         if not np.any(pa < 0):
             continue  # material too thin for this coarse level
         # a patch must hold its feature's cell; feature_radius=0 asks for plain hard constraints
         rad = max(float(radius), 1.01 * np.sqrt(d) * g.spacing) if radius > 0 else 0.0
-        level = _Level(pa, pb, g, xa, yb, band_cells, band_weight, rad, patch_rigidity)
-        y = level.cons.enforce(y_start_full.reshape(-1, d)[level.active])
+        level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, patch_rigidity)
+        y_start_full, y = _level_start(level, base, corr_prev, options)
         timing["setup"] += time.perf_counter() - t0
         y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),
                                                    float(tolerance), lrep, timing)
@@ -694,7 +681,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         timing["extension"] += time.perf_counter() - t0
         level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
                                 iterations=iters, cg_iterations=cg_total, history=history))
-        corr_prev, grid_prev = corr, g
+        corr_prev = corr
         if fine:
             break
     mapped = y0 + corr_prev

@@ -17,7 +17,7 @@ import numpy as np
 
 from .grid import Grid
 
-__all__ = ["extract_surface", "mesh_volume", "mesh_area", "loop_area"]
+__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area"]
 
 
 def mesh_volume(vertices, faces):
@@ -45,6 +45,14 @@ def loop_area(loop):
     p = np.asarray(loop, dtype=float)
     x, y = p[:, 0], p[:, 1]
     return float(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def enclosed_volume(levelset, grid: Grid, level: float = 0.0):
+    """Volume (3D) or area (2D) inside the surface `extract_surface` gives, world units."""
+    surf = extract_surface(levelset, grid, level)
+    if grid.dim == 3:
+        return mesh_volume(*surf)
+    return float(sum(loop_area(loop) for loop in surf))
 
 
 def extract_surface(levelset, grid: Grid, level: float = 0.0):

@@ -137,13 +137,13 @@ def _template_samples(vertices, faces):
                            (a + b + c) / 3.0])
 
 
-def uncovered_area(levelset, grid, vertices, faces, tol=None):
+def uncovered_area(levelset, grid, vertices, faces, tol=None, surface=None):
     """Area (3D) or length (2D) of a frame's own zero set that the template does not reach.
 
     The frame's surface is extracted (marching cubes / contours); a piece of it
     counts as uncovered when its centre is farther than ``tol`` (default one
     cell) from every sample of the template (vertices, edge midpoints,
-    centroids).
+    centroids). ``surface``: the frame's surface when already extracted.
 
     Returns
     -------
@@ -152,7 +152,7 @@ def uncovered_area(levelset, grid, vertices, faces, tol=None):
     from scipy.spatial import cKDTree
 
     tol = grid.spacing if tol is None else float(tol)
-    surf = extract_surface(levelset, grid)
+    surf = extract_surface(levelset, grid) if surface is None else surface
     if grid.dim == 3:
         V, F = surf
         if len(F) == 0:

@@ -41,12 +41,13 @@ Rigid maps are reproduced exactly (F_c = R, S = I: Y(s) is the rotation by s of
 the whole body about its centroid); articulated maps keep each part rigid and
 the parts joined, because every edge is shared by neighbouring cells.
 
-The region is the material of keyframe A (Phi < 0) dilated by ``band`` cells.
-Cells touching the material have weight 1, pure band cells ``band_weight``,
-so that empty space keeps the trajectories regular without resisting merges.
-Outside the band every node follows the body formula below (the thesis's eq.
-3.1 with the rotation of its whole component) and the two are blended
-smoothly over the outer half of the band, so every node has a continuous path.
+The region is the keyframe's material (Phi < 0) plus a margin of
+``margin_cells`` cells around it. Cells touching the material have weight 1,
+pure margin cells ``margin_weight``, so that empty space keeps the
+trajectories regular without resisting merges. Outside the region every node
+follows the body formula below (the thesis's eq. 3.1 with the rotation of its
+whole component) and the two are blended smoothly over the outer half of the
+margin, so every node has a continuous path.
 
 ``method="local"`` — the thesis's per-node formula (eq. 3.1 as read in
 PAPER-NOTES section 5):
@@ -165,21 +166,22 @@ class Trajectories:
     method : {"global", "local"}
         Poisson-based ARAP interpolation (default) or the thesis's per-node
         formula; see the module docstring.
-    band : float
-        Width in cells of the band around the material solved with the
+    margin_cells : float
+        Width in cells of the margin around the material solved with the
         material (global method). Must be >= 1.
-    band_weight : float
-        Weight of cells that do not touch the material, in (0, 1].
+    margin_weight : float
+        Weight of margin cells (cells that do not touch the material), in (0, 1].
 
     Attributes
     ----------
     stats : dict
         ``active_nodes``, ``active_cells``, ``components``, ``factor_seconds``,
-        ``factor_nnz`` (global method).
+        ``factor_nnz`` (global method: entries SuperLU stores for the factor, its
+        supernodes' padding included).
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
-                 band=4.0, band_weight=0.1):
+                 margin_cells=4.0, margin_weight=0.1):
         import time
 
         if not isinstance(grid, Grid):
@@ -199,10 +201,10 @@ class Trajectories:
                              "check the sign convention (negative inside) and the grid.")
         if method not in ("global", "local"):
             raise ValueError(f'method must be "global" or "local", got {method!r}.')
-        if not band >= 1:
-            raise ValueError(f"band must be at least 1 cell, got {band}.")
-        if not 0 < band_weight <= 1:
-            raise ValueError(f"band_weight must lie in (0, 1], got {band_weight}.")
+        if not margin_cells >= 1:
+            raise ValueError(f"margin_cells must be at least 1 cell, got {margin_cells}.")
+        if not 0 < margin_weight <= 1:
+            raise ValueError(f"margin_weight must lie in (0, 1], got {margin_weight}.")
         if components is None:
             components, _ = ndimage.label(mat)
         components = np.asarray(components)
@@ -212,8 +214,8 @@ class Trajectories:
 
         self.grid = grid
         self.method = method
-        self.band = float(band)
-        self.band_weight = float(band_weight)
+        self.margin_cells = float(margin_cells)
+        self.margin_weight = float(margin_weight)
         self.dim = d
         self._x = grid.points().reshape(-1, d)
         self._y = y.reshape(-1, d)
@@ -247,6 +249,15 @@ class Trajectories:
             self.stats["factor_seconds"] = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
+    @property
+    def mapped(self):
+        """The map y(x), array of grid.shape + (d,)."""
+        return self._y.reshape(self.grid.shape + (self.dim,))
+
+    def region_nodes(self):
+        """Flat bool mask of the region's nodes: the material and its margin."""
+        return self._dist <= self.margin_cells
+
     def _body_arrays(self, nodes):
         """x_bar, y_bar, R, rotation vector of the body of each node (arrays over nodes)."""
         lab = self._body_label[nodes]
@@ -301,7 +312,7 @@ class Trajectories:
         strides = np.array([int(np.prod(shape[a + 1:])) for a in range(d)])
         corner_off = corners @ strides
 
-        active_node = self._dist <= self.band
+        active_node = self.region_nodes()
         an = active_node.reshape(grid.shape)
         # active cells: all corners active
         cell_ok = np.ones(tuple(shape - 1), dtype=bool)
@@ -313,7 +324,7 @@ class Trajectories:
         cell_idx = np.flatnonzero(cell_ok)
         base = np.ravel_multi_index(np.unravel_index(cell_idx, tuple(shape - 1)), grid.shape)
         cnodes = base[:, None] + corner_off[None, :]  # (nc, 2^d) flat node indices
-        w_cell = np.where(touch.reshape(-1)[cell_idx], 1.0, self.band_weight)
+        w_cell = np.where(touch.reshape(-1)[cell_idx], 1.0, self.margin_weight)
         nc = cell_idx.size
         if nc == 0:
             raise ValueError("no active cell: the material is thinner than one cell; "
@@ -357,13 +368,10 @@ class Trajectories:
         self._free = free
         Lr = L[free][:, free].tocsc()
         # L is symmetric positive definite: symmetric mode (no pivoting) with a minimum
-        # degree ordering of L + L^T. Measured (rigid L-shape, shared machine): 64^3,
-        # 10.8k nodes: factor 0.23 s, 2.4M nnz, 3-column solve 0.013 s; 128^3, 54k nodes:
-        # factor 5.5 s, 27M nnz, solve 0.51 s. COLAMD: 4.4M / 58M nnz, 23 s factor at
-        # 128^3; Jacobi-preconditioned CG at 128^3: 450 iterations, 0.56 s per column.
+        # degree ordering of L + L^T (the orderings measured: benchmarks/README.md)
         self._lu = splu(Lr, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                         options=dict(SymmetricMode=True))
-        self.stats["factor_nnz"] = int(self._lu.L.nnz + self._lu.U.nnz)
+        self.stats["factor_nnz"] = int(self._lu.nnz)
 
         # per-cell F (mean of parallel edge differences) and its polar decomposition
         yc = self._y[cnodes]  # (nc, 2^d, d)
@@ -406,9 +414,9 @@ class Trajectories:
         self._resid = ya - Y1
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
 
-        # blend of the Poisson paths with the body formula over the outer half of the band
+        # blend of the Poisson paths with the body formula over the outer half of the margin
         dl = self._dist[nodes]
-        self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.band) / (0.5 * self.band))
+        self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
         self._init_body()
 
     def _poisson(self, s):

@@ -108,6 +108,14 @@ def test_asset_matches_its_script(name):
 
 @pytest.mark.parametrize("name", SCENES)
 def test_asset_bakes_at_low_resolution(name):
+    """The Auto output of every example: one frame per timeline frame, a report naming
+    the output and its worst frame, and on every keyframe's frame the surface
+    Blender evaluates lies on the modelled keyframe. At 16 cells a thin part (Suzanne's
+    ears, the block's edges) is not held to the 0.1 h / 1 h keyframe limits the issue
+    sets at 48-64 (tests/core/test_quality.py asserts those at 20 on merge and splash),
+    so here the two-way distance is held to 0.35 h mean and 2.5 h max."""
+    from keyframe_implicit.core.quality import keyframe_distance
+
     scene = _open(name)
     keys = scene.keyframe_implicit.keyframes
     objs = [k.object for k in keys]
@@ -116,27 +124,33 @@ def test_asset_bakes_at_low_resolution(name):
     assert "FINISHED" in result
     out = scene.keyframe_implicit.output_object
     assert out is not None and out not in objs
-    blocks = out.data.shape_keys.key_blocks
-    assert len(blocks) == 1 + frames[-1] - frames[0] + 1  # Basis + one per frame
-    # on every keyframe's frame the baked shape fills that keyframe's box (within ~2 cells)
-    extent = np.ptp(np.vstack([_world_vertices(o) for o in objs]), axis=0).max()
-    h = extent / BAKE_RESOLUTION
+    assert out["kfi_output_kind"] in ("shape_keys", "mesh_sequence")
+    assert out["kfi_report"].startswith("Stored as") and "Worst frame" in out["kfi_report"]
+    if out["kfi_output_kind"] == "shape_keys":
+        blocks = out.data.shape_keys.key_blocks
+        assert len(blocks) == 1 + frames[-1] - frames[0] + 1  # Basis + one per frame
+    h = float(out["kfi_spacing"])
     dg = bpy.context.evaluated_depsgraph_get()
     for obj, f in zip(objs, frames):
         scene.frame_set(f)
         ev = out.evaluated_get(dg)
         m = ev.to_mesh()
         try:
+            m.calc_loop_triangles()
             co = np.empty(len(m.vertices) * 3)
             m.vertices.foreach_get("co", co)
+            tri = np.empty(len(m.loop_triangles) * 3, np.int64)
+            m.loop_triangles.foreach_get("vertices", tri)
         finally:
             ev.to_mesh_clear()
         mw = np.array(out.matrix_world)
         co = co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]
-        ref = _world_vertices(obj)
-        assert np.allclose(co.min(0), ref.min(0), atol=2.5 * h), (f, co.min(0), ref.min(0))
-        assert np.allclose(co.max(0), ref.max(0), atol=2.5 * h), (f, co.max(0), ref.max(0))
-
+        ref = obj.data
+        ref.calc_loop_triangles()
+        rtri = np.empty(len(ref.loop_triangles) * 3, np.int64)
+        ref.loop_triangles.foreach_get("vertices", rtri)
+        d = keyframe_distance(co, tri.reshape(-1, 3), _world_vertices(obj), rtri.reshape(-1, 3), h)
+        assert d["keyframe_mean"] <= 0.35 and d["keyframe_max"] <= 2.5, (f, d)
 
 
 @pytest.mark.parametrize("name", SCENES)

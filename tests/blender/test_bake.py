@@ -204,10 +204,10 @@ def _modal_operator(job, scene):
     reports = []
     me = types.SimpleNamespace(_job=job, _timer=None)
     me.report = lambda kind, msg: reports.append((next(iter(kind)), msg))
-    for name in ("_status", "_finish", "_hints"):
+    for name in ("_status", "_finish", "_hints", "_done"):
         setattr(me, name, getattr(ops.KFI_OT_bake, name).__get__(me))
     ctx = types.SimpleNamespace(window_manager=_Recorder(), workspace=_Recorder(), area=None,
-                                scene=scene)
+                                scene=scene, view_layer=bpy.context.view_layer)
     ops._running.append(job)
     return me, ctx, reports
 
@@ -318,6 +318,6 @@ def test_keyframe_emptied_by_modifiers_fails_cleanly(scene, kfi):
     mask = a.modifiers.new("Mask", "MASK")
     mask.vertex_group = "nothing"  # evaluated mesh has no faces
     state = kfi.snapshot()
-    with pytest.raises(RuntimeError, match="no faces after modifiers"):
+    with pytest.raises(RuntimeError, match="no faces after its modifiers"):
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
     assert kfi.snapshot() == state

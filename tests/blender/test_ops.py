@@ -19,7 +19,8 @@ def test_operators_are_registered_undoable_and_searchable(scene):
     operators = [c for c in ops.classes if issubclass(c, bpy.types.Operator)]
     assert sorted(c.bl_idname.split(".")[1] for c in operators) == sorted(OPS)
     for cls in operators:
-        assert cls.bl_options == {"REGISTER", "UNDO"}
+        # every operator is one undo step; the bake has no redo panel (see test_redo_panels)
+        assert cls.bl_options == ({"UNDO"} if cls is ops.KFI_OT_bake else {"REGISTER", "UNDO"})
         assert cls.bl_idname.startswith("keyframe_implicit.")
         assert cls.__doc__  # the F3 search / tooltip text
 
@@ -146,7 +147,7 @@ def test_remove_keyframe_drops_its_pairs_and_renumbers(scene, kfi):
     assert all(p.a.parent.name == "C" and p.b.parent.name == "D" for p in found.values())
     assert found["1.2"].a.name == "KFI 1.2 A"
     msgs = [p.message for p in validate.problems(scene)]
-    assert any("Segment 0" in m and "0 feature pair" in m for m in msgs)
+    assert any("Keyframes 1 \u2192 2 have no feature pairs:" in m for m in msgs)
 
 
 def test_validation_messages_say_what_to_do(scene, kfi):
@@ -155,10 +156,11 @@ def test_validation_messages_say_what_to_do(scene, kfi):
     a, b = kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (3, 0, 0), 1, 5)], pairs=False)
     found = msgs()
     assert not validate.errors(validate.problems(scene))
-    assert any(lvl == "WARNING" and "0 feature pair" in m and "Add Feature Pair" in m
+    assert any(lvl == "WARNING" and "have no feature pairs:" in m and "Add Feature Pair" in m
                for lvl, m in found)
-    # unpaired Empty
     bpy.ops.keyframe_implicit.add_feature_pair(segment=0)
+    assert any("have 1 feature pair:" in m for _, m in msgs())  # counted in words, no "(s)"
+    # unpaired Empty
     bpy.data.objects.remove(bpy.data.objects["KFI 0.0 B"])
     assert any(lvl == "ERROR" and "KFI 0.0 A" in m and "no partner" in m and "Pair Selected" in m
                for lvl, m in msgs())

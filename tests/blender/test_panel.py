@@ -47,8 +47,9 @@ class Layout:
     def box(self):
         return self._child("box")
 
-    def split(self, **kw):
-        return self._child("split")
+    def split(self, *, factor=0.0, **kw):
+        self.log.append(("split", factor))
+        return Layout(self.log)
 
     def separator(self, **kw):
         self.log.append(("separator",))
@@ -57,9 +58,15 @@ class Layout:
         assert icon in bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items, icon
         self.log.append(("label", text))
 
-    def prop(self, data, prop, **kw):
+    def prop(self, data, prop, *, text=None, icon="NONE", **kw):
         assert prop in data.bl_rna.properties, f"{data} has no property {prop!r}"
+        assert icon in bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items, icon
         self.log.append(("prop", prop))
+        # what Blender draws: the given text, or the property's name; an ID field shows the name
+        value = getattr(data, prop)
+        shown = value.name if isinstance(value, bpy.types.ID) else str(value)
+        self.log.append(("drawn", text if text is not None else data.bl_rna.properties[prop].name,
+                         shown))
 
     def operator(self, idname, *, icon="NONE", **kw):
         assert icon in bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items, icon
@@ -73,8 +80,10 @@ class Layout:
         assert propname in dataptr.bl_rna.properties
         assert active_propname in active_dataptr.bl_rna.properties
         items = getattr(dataptr, propname)
+        ui_list = type("ListSelf", (cls,), {"layout_type": "DEFAULT"})  # a drawn list's self
         for i, item in enumerate(items):  # draw each row like the UI would
-            cls.draw_item(cls, bpy.context, Layout(self.log), dataptr, item, 0, active_dataptr,
+            self.log.append(("list_row", i))
+            cls.draw_item(ui_list, bpy.context, Layout(self.log), dataptr, item, 0, active_dataptr,
                           active_propname, i)
         self.log.append(("template_list", listtype, len(items)))
 
@@ -109,7 +118,7 @@ def test_panels_draw_half_set_up_scene(scene, kfi):
     log = draw_all(bpy.context)
     text = labels(log)
     assert ("template_list", "KFI_UL_keyframes", 2) in log
-    assert "0: A -> B" in text
+    assert "A \u2192 B" in text
     assert "no partner" in text  # the unpaired Empty is shown before baking
     assert log.count(("operator", "keyframe_implicit.select_pair")) == 2
 
@@ -119,7 +128,8 @@ def test_panels_draw_baked_scene(scene, kfi):
     assert bpy.ops.keyframe_implicit.bake(resolution=kfi.RES) == {"FINISHED"}
     log = draw_all(bpy.context)
     text = labels(log)
-    assert "Output: KFI Animation (frames 1-4)" in text
+    # the frame span on a line of its own, so wrapping cannot strand "1-4)" on one
+    assert "Output: KFI Animation Frames 1-4" in text
     assert log.count(("operator", "keyframe_implicit.select_pair")) == 4
     assert "no partner" not in text
 

@@ -289,16 +289,23 @@ def test_bad_input_says_what_to_fix(mutate, words):
 
 def test_bad_options_are_rejected():
     g, pa, pb, fa, fb = _ok_case()
-    with pytest.raises(ValueError, match="unknown option 'band_wieght'"):
-        solve_map(pa, pb, g, fa, fb, band_wieght=0.1)
+    with pytest.raises(ValueError, match="unknown option 'margin_wieght'"):
+        solve_map(pa, pb, g, fa, fb, margin_wieght=0.1)
+    # the old name of the margin's weight still works, and says its new name
+    with pytest.warns(DeprecationWarning, match="'margin_weight'"):
+        old = solve_map(pa, pb, g, fa, fb, band_weight=0.0, max_iterations=1)
+    new = solve_map(pa, pb, g, fa, fb, margin_weight=0.0, max_iterations=1)
+    np.testing.assert_array_equal(old.mapped, new.mapped)
+    with pytest.raises(ValueError, match="pass 'margin_weight' only"):
+        solve_map(pa, pb, g, fa, fb, band_weight=0.0, margin_weight=0.1)
     with pytest.raises(ValueError, match="levelset_weight must be"):
         solve_map(pa, pb, g, fa, fb, levelset_weight=-1)
     with pytest.raises(ValueError, match="patch_rigidity must be"):
         solve_map(pa, pb, g, fa, fb, patch_rigidity=-1.0)
 
 
-@pytest.mark.parametrize("band_weight", [0.1, 0.0])
-def test_close_features_use_hard_constraints_and_featureless_components_follow(band_weight):
+@pytest.mark.parametrize("margin_weight", [0.1, 0.0])
+def test_close_features_use_hard_constraints_and_featureless_components_follow(margin_weight):
     """Two features closer than a cell diagonal cannot both have a patch: the plain hard
     constraint (eq. 2.19) takes over and still lands them; a feature slightly outside the
     material is honoured; a component without features is aligned rigidly onto B."""
@@ -309,7 +316,7 @@ def test_close_features_use_hard_constraints_and_featureless_components_follow(b
     phi_b = np.minimum(np.linalg.norm(P - [.33, .52], axis=-1) - .12, np.linalg.norm(P - [.7, .45], axis=-1) - .1)
     fa = np.array([[.3, .5], [.3 + .4 * h, .5 + .3 * h], [.3, .38], [.17, .5], [.3, .62]])
     fb = fa + [.03, .02]
-    res = solve_map(phi_a, phi_b, g, fa, fb, band_weight=band_weight)
+    res = solve_map(phi_a, phi_b, g, fa, fb, margin_weight=margin_weight)
     assert res.stats["hard_features"] == 2 and res.stats["patch_features"] == 3
     assert np.abs(sample(res.mapped, g, fa) - fb).max() < 1e-6 * h
     assert res.stats["initial_methods"] == ["rbf", "rigid"]

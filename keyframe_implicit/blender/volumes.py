@@ -1,0 +1,77 @@
+"""Optional output: the in-between level sets as an OpenVDB sequence and a Volume object.
+
+For Houdini and volume workflows. One .vdb file per frame ("<name>_<frame>.vdb",
+frame zero padded as Blender's sequence detection expects), each holding one
+float level-set grid named ``level_set`` (negative inside, world transform of
+the bake grid, inactive background = the far-field value). The Volume object
+reads the files as a sequence starting on the first baked frame.
+
+OpenVDB's Python module ships with Blender; the PyPI bpy wheel (4.4 and later)
+exposes it after ``bpy.utils.expose_bundled_modules()``. Where it does not
+exist (e.g. bpy 4.2) `openvdb_module` says so and nothing is written.
+"""
+
+import os
+
+import bpy
+import numpy as np
+
+GRID_NAME = "level_set"
+
+
+def openvdb_module():
+    """(module, "") or (None, reason) for the OpenVDB Python module Blender ships."""
+    expose = getattr(bpy.utils, "expose_bundled_modules", None)
+    if expose is not None:
+        expose()
+    try:
+        import openvdb
+    except ImportError:
+        return None, (f"Blender {bpy.app.version_string} ships no OpenVDB Python module "
+                      "(it comes with Blender 4.4 and later): the volume export is skipped.")
+    return openvdb, ""
+
+
+def frame_path(directory, name, frame):
+    return os.path.join(directory, f"{name}_{int(frame):04d}.vdb")
+
+
+def write_levelset(vdb, path, levelset, grid, background):
+    """One level set (grid.shape float array) as a float grid in a .vdb file."""
+    out = vdb.FloatGrid(float(background))
+    out.copyFromArray(np.ascontiguousarray(levelset, dtype=np.float32), ijk=(0, 0, 0),
+                      tolerance=0.0)
+    h = float(grid.spacing)
+    o = [float(x) for x in grid.origin]
+    out.transform = vdb.createLinearTransform(
+        [[h, 0, 0, 0], [0, h, 0, 0], [0, 0, h, 0], [o[0], o[1], o[2], 1]])
+    out.gridClass = vdb.GridClass.LEVEL_SET
+    out.name = GRID_NAME
+    vdb.write(path, grids=[out])
+
+
+def write_sequence(directory, name, frames, levelsets, grid):
+    """Write every frame's level set; returns the paths (raises RuntimeError without openvdb)."""
+    vdb, reason = openvdb_module()
+    if vdb is None:
+        raise RuntimeError(reason)
+    os.makedirs(directory, exist_ok=True)
+    background = max(float(np.max(ls)) for ls in levelsets)
+    paths = []
+    for f, ls in zip(frames, levelsets):
+        paths.append(frame_path(directory, name, f))
+        write_levelset(vdb, paths[-1], ls, grid, background)
+    return paths
+
+
+def add_volume_object(collection, name, paths, first_frame):
+    """A Volume object that plays the .vdb sequence from ``first_frame``."""
+    vol = bpy.data.volumes.new(name)
+    vol.filepath = paths[0]
+    vol.is_sequence = len(paths) > 1
+    vol.frame_start = int(first_frame)
+    vol.frame_duration = len(paths)
+    vol.frame_offset = int(first_frame) - 1  # file number = scene frame
+    obj = bpy.data.objects.new(name, vol)
+    collection.objects.link(obj)
+    return obj

@@ -1,0 +1,214 @@
+"""How clean a baked frame is: the output mesh against the frame's own surface.
+
+The true surface of a frame is the zero set of its in-between level set
+(eq. 3.4), extracted on the same grid (`surface.extract_surface`). A baked
+mesh -- the tracked template (shape keys) or the frame's own surface (mesh
+sequence) -- is measured against it by three figures per frame:
+
+``area_ratio``
+    output area / true area. Buried doubled sheets and folds raise it above
+    1, stretched triangles that cut corners lower it.
+``inverted_fraction``
+    share of the output's area on faces whose normal opposes grad phi (sampled
+    at the face centroid): sheets turned inside out.
+``coverage``
+    share of the true surface's area within 0.5 h of the output (distance from
+    each true face's centroid to the output mesh): parts the output misses.
+
+On a keyframe's frame the output is also compared with the keyframe mesh
+the artist modelled (not with its distance grid): ``keyframe_mean`` and
+``keyframe_max`` are the mean and the largest distance, in cells h, over
+points of both meshes (vertices and face centroids) to the other mesh.
+
+`LIMITS` holds the limits a clean frame meets; `failures` lists what a frame
+breaks and `worst_frame` picks the frame to tell the artist about.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .sampling import sample_with_gradient
+from .surface import extract_surface, mesh_area
+
+__all__ = ["LIMITS", "frame_quality", "keyframe_distance", "mesh_distance", "failures",
+           "worst_frame", "choose_output", "describe_worst"]
+
+# per-frame limits of a clean result (area ratio band, largest inverted share, smallest
+# coverage, and on keyframe frames the mean and largest two-way distance in cells)
+LIMITS = {"area_ratio": (0.97, 1.03), "inverted_fraction": 0.005, "coverage": 0.99,
+          "keyframe_mean": 0.1, "keyframe_max": 1.0}
+
+
+def _triangles(vertices, faces):
+    """Float vertices and the triangles of non-zero area."""
+    v = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    return v, f[mesh_area(v, f, per_face=True) > 0] if len(f) else f
+
+
+def mesh_distance(points, vertices, faces, candidates=16):
+    """Distance from points (P, 3) to a triangle mesh.
+
+    Exact point-triangle distances (`sdf.point_triangle_distance`) to the
+    ``candidates`` triangles whose centroids are nearest; the smallest is taken.
+    """
+    from scipy.spatial import cKDTree
+
+    from .sdf import point_triangle_distance
+
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    v, f = _triangles(vertices, faces)
+    if len(f) == 0:
+        return np.full(len(p), np.inf)
+    if len(p) == 0:
+        return np.zeros(0)
+    k = min(int(candidates), len(f))
+    _, idx = cKDTree(v[f].mean(axis=1)).query(p, k=k, workers=-1)
+    idx = idx.reshape(len(p), k)
+    tri = f[idx.reshape(-1)]
+    d = point_triangle_distance(np.repeat(p, k, axis=0), v[tri[:, 0]], v[tri[:, 1]],
+                                v[tri[:, 2]])
+    return d.reshape(len(p), k).min(axis=1)
+
+
+def frame_quality(levelset, grid, vertices, faces, surface=None):
+    """Area ratio, inverted-area share and coverage of one frame's output (module docstring).
+
+    Parameters
+    ----------
+    levelset : ndarray, grid.shape
+        The frame's in-between level set.
+    grid : Grid (3D)
+    vertices, faces : the output mesh of the frame (world units, outward triangles).
+    surface : (V, F), optional
+        The frame's true surface when already extracted.
+
+    Returns
+    -------
+    dict with ``area_ratio``, ``inverted_fraction``, ``coverage``.
+    """
+    tv, tf = extract_surface(levelset, grid) if surface is None else surface
+    itself = surface is not None and vertices is surface[0] and faces is surface[1]
+    tv, tf = _triangles(tv, tf)
+    v, f = _triangles(vertices, faces)
+    true_area = mesh_area(tv, tf, per_face=True)
+    area = mesh_area(v, f, per_face=True)
+    if true_area.sum() == 0 or area.sum() == 0:
+        empty = true_area.sum() == area.sum()
+        return {"area_ratio": 1.0 if empty else (np.inf if area.sum() else 0.0),
+                "inverted_fraction": 0.0, "coverage": 1.0 if empty else 0.0}
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    _, grad = sample_with_gradient(levelset, grid, (a + b + c) / 3.0, outside="distance")
+    turned = np.einsum("ij,ij->i", np.cross(b - a, c - a), grad) < 0
+    if itself:  # the output is the true surface: it covers itself
+        covered = 1.0
+    else:
+        near = _within(tv[tf].mean(axis=1), v, f, 0.5 * grid.spacing)
+        covered = float(true_area[near].sum() / true_area.sum())
+    return {"area_ratio": float(area.sum() / true_area.sum()),
+            "inverted_fraction": float(area[turned].sum() / area.sum()), "coverage": covered}
+
+
+def _within(points, vertices, faces, tol):
+    """Which points lie within ``tol`` of a mesh: a sample of the mesh (vertex, edge
+    midpoint, centroid) that close settles it; the rest get `mesh_distance`."""
+    from scipy.spatial import cKDTree
+
+    a, b, c = (vertices[faces[:, i]] for i in range(3))
+    samples = np.concatenate([a, b, c, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a),
+                              (a + b + c) / 3.0])  # loose vertices reach nothing
+    d, _ = cKDTree(samples).query(points, distance_upper_bound=tol, workers=-1)
+    near = d <= tol
+    rest = np.flatnonzero(~near)
+    near[rest] = mesh_distance(points[rest], vertices, faces) <= tol
+    return near
+
+
+def keyframe_distance(vertices, faces, key_vertices, key_faces, spacing):
+    """Two-way distance between a frame's output and the keyframe mesh, in cells.
+
+    Points of each mesh (vertices and face centroids) are measured to the
+    other mesh with `mesh_distance`.
+
+    Returns
+    -------
+    dict with ``keyframe_mean`` and ``keyframe_max`` (units of ``spacing``).
+    """
+    v, f = _triangles(vertices, faces)
+    kv, kf = _triangles(key_vertices, key_faces)
+    d = np.concatenate([mesh_distance(np.concatenate([v[np.unique(f)], v[f].mean(axis=1)]), kv, kf),
+                        mesh_distance(np.concatenate([kv[np.unique(kf)], kv[kf].mean(axis=1)]), v, f)])
+    d = d / float(spacing)
+    return {"keyframe_mean": float(d.mean()), "keyframe_max": float(d.max())}
+
+
+def failures(figures, limits=LIMITS):
+    """Names of the limits one frame's figures break (dict from `frame_quality`, maybe
+    with the `keyframe_distance` keys), each with its value, e.g. ``["coverage 0.962"]``."""
+    out = []
+    lo, hi = limits["area_ratio"]
+    if not lo <= figures["area_ratio"] <= hi:
+        out.append(f"area ratio {figures['area_ratio']:.3f}")
+    if figures["inverted_fraction"] > limits["inverted_fraction"]:
+        out.append(f"inverted area {100 * figures['inverted_fraction']:.1f} %")
+    if figures["coverage"] < limits["coverage"]:
+        out.append(f"coverage {100 * figures['coverage']:.1f} %")
+    for key, label in (("keyframe_mean", "keyframe mean distance"),
+                       ("keyframe_max", "keyframe max distance")):
+        if key in figures and figures[key] > limits[key]:
+            out.append(f"{label} {figures[key]:.2f} h")
+    return out
+
+
+def _badness(figures, limits=LIMITS):
+    """How far a frame is past its limits, each figure relative to its own limit."""
+    lo, hi = limits["area_ratio"]
+    r = figures["area_ratio"]
+    parts = [max(lo - r, r - hi, 0.0) / (hi - lo),
+             max(figures["inverted_fraction"] - limits["inverted_fraction"], 0.0)
+             / limits["inverted_fraction"],
+             max(limits["coverage"] - figures["coverage"], 0.0) / (1.0 - limits["coverage"])]
+    for key in ("keyframe_mean", "keyframe_max"):
+        if key in figures:
+            parts.append(max(figures[key] - limits[key], 0.0) / limits[key])
+    return max(parts)
+
+
+def worst_frame(frames, per_frame, limits=LIMITS):
+    """(frame, figures, failures) of the frame farthest past the limits (the first
+    frame when every frame passes: then its failures list is empty)."""
+    if not len(per_frame):
+        raise ValueError("no frames to rank")
+    k = int(np.argmax([_badness(q, limits) for q in per_frame]))
+    return int(frames[k]), per_frame[k], failures(per_frame[k], limits)
+
+
+def choose_output(frames, quality, limits=LIMITS):
+    """The Auto output: shape keys when every frame of the tracked template passes the
+    limits, the mesh sequence otherwise.
+
+    Parameters
+    ----------
+    frames : (n,) timeline frames.
+    quality : dict output name -> list of per-frame figures (``Animation.stats["quality"]``).
+
+    Returns
+    -------
+    (output, reason) : "shape_keys" or "mesh_sequence", and one sentence for the artist.
+    """
+    frame, _, fails = worst_frame(frames, quality["shape_keys"], limits)
+    if not fails:
+        return "shape_keys", "every frame of the tracked mesh passes the cleanliness limits"
+    return "mesh_sequence", (f"the tracked mesh fails the cleanliness limits on frame {frame} "
+                             f"({', '.join(fails)}): topology changes need a mesh per frame")
+
+
+def describe_worst(frames, per_frame, limits=LIMITS):
+    """One sentence on the worst frame of an output, for the bake report."""
+    frame, q, fails = worst_frame(frames, per_frame, limits)
+    text = (f"worst frame {frame}: area ratio {q['area_ratio']:.3f}, inverted area "
+            f"{100 * q['inverted_fraction']:.1f} %, coverage {100 * q['coverage']:.1f} %")
+    if "keyframe_max" in q:
+        text += f", keyframe distance mean {q['keyframe_mean']:.2f} h max {q['keyframe_max']:.2f} h"
+    return text + (" (within the limits)" if not fails else f" (over the limits: {', '.join(fails)})")

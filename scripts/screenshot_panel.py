@@ -1,0 +1,188 @@
+"""Drive a windowed Blender for scripts/screenshot_panel.sh (runs inside Blender).
+
+    blender --python scripts/screenshot_panel.py -- SCENE.blend OUTDIR
+
+With the extension installed and enabled: open SCENE with the default UI, open the
+3D view's sidebar on the "Keyframe Implicit" tab at its default width, and write
+``panel_<step>.png`` (the sidebar cut out of the X display's pixels, once it has stopped
+changing) for the steps before, baking (mid-bake), after, compare (the middle frame with
+Show Keyframes on) and problems (an open plane added as a keyframe past the scene's end,
+and a feature without its partner); ``window_<step>.png`` keeps the whole window after the
+bake. The bake is started as a user starts it (the modal operator); the script quits
+Blender when done, with exit code 1 on any error.
+"""
+
+import os
+import subprocess
+import sys
+import traceback
+
+import bpy
+import numpy as np
+
+SCENE, OUT = sys.argv[sys.argv.index("--") + 1:][:2]
+CATEGORY = "Keyframe Implicit"
+ADDON = "bl_ext.user_default.keyframe_implicit"
+WINDOWS = ("after", "compare")  # the steps whose whole window is kept too
+STABLE_GRABS = 3  # identical sidebar grabs in a row (half a second apart) count as settled
+MAX_GRABS = 40
+
+
+def view3d():
+    """(window, 3D view area, its sidebar region, its main region)."""
+    win = bpy.context.window_manager.windows[0]
+    area = max((a for a in win.screen.areas if a.type == "VIEW_3D"), key=lambda a: a.width * a.height)
+    regions = {r.type: r for r in area.regions}
+    return win, area, regions["UI"], regions["WINDOW"]
+
+
+def grab_screen():
+    """The X display as an (H, W, 4) float RGBA array, bottom row first (as Blender's images).
+
+    screen.screenshot reads back black under Xvfb with Mesa's software GL, so the
+    display's own pixels are taken with ``xwd -root`` and decoded here (XWD: a
+    big-endian header of 25 uint32, the window name, the colour map, then rows).
+    """
+    raw = subprocess.run(["xwd", "-root", "-silent"], check=True, capture_output=True).stdout
+    head = np.frombuffer(raw[:100], ">u4")
+    header_size, width, height = int(head[0]), int(head[4]), int(head[5])
+    byte_order, bits, row_bytes, ncolors = int(head[7]), int(head[11]), int(head[12]), int(head[19])
+    masks = [int(m) for m in head[14:17]]
+    if bits != 32:
+        raise RuntimeError(f"xwd gave {bits} bits per pixel; run the display at depth 24")
+    start = header_size + 12 * ncolors
+    words = np.frombuffer(raw[start:start + row_bytes * height], "<u4" if byte_order == 0 else ">u4")
+    words = words.reshape(height, row_bytes // 4)[:, :width]
+    rgba = np.ones((height, width, 4), np.float32)
+    for k, mask in enumerate(masks):
+        shift = (mask & -mask).bit_length() - 1
+        rgba[..., k] = ((words & mask) >> shift) / float(mask >> shift)
+    return rgba[::-1]
+
+
+def save_png(pixels, path):
+    h, w = pixels.shape[:2]
+    img = bpy.data.images.new(os.path.basename(path), w, h, alpha=True)
+    img.pixels.foreach_set(np.ascontiguousarray(pixels, np.float32).ravel())
+    img.filepath_raw = path
+    img.file_format = "PNG"
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def sidebar_pixels():
+    """(the window's pixels, the sidebar cut out of them)."""
+    win, area, sidebar, _ = view3d()
+    screen = grab_screen()[:win.height, :win.width]  # the window sits at the display's corner
+    x, y, w, h = sidebar.x, sidebar.y, sidebar.width, sidebar.height  # window pixels, y up
+    return screen, screen[y:y + h, x:x + w]
+
+
+def settled(step, strict=True):
+    """Pauses until the sidebar has stopped changing, then writes the pictures of ``step``.
+
+    When a panel's height changes, Blender slides the panels below it to their new
+    places over several redraws, and a software-GL window takes about half a second
+    per redraw: a capture after a fixed pause can catch the sub-panels half-way, drawn
+    over the main panel. So the sidebar is redrawn and grabbed until `STABLE_GRABS`
+    grabs in a row are identical. ``strict=False`` (a running bake, whose progress
+    line moves) takes the last grab instead of failing.
+    """
+    last, same = None, 0
+    for _ in range(MAX_GRABS):
+        view3d()[2].tag_redraw()
+        yield 0.5
+        screen, pixels = sidebar_pixels()
+        same = same + 1 if last is not None and np.array_equal(pixels, last) else 0
+        last = pixels
+        if same + 1 >= STABLE_GRABS:
+            break
+    else:
+        if strict:
+            raise RuntimeError(f"{step}: the sidebar still changed after {MAX_GRABS} grabs")
+    save(step, screen, pixels)
+
+
+def save(step, screen, pixels):
+    """panel_<step>.png (the sidebar region), and window_<step>.png (all) for `WINDOWS`."""
+    win = view3d()[0]
+    if step in WINDOWS:
+        save_png(screen, os.path.join(OUT, f"window_{step}.png"))
+    save_png(pixels, os.path.join(OUT, f"panel_{step}.png"))
+    h, w = pixels.shape[:2]
+    print(f"[screenshot_panel] {step}: window {win.width}x{win.height}, sidebar {w}x{h} px, "
+          f"UI scale {bpy.context.preferences.system.ui_scale:.2f}", flush=True)
+
+
+def steps():
+    """The run, as a generator of pauses (seconds) between UI updates."""
+    assert ADDON in bpy.context.preferences.addons, "the extension is not enabled"
+    win, _, _, _ = view3d()
+    with bpy.context.temp_override(window=win):
+        bpy.ops.wm.open_mainfile(filepath=SCENE, load_ui=False)  # the default UI, like a new user
+    yield 1.0
+    win, area, sidebar, main = view3d()
+    area.spaces.active.show_region_ui = True
+    yield 0.5
+    for _ in range(20):  # the tabs exist once the sidebar has been drawn
+        win, area, sidebar, main = view3d()
+        if sidebar.active_panel_category == CATEGORY:
+            break
+        try:
+            sidebar.active_panel_category = CATEGORY
+        except TypeError:
+            pass
+        sidebar.tag_redraw()
+        yield 0.5
+    assert sidebar.active_panel_category == CATEGORY, sidebar.active_panel_category
+    keyframes = [kf.object for kf in bpy.context.scene.keyframe_implicit.keyframes]
+    for obj in bpy.context.scene.objects:
+        obj.select_set(obj in keyframes)
+    with bpy.context.temp_override(window=win, area=area, region=main):
+        bpy.ops.view3d.view_selected()
+    yield from settled("before")
+    ops = sys.modules[f"{ADDON}.blender.ops"]
+    with bpy.context.temp_override(window=win, area=area, region=main):
+        assert bpy.ops.keyframe_implicit.bake("INVOKE_DEFAULT") == {"RUNNING_MODAL"}
+    while ops._running and ops._running[0].status()[0] < 0.3:
+        yield 0.2
+    if ops._running:
+        yield from settled("baking", strict=False)
+    while ops._running:
+        yield 0.5
+    settings = bpy.context.scene.keyframe_implicit
+    assert settings.output_object is not None, "the bake made no result"
+    yield from settled("after")
+    # comparing: the middle frame, with the keyframes shown as wireframes
+    scene = bpy.context.scene
+    scene.frame_set((scene.frame_start + scene.frame_end) // 2)
+    settings.show_keyframes = True
+    yield from settled("compare")
+    # what a new user hit: an open plane as a keyframe past the scene's end, a lone feature
+    with bpy.context.temp_override(window=win, area=area, region=main):
+        bpy.ops.mesh.primitive_plane_add(location=(0, 3, 0))
+        bpy.context.active_object.name = "Plane"
+        bpy.ops.keyframe_implicit.add_keyframe(frame=40)
+        bpy.ops.keyframe_implicit.add_feature_pair(segment=1)
+    bpy.data.objects.remove(bpy.data.objects["KFI 1.0 B"])
+    yield from settled("problems")
+
+
+def main():
+    run = steps()
+
+    def tick():
+        try:
+            return next(run)
+        except StopIteration:
+            bpy.ops.wm.quit_blender()
+        except Exception:
+            traceback.print_exc()
+            sys.stdout.flush()
+            os._exit(1)
+        return None
+
+    bpy.app.timers.register(tick, first_interval=2.0, persistent=True)
+
+
+main()

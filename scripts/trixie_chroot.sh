@@ -1,0 +1,75 @@
+# Sourced by the scripts that run Debian trixie's blender package in a chroot
+# (scripts/blender_chroot.sh for the tests, scripts/screenshot_panel.sh for the panel
+# screenshots). Defines CHROOT and `ensure_chroot PACKAGE...`. Needs root.
+#
+# The chroot lives outside the clone ($KFI_CHROOT, default /var/cache/keyframe_implicit/trixie):
+# debootstrap --variant=minbase trixie, then apt-get install --no-install-recommends of the
+# packages asked for. $CHROOT/.kfi-stamp lists what is installed; a later call with more
+# packages installs only the missing ones, so the test and screenshot scripts share one chroot.
+# An flock on $CHROOT.lock makes concurrent runs wait for each other instead of racing.
+CHROOT="${KFI_CHROOT:-/var/cache/keyframe_implicit/trixie}"
+MIRROR="${KFI_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
+
+ensure_chroot() {
+  local want=("$@") have missing t0
+  mkdir -p "$(dirname "$CHROOT")"
+  exec 9>"$CHROOT.lock"
+  flock 9
+  if [ ! -x "$CHROOT/usr/bin/blender" ]; then
+    t0=$(date +%s)
+    echo "[trixie_chroot] making the trixie chroot in $CHROOT (first run: a few minutes)" >&2
+    command -v debootstrap >/dev/null || { apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null; }
+    rm -rf "$CHROOT.tmp"
+    debootstrap --variant=minbase trixie "$CHROOT.tmp" "$MIRROR" >/dev/null
+    chroot "$CHROOT.tmp" apt-get install -y -qq --no-install-recommends "${want[@]}" >/dev/null
+    chroot "$CHROOT.tmp" apt-get clean
+    printf '%s\n' "${want[@]}" | sort -u > "$CHROOT.tmp/.kfi-stamp"
+    rm -rf "$CHROOT"
+    mv "$CHROOT.tmp" "$CHROOT"
+    echo "[trixie_chroot] chroot ready in $(( $(date +%s) - t0 )) s" >&2
+  else
+    have="$(cat "$CHROOT/.kfi-stamp" 2>/dev/null || true)"
+    missing=$(printf '%s\n' "${want[@]}" | sort -u | comm -23 - <(printf '%s\n' "$have" | sort -u))
+    if [ -n "$missing" ]; then
+      echo "[trixie_chroot] installing into $CHROOT:" $missing >&2
+      chroot "$CHROOT" apt-get update -qq
+      chroot "$CHROOT" apt-get install -y -qq --no-install-recommends $missing >/dev/null
+      chroot "$CHROOT" apt-get clean
+      printf '%s\n' $have $missing | sort -u > "$CHROOT/.kfi-stamp"
+    fi
+  fi
+  flock -u 9
+  exec 9>&-
+}
+
+# A run directory inside the chroot, removed on exit: $run outside, $inside as the chroot
+# sees it.
+make_run_dir() {
+  run="$(mktemp -d "$CHROOT/tmp/kfi-run.XXXXXX")"
+  inside="/tmp/$(basename "$run")"
+  trap 'rm -rf "$run"' EXIT
+}
+
+# Run a command in the chroot with a clean environment; HOME is $KFI_HOME or $inside/home
+# (an empty Blender profile), extra variables come as NAME=value arguments before it.
+in_chroot() {
+  chroot "$CHROOT" /usr/bin/env -i HOME="${KFI_HOME:-$inside/home}" PATH=/usr/sbin:/usr/bin:/sbin:/bin \
+    LANG=C.UTF-8 "$@"
+}
+
+# Build the linux-x64 zip of the checkout $1 into $run/dist ($zip_name) and install it into
+# $inside/home with Blender's own tool, as a user would:
+#   blender --command extension install-file -r user_default -e ZIP
+install_zip() {
+  local root="$1"
+  (
+    source "$root/scripts/env.sh"
+    cd "$root"
+    python scripts/build_extension.py --platform linux-x64 --out "$run/dist" --build-dir "$run/build" >&2
+  )
+  zip_name="$(cd "$run/dist" && ls keyframe_implicit-*-linux_x64.zip)"
+  mkdir -p "$run/home"
+  echo "[trixie_chroot] $(in_chroot blender --version 2>/dev/null | head -1), installing $zip_name" >&2
+  KFI_HOME="$inside/home" in_chroot blender --command extension install-file -r user_default \
+    -e "$inside/dist/$zip_name" >&2
+}
