@@ -72,8 +72,8 @@ KFI_VENV="${KFI_VENV:-$KFI_CACHE/venv-$kfi_line}"
 
 # One process at a time builds an environment; the others wait and then reuse it.
 mkdir -p "$(dirname "$KFI_VENV")"
-exec 9>"$KFI_VENV.lock"
-command -v flock >/dev/null && flock 9
+exec {kfi_lock}>"$KFI_VENV.lock"   # a free descriptor: callers may hold locks of their own
+command -v flock >/dev/null && flock "$kfi_lock"
 stamp="$KFI_VENV/.kfi-stamp"
 want="$(sha1sum < "$KFI_REQUIREMENTS" | cut -c1-12)"
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
@@ -89,6 +89,6 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ] \
   "$KFI_VENV/bin/python" -m pip install -q -r "$KFI_REQUIREMENTS" >&2
   echo "$want" > "$stamp"
 fi
-exec 9>&-
+exec {kfi_lock}>&-
 export PATH="$KFI_VENV/bin:$PATH"
 export PYTHONPATH="$KFI_ROOT${PYTHONPATH:+:$PYTHONPATH}"
