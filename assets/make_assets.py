@@ -4,7 +4,7 @@ Run from the repository root with the bpy module of the OLDEST supported Blender
 so that every supported Blender opens the files (a .blend saved by 5.0 has a new header that
 4.x cannot read; newer versions read older files)::
 
-    KFI_VENV=~/.cache/keyframe_implicit/venv-bpy42 KFI_REQUIREMENTS=requirements-bpy42.txt \
+    KFI_PYTHON=3.11 KFI_REQUIREMENTS=requirements-bpy42.txt \
         bash -c 'source scripts/env.sh && python assets/make_assets.py'      # every scene
     ... python assets/make_assets.py bend rigid                               # some scenes
 
@@ -39,6 +39,7 @@ import bpy  # noqa: E402
 from mathutils import Matrix, Vector  # noqa: E402
 
 from keyframe_implicit import examples  # noqa: E402
+from keyframe_implicit.blender import materials  # noqa: E402
 
 SCENES = ("rigid", "merge", "bend", "splash", "suzanne")
 
@@ -93,8 +94,8 @@ def make_material(name, colour):
     mat = bpy.data.materials.new(name)
     mat.diffuse_color = (*colour, 1.0)  # viewport / Workbench colour
     mat.roughness = 0.45
-    mat.use_nodes = True
-    bsdf = next((n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
+    nodes = materials.shader_node_tree(mat).nodes
+    bsdf = next((n for n in nodes if n.type == "BSDF_PRINCIPLED"), None)
     if bsdf is not None:
         bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
         bsdf.inputs["Roughness"].default_value = 0.45

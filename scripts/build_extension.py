@@ -72,10 +72,11 @@ PLATFORMS = {
     "macos-x64": ["macosx_11_0_x86_64"],
 }
 
-#: Python versions of the Blender lines served: 3.11 (Blender 4.2 LTS .. 5.0) and
-#: 3.13 (Blender 5.1+, and distribution builds such as Debian's 4.3). Each line's
-#: resolution is constrained to the numpy that line ships, so the chosen scipy /
-#: scikit-image support it.
+#: Python versions of the Blender lines served: 3.11 (Blender 4.2 LTS .. 5.0, numpy 1.26)
+#: and 3.13 (Blender 5.1 .. 5.3, and distribution builds such as Debian's 4.3). Each
+#: resolution is constrained to the oldest numpy of its Blenders (numpy 2.2 in Debian's
+#: 4.3; 5.3 ships 2.5), so the chosen scipy / scikit-image support it; scipy's own upper
+#: bound must admit the newest, which the zip install test checks on bpy 5.3.
 PYTHONS = {
     "3.11": "numpy==1.26.4",
     "3.13": "numpy==2.2.4",

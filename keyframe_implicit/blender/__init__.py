@@ -2,17 +2,18 @@
 
 Module map (operators and panels are thin; logic lives in plain functions):
 
-============  ================================================================
-``props``     ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
-``features``  feature-point pairs as Empties (create, pair, find, remove)
-``validate``  problems of a setup, with what to do
-``scene_io``  scene -> numpy (evaluated meshes in world space, feature points)
-``bake``      `BakeJob` (runs the core, cancel path) and blocking `bake_scene`
-``output``    numpy -> mesh object with one shape key per frame
-``fcurves``   F-curves on Blender 4.2 (Action.fcurves) and 4.4+ (slotted actions)
-``ops``       operators ``keyframe_implicit.*``
-``panel``     View3D sidebar "Keyframe Implicit"
-============  ================================================================
+=============  ================================================================
+``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
+``features``   feature-point pairs as Empties (create, pair, find, remove)
+``validate``   problems of a setup, with what to do
+``scene_io``   scene -> numpy (evaluated meshes in world space, feature points)
+``bake``       `BakeJob` (runs the core, cancel path) and blocking `bake_scene`
+``output``     numpy -> mesh object with one shape key per frame
+``fcurves``    F-curves on Blender 4.2 (Action.fcurves) and 4.4+ (slotted actions)
+``materials``  shader nodes on Blender 4.x (``use_nodes``) and 5.0+ (always on)
+``ops``        operators ``keyframe_implicit.*``
+``panel``      View3D sidebar "Keyframe Implicit"
+=============  ================================================================
 """
 
 _registered = []

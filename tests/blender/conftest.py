@@ -1,10 +1,17 @@
 """Fixtures for the Blender-side tests (bpy module or a real ``blender -b``).
 
 Every test gets an empty factory scene with the add-on registered from the
-checkout; helpers build keyframe scenes through the add-on's operators.
+checkout; helpers build keyframe scenes through the add-on's operators. Every
+test fails if this checkout's code used a deprecated Blender API
+(`failing_on_blender_deprecations`).
 """
 
+import contextlib
 import hashlib
+import os
+import pathlib
+import re
+import warnings
 
 import bpy
 import numpy as np
@@ -15,6 +22,53 @@ import keyframe_implicit
 # Low grid resolution keeps the real core fast; figures in the assertions are
 # relative to the grid spacing h the bake used.
 RES = 20
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+#: bpy words its deprecations with the Blender version that drops the API, e.g.
+#: "'Material.use_nodes' is expected to be removed in Blender 6.0".
+_BLENDER_VERSION_IN_TEXT = re.compile(r"\bBlender \d+\.\d+")
+
+
+def blender_deprecations(caught):
+    """The warnings among ``caught`` that are Blender-API deprecations used by this checkout.
+
+    One counts when it is a (pending) DeprecationWarning, its text names a Blender version
+    (as bpy's deprecations do) and it is attributed to a file of this checkout (bpy attributes
+    it to the line that used the API). Deprecations inside other packages (scikit-image on a
+    newer numpy, Blender's own scripts) are not this project's code and stay plain warnings.
+    """
+    root = os.path.realpath(ROOT) + os.sep
+    return [w for w in caught
+            if issubclass(w.category, (DeprecationWarning, PendingDeprecationWarning))
+            and _BLENDER_VERSION_IN_TEXT.search(str(w.message))
+            and os.path.realpath(w.filename).startswith(root)]
+
+
+@contextlib.contextmanager
+def failing_on_blender_deprecations():
+    """Fail if the code inside used a deprecated Blender API; pass other warnings on to pytest.
+
+    Warnings are recorded rather than turned into errors, so a deprecation inside an operator
+    or a bake thread cannot be swallowed by the code that catches errors there.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    found = blender_deprecations(caught)
+    for w in caught:
+        if w not in found:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    if found:
+        pytest.fail("deprecated Blender API used (change it in the helper of that API, see "
+                    "keyframe_implicit/blender/__init__.py):\n" + "\n".join(
+                        f"  {w.filename}:{w.lineno}: {w.message}" for w in found), pytrace=False)
+
+
+@pytest.fixture(autouse=True)
+def no_blender_deprecations():
+    with failing_on_blender_deprecations():
+        yield
 
 
 @pytest.fixture
@@ -119,4 +173,6 @@ def kfi():
     return types.SimpleNamespace(
         RES=RES, add_sphere=add_sphere, sphere_points=sphere_points, build_spheres=build_spheres,
         mesh_hash=mesh_hash, snapshot=snapshot, evaluated_arrays=evaluated_arrays, volume=volume,
+        blender_deprecations=blender_deprecations,
+        failing_on_blender_deprecations=failing_on_blender_deprecations,
     )
