@@ -194,12 +194,12 @@ _INBETWEEN_BYTES_PER_NODE = {2: 64, 3: 44}
 _INBETWEEN_FILL = {2: (2000.0, 1.0), 3: (330.0, 4.0 / 3.0)}  # bytes * M_t ** power
 _TRAJECTORY_MARGIN_CELLS = 4.0
 # The two-sided in-betweens solve two maps at once (on two cores) and hold two
-# transports, each with its trajectories' factor. The two solves do not peak together,
-# and B's region is often the smaller: refitted to the tracemalloc peaks of the same
-# `animate` case with the two-sided transport at resolution 32 / 48 (measured 137 / 465 MB,
-# this model 142 / 477 MB), the solver counts 1.5 times and the factor's fill 1.4 times.
+# transports, each with its trajectories' factor. Refitted to the tracemalloc peaks of the
+# same `animate` case (two-sided transport, one surface per frame) at resolution 32 / 48 /
+# 64: measured 137 / 261 / 541 MB, this model 142 / 271 / 539 MB. The two solves do not
+# peak together (1.5 times one solve), and the factors' fill is 0.62 of the one-sided fit.
 _CONCURRENT_SOLVES = 1.5
-_TRANSPORT_FILL = 1.4
+_TRANSPORT_FILL = 0.62
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
@@ -213,7 +213,7 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
     - ``solver``: one map, ``N * d * c_node + M * c_active(d)``, M =
       ``material_fraction * N`` plus the map's margin of ``margin_cells`` around the
       material (surface ~ N^((d-1)/d));
-    - ``inbetween``: ``N * c_node(d) + 1.4 c_fill * M_t ** p``, M_t the trajectory
+    - ``inbetween``: ``N * c_node(d) + 0.62 c_fill * M_t ** p``, M_t the trajectory
       nodes of one keyframe (material plus a 4-cell margin), p = 4/3 in 3D (sparse LU
       fill-in); one factor per keyframe.
 

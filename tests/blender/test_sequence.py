@@ -81,6 +81,8 @@ def test_sequence_blend_plays_without_the_add_on(scene, kfi, tmp_path):
         keyframe_implicit.register()
 
 
+@pytest.mark.skipif(not bpy.app.build_options.alembic,
+                    reason="this Blender is built without Alembic (Debian's 4.3 package)")
 def test_alembic_export_writes_per_frame_vertex_counts(scene, kfi, tmp_path):
     kfi.build_spheres([("A", (-0.5, 0, 0), 0.6, 1), ("B", (0.0, 0, 0), 0.75, 7)])
     scene.keyframe_implicit.output_mode = "MESH_SEQUENCE"
@@ -127,6 +129,7 @@ def test_cycles_motion_blur_streaks_along_the_motion(scene, kfi):
     scene.frame_set(5)
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 4
+    scene.cycles.use_denoising = False  # not every build has a denoiser, and 4 samples need none
     scene.cycles.device = "CPU"
     scene.render.resolution_x, scene.render.resolution_y = 96, 64
     scene.render.resolution_percentage = 100
