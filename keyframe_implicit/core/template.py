@@ -250,3 +250,79 @@ def track_template(inb, times, *, template=None, projection_steps=4, coverage=Tr
         rep((k + 1) / times.size, f"template frame {k + 1}/{times.size}")
     stats["seconds"] = time.perf_counter() - t0
     return TemplateTrack(times, out, faces, stats)
+
+
+def local_rotations(inb, points, s, step=0.5):
+    """Rotation part (P, 3, 3) of the trajectories' local motion at time s.
+
+    The Jacobian of x -> ``inb.trajectory(x, s)`` at each point (central
+    differences over ``step`` cells), split F = R S by `trajectory.polar`:
+    the locally rigid part of the motion (eq. 3.1's R(s)).
+    """
+    from .trajectory import polar
+
+    p = np.asarray(points, dtype=float)
+    d = p.shape[1]
+    delta = step * inb.grid.spacing
+    probes = np.concatenate([p[None] + delta * e[None, None] for e in np.eye(d)]
+                            + [p[None] - delta * e[None, None] for e in np.eye(d)])
+    moved = inb.trajectory(probes.reshape(-1, d), s).reshape(2 * d, len(p), d)
+    jac = np.stack([(moved[i] - moved[d + i]) / (2 * delta) for i in range(d)], axis=-1)
+    return polar(jac)[0]
+
+
+class DetailTrack:
+    """The artist's mesh of keyframe A carried through one segment with its sub-cell detail.
+
+    The grid sees each keyframe only down to about a cell. The artist's
+    vertices V0 lie on keyframe A's exact mesh; their detail offset
+
+        d_A = V0 - P_0(V0),
+
+    with P_s the projection onto the zero set of the level set at s
+    (`project_to_zero_set`), is what the grid misses. Keyframe B's detail
+    seen from the end of A's paths is d_B = C_B(q1) - q1, where q1 =
+    P_1(x(V0, 1)) and C_B the closest point on B's triangles. Both are
+    expressed in A's frame (d_B turned back by R(1)^T) and carried by the
+    local rotation R(s) of the trajectories (`local_rotations`):
+
+        x(s) = P_s(x(V0, s)) + R(s) [(1 - s) d_A + s R(1)^T d_B].
+
+    So x(0) = V0 (returned exactly as given) and x(1) = C_B(q1), a point of
+    B's own mesh; in between the detail turns with the body and fades from
+    A's into B's.
+
+    Parameters
+    ----------
+    inb : Inbetween of the segment.
+    vertices : (V, 3) the template on keyframe A's mesh (world units).
+    end_mesh : (vertices (V_B, 3), triangles (T_B, 3)) of keyframe B.
+    projection_steps : int, steps of `project_to_zero_set`.
+    """
+
+    def __init__(self, inb, vertices, end_mesh, projection_steps=4):
+        from .attributes import closest_points
+
+        self.inb = inb
+        self.start = np.asarray(vertices)
+        self.steps = projection_steps
+        v0 = self.start.astype(float)
+        q0, _ = project_to_zero_set(v0, inb.levelset(0.0), inb.grid, projection_steps)
+        q1, _ = project_to_zero_set(inb.trajectory(v0, 1.0), inb.levelset(1.0), inb.grid,
+                                    projection_steps)
+        self.end = closest_points(q1, *end_mesh)[0]
+        self.detail_a = v0 - q0
+        self.detail_b = np.einsum("pji,pj->pi", local_rotations(inb, v0, 1.0), self.end - q1)
+
+    def __call__(self, s):
+        """(V, 3) vertices at time s in [0, 1] and (V,) |phi| of their grid part."""
+        s = float(s)
+        if s == 0.0:
+            return self.start.copy(), np.zeros(len(self.start))
+        if s == 1.0:
+            return self.end.copy(), np.zeros(len(self.end))
+        inb = self.inb
+        v0 = self.start.astype(float)
+        q, err = project_to_zero_set(inb.trajectory(v0, s), inb.levelset(s), inb.grid, self.steps)
+        detail = (1.0 - s) * self.detail_a + s * self.detail_b
+        return q + np.einsum("pij,pj->pi", local_rotations(inb, v0, s), detail), err
