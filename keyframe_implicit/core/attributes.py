@@ -15,8 +15,7 @@ sec. 3.2). Two uses here:
 - a per-frame surface (mesh sequence): `transfer` gives every corner of a
   new triangle mesh the attributes of its source point's closest point on
   the keyframe mesh (barycentric within the source triangle), all three
-  corners of a triangle read from one UV island so that no triangle's UVs
-  span a seam.
+  corners of a triangle read from one side of a UV seam.
 """
 
 from __future__ import annotations
@@ -25,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MeshAttributes", "closest_points", "transfer", "uv_islands"]
+__all__ = ["MeshAttributes", "closest_points", "barycentric", "transfer"]
 
 
 @dataclass
@@ -155,36 +154,6 @@ def barycentric(p, a, b, c):
     return bary / np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
 
 
-def uv_islands(attributes, uv):
-    """Island label (P,) of every polygon of a UV map: polygons joined across an edge whose
-    two corners carry the same UVs on both sides (different UVs there = a seam)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    start = np.asarray(attributes.loop_start, dtype=np.int64)
-    total = np.asarray(attributes.loop_total, dtype=np.int64)
-    lv = np.asarray(attributes.loop_vertices, dtype=np.int64)
-    uv = np.asarray(uv)
-    poly = np.repeat(np.arange(len(start)), total)
-    nxt = np.arange(len(lv)) + 1
-    last = start + total - 1
-    nxt[last] = start  # each loop's successor around its polygon
-    a, b = lv, lv[nxt]
-    key = np.minimum(a, b) * (lv.max() + 1) + np.maximum(a, b)
-    # the UVs of the edge's lower and higher vertex on this side
-    uv_lo = np.where((a < b)[:, None], uv, uv[nxt])
-    uv_hi = np.where((a < b)[:, None], uv[nxt], uv)
-    order = np.argsort(key, kind="stable")
-    same_edge = key[order[1:]] == key[order[:-1]]
-    i, j = order[:-1][same_edge], order[1:][same_edge]
-    joined = (np.all(np.abs(uv_lo[i] - uv_lo[j]) < 1e-6, axis=1)
-              & np.all(np.abs(uv_hi[i] - uv_hi[j]) < 1e-6, axis=1))
-    i, j = i[joined], j[joined]
-    n = len(start)
-    graph = coo_matrix((np.ones(len(i)), (poly[i], poly[j])), shape=(n, n))
-    return connected_components(graph, directed=False)[1]
-
-
 def transfer(attributes, vertices, sources, faces):
     """Attributes of a new triangle mesh read from a keyframe mesh at source points.
 
@@ -198,11 +167,12 @@ def transfer(attributes, vertices, sources, faces):
     Returns
     -------
     MeshAttributes of the new mesh (one polygon per triangle): every corner takes the
-    barycentric UVs / colours at its source's closest point on the keyframe mesh; a
-    triangle whose corners fall in different UV islands reads all three corners from the
-    island of its centroid's source, in the plane of that source triangle (barycentric
-    extended past its edges), so its UVs never span a seam. Material and smooth flag come
-    from the source polygon of the centroid.
+    barycentric UVs / colours at its source's closest point on the keyframe mesh. The
+    same corners also get the UVs of the one source triangle under the triangle's centroid,
+    extended past its edges (barycentric in its plane); where a corner's own UVs jump away
+    from those -- its source lies across a seam -- the triangle takes the extended UVs for
+    all three corners, so its UVs never span a seam. Material and smooth flag come from
+    the source polygon of the centroid.
     """
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     src = np.asarray(sources, dtype=float).reshape(-1, 3)
@@ -221,24 +191,26 @@ def transfer(attributes, vertices, sources, faces):
     a, b, c = (v[tris[np.repeat(t_centre, 3), i]] for i in range(3))
     b_plane = _plane_barycentric(corner_src, a, b, c).reshape(-1, 3, 3)
 
-    def corners(loop_values, islands):
-        """Per new corner (3F, k): within one island, each corner's own barycentric value;
-        across islands, the centre triangle's plane extension."""
+    def corners(loop_values, seams):
+        """Per new corner (3F, k): each corner's own barycentric value, or with ``seams``
+        the centre triangle's extension for triangles whose corners jump across a seam."""
         own = np.einsum("fci,fcik->fck", b_corner, loop_values[tri_loops[t_corner]])
-        ext = np.einsum("fci,fik->fck", b_plane, loop_values[tri_loops[t_centre]])
-        if islands is None:
+        if not seams:
             return own.reshape(-1, own.shape[-1])
-        split = np.any(islands[tri_poly[t_corner]] != islands[poly_centre][:, None], axis=1)
+        ext = np.einsum("fci,fik->fck", b_plane, loop_values[tri_loops[t_centre]])
+        span = np.ptp(ext, axis=1).max(axis=1)
+        jump = np.abs(own - ext).max(axis=(1, 2))
+        split = jump > 0.5 * span + 1e-3
         return np.where(split[:, None, None], ext, own).reshape(-1, own.shape[-1])
 
     out = MeshAttributes.from_triangles(f)
     for name, uv in attributes.uv_maps.items():
         uv = np.asarray(uv, dtype=float)
-        out.uv_maps[name] = corners(uv, uv_islands(attributes, uv)).astype(np.float32)
+        out.uv_maps[name] = corners(uv, True).astype(np.float32)
     for name, (domain, dtype, data) in attributes.colors.items():
         data = np.asarray(data, dtype=float)
         loop_data = data[lv] if domain == "POINT" else data
-        out.colors[name] = ("CORNER", dtype, np.clip(corners(loop_data, None), 0.0, None)
+        out.colors[name] = ("CORNER", dtype, np.clip(corners(loop_data, False), 0.0, None)
                             .astype(np.float32))
     if attributes.material_index is not None:
         out.material_index = np.asarray(attributes.material_index)[poly_centre]
