@@ -254,6 +254,13 @@ def build_sequence(name, frames, surfaces, velocities, fps, materials=(), create
     return coll, group
 
 
+def _surface_attributes(animation):
+    """Per frame, the attributes of the frame's own surface (None without the artist's mesh)."""
+    if getattr(animation, "attributes", None) is None:
+        return None
+    return [animation.surface_attributes(i) for i in range(len(animation.surfaces))]
+
+
 def slot_materials(attributes, material_names):
     """The output's material slots: the first keyframe's own slots in order (None for an
     empty one) when its mesh is the template, then the keyframes' other materials to pick from."""
@@ -405,8 +412,7 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
         else:
             fps = scene.render.fps / scene.render.fps_base
             frames_coll, group = build_sequence(name, frames, surfaces, animation.velocities,
-                                                fps, mats, created,
-                                                getattr(animation, "surface_attributes", None))
+                                                fps, mats, created, _surface_attributes(animation))
             mod = obj.modifiers.new("Frame Switch", "NODES")
             mod.node_group = group
             obj[SEQUENCE_TAG] = True

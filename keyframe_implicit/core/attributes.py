@@ -160,8 +160,9 @@ def transfer(attributes, vertices, sources, faces):
     Parameters
     ----------
     attributes : MeshAttributes of the keyframe mesh (polygons, UVs, colours, materials).
-    vertices : (V, 3) the keyframe mesh's vertices.
-    sources : (N, 3) the source point on the keyframe of every vertex of the new mesh.
+    vertices : (V, 3) the keyframe mesh's vertices (or the same mesh tracked to a frame:
+        barycentric positions carry over).
+    sources : (N, 3) the source point of every vertex of the new mesh (on or near the mesh).
     faces : (F, 3) int, the new mesh's triangles.
 
     Returns

@@ -72,6 +72,21 @@ class Animation:
     levelsets: list = field(default_factory=list)
     attributes: object = None
 
+    def surface_attributes(self, i):
+        """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
+
+        Each surface vertex's source is its closest point on the tracked template of the
+        same frame, whose barycentric position on its triangle is a point of keyframe A's
+        mesh: UVs and colours are read there (`attributes.transfer`, seams kept out of
+        triangles), the material from the source face. Computed on demand: a bake stored as
+        shape keys never needs it.
+        """
+        if self.attributes is None or not self.surfaces:
+            return None
+        from .attributes import transfer
+
+        return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
+
 
 _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
                  "levelset": "levelset_weight"}
@@ -392,6 +407,9 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     stats["loose_vertices"] = [s[2] for s in surfaces]
     stats["notes"] = _notes(keyframes, stats["loose_vertices"], stats["sdf"])
     if "quality" in stats:
+        if artist is not None:
+            _relative_to_keyframes(stats["quality"]["shape_keys"], chain.frames,
+                                   [kf.frame for kf in keyframes])
         rep(0.98, "Measuring the keyframe frames")
         _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing)
         stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
@@ -422,6 +440,25 @@ def _artist_template(keyframe, surface, template):
     except ValueError as exc:
         raise ValueError(f"{_keyframe_label(0, keyframe)}: {exc}") from None
     return v, attrs.triangles(), attrs
+
+
+def _relative_to_keyframes(per_frame, frames, key_frames):
+    """The artist's mesh measured against how it sits on the keyframes themselves.
+
+    The artist's mesh is not the grid's surface (faces inside the body, open holes, detail
+    finer than a cell), so its raw figures differ from the grid's already on the keyframe
+    frames. Each frame's area ratio and coverage are divided by, and its inverted share
+    reduced by, the keyframe frames' own values interpolated in time: what a frame adds to
+    what the keyframes show.
+    """
+    frames = np.asarray(frames)
+    at = [per_frame[int(f - frames[0])] for f in key_frames]
+    for name, relative in (("area_ratio", np.divide), ("coverage", np.divide),
+                           ("inverted_fraction", np.subtract)):
+        ref = np.interp(frames, key_frames, [q[name] for q in at])
+        for q, r in zip(per_frame, ref):
+            value = relative(q[name], r) if r > 0 or relative is np.subtract else q[name]
+            q[name] = float(min(value, 1.0) if name == "coverage" else max(value, 0.0))
 
 
 def _measure_keyframes(quality, keyframes, chain, spacing):
