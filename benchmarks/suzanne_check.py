@@ -143,11 +143,12 @@ def uv_agreement(out, key):
 def pixels(path):
     img = bpy.data.images.load(path, check_existing=False)
     try:
-        px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
         img.pixels.foreach_get(px)
     finally:
         bpy.data.images.remove(img)
-    return px.reshape(img.size[1], img.size[0], 4)
+    return px.reshape(h, w, 4)
 
 
 def render(scene, frame, path, size=160):

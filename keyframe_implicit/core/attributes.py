@@ -190,7 +190,9 @@ def transfer(attributes, vertices, sources, faces):
     poly_centre = tri_poly[t_centre]
     # barycentrics of every corner in the plane of its triangle's centre source triangle
     a, b, c = (v[tris[np.repeat(t_centre, 3), i]] for i in range(3))
-    b_plane = _plane_barycentric(corner_src, a, b, c).reshape(-1, 3, 3)
+    # extended at most one triangle's width past its edges (tiny source triangles)
+    b_plane = np.clip(_plane_barycentric(corner_src, a, b, c), -1.0, 2.0)
+    b_plane = (b_plane / b_plane.sum(axis=1, keepdims=True)).reshape(-1, 3, 3)
 
     def corners(loop_values, seams):
         """Per new corner (3F, k): each corner's own barycentric value, or with ``seams``
