@@ -65,29 +65,85 @@ def _clean_faces(faces):
     return faces[keep]
 
 
-def build_mesh(name, vertices, faces):
-    """A new mesh from (V, 3) vertices and (F, 3) triangles (degenerate ones dropped), via foreach_set."""
-    faces = _clean_faces(faces)
+def build_mesh(name, vertices, faces, attributes=None):
+    """A new mesh from (V, 3) vertices and (F, 3) triangles (degenerate ones dropped), via
+    foreach_set, smooth shaded; or, with ``attributes`` (`core.attributes.MeshAttributes`),
+    from their polygons, with their UVs, colours, materials, edge flags and normals."""
+    from ..core.attributes import MeshAttributes
+
+    if attributes is None:
+        attributes = MeshAttributes.from_triangles(_clean_faces(faces))
     verts = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
     mesh = bpy.data.meshes.new(name)
     try:
         mesh.vertices.add(len(verts))
         mesh.vertices.foreach_set("co", verts.ravel())
-        mesh.loops.add(faces.size)
-        mesh.loops.foreach_set("vertex_index", faces.ravel().astype(np.int32))
-        mesh.polygons.add(len(faces))
-        mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
+        mesh.loops.add(attributes.n_loops)
+        mesh.loops.foreach_set("vertex_index", _ints(attributes.loop_vertices))
+        mesh.polygons.add(attributes.n_polygons)
+        mesh.polygons.foreach_set("loop_start", _ints(attributes.loop_start))
         try:  # read-only (derived from loop_start) since Blender 4.0; kept for older files
-            mesh.polygons.foreach_set("loop_total", np.full(len(faces), 3, dtype=np.int32))
+            mesh.polygons.foreach_set("loop_total", _ints(attributes.loop_total))
         except (AttributeError, TypeError, RuntimeError):
             pass
         mesh.update(calc_edges=True)
-        mesh.polygons.foreach_set("use_smooth", np.ones(len(faces), dtype=bool))
+        write_attributes(mesh, attributes)
         mesh.update()
     except Exception:
         bpy.data.meshes.remove(mesh)
         raise
     return mesh
+
+
+def _ints(a):
+    return np.ascontiguousarray(a, dtype=np.int32).ravel()
+
+
+def write_attributes(mesh, attributes):
+    """UV maps (the first active), colour attributes, material indices, smooth flags, sharp
+    and seam edges (matched by their vertex pair) and custom split normals onto ``mesh``,
+    whose polygons are ``attributes``' own."""
+    n_poly = attributes.n_polygons
+    for name, uv in attributes.uv_maps.items():
+        layer = mesh.uv_layers.new(name=name, do_init=False)
+        layer.uv.foreach_set("vector", np.ascontiguousarray(uv, dtype=np.float32).ravel())
+    if len(mesh.uv_layers):
+        mesh.uv_layers.active_index = 0
+        mesh.uv_layers[0].active_render = True
+    for name, (domain, data_type, data) in attributes.colors.items():
+        col = mesh.color_attributes.new(name, data_type, domain)
+        col.data.foreach_set("color", np.ascontiguousarray(data, dtype=np.float32).ravel())
+    if attributes.material_index is not None:
+        mesh.polygons.foreach_set("material_index", _ints(attributes.material_index))
+    smooth = attributes.smooth if attributes.smooth is not None else np.ones(n_poly, dtype=bool)
+    mesh.polygons.foreach_set("use_smooth", np.ascontiguousarray(smooth, dtype=bool))
+    if attributes.edges is not None and len(mesh.edges):
+        edges = np.empty(2 * len(mesh.edges), dtype=np.int32)
+        mesh.edges.foreach_get("vertices", edges)
+        rows = _match_edges(edges.reshape(-1, 2), attributes.edges)
+        for prop, flags in (("use_edge_sharp", attributes.sharp_edges),
+                            ("use_seam", attributes.seams)):
+            if flags is not None:
+                out = np.zeros(len(mesh.edges), dtype=bool)
+                out[rows >= 0] = np.asarray(flags, dtype=bool)[rows[rows >= 0]]
+                mesh.edges.foreach_set(prop, out)
+    if attributes.custom_normals is not None:
+        mesh.normals_split_custom_set(np.asarray(attributes.custom_normals, dtype=np.float32))
+
+
+def _match_edges(edges, source):
+    """Row of ``source`` (E_s, 2) holding each edge of ``edges`` (E, 2) (either order), or -1."""
+    scale = int(max(np.max(edges, initial=0), np.max(source, initial=0))) + 1
+
+    def key(e):
+        e = np.sort(np.asarray(e, dtype=np.int64), axis=1)
+        return e[:, 0] * scale + e[:, 1]
+    src = key(source)
+    order = np.argsort(src)
+    want = key(edges)
+    pos = np.clip(np.searchsorted(src[order], want), 0, max(len(src) - 1, 0))
+    found = (len(src) > 0) & (src[order][pos] == want)
+    return np.where(found, order[pos], -1)
 
 
 def add_frame_keys(obj, frames, vertices, action_name):
@@ -172,18 +228,23 @@ def frame_switch_group(name, collection, first, count):
     return tree
 
 
-def build_sequence(name, frames, surfaces, velocities, fps, material=None, created=None):
+def build_sequence(name, frames, surfaces, velocities, fps, materials=(), created=None,
+                   attributes=None):
     """Per-frame meshes (with ``velocity`` per second) in an unlinked collection, and
     the Geometry Nodes group that shows the frame's mesh. Returns (collection, group);
-    every data-block made is appended to ``created`` (for cleanup on failure)."""
+    every data-block made is appended to ``created`` (for cleanup on failure).
+    ``materials`` fill every frame mesh's slots; ``attributes``, per frame, optional
+    `MeshAttributes` (UVs, colours, material indices) of each surface."""
     created = [] if created is None else created
+    attributes = attributes or [None] * len(frames)
     coll = bpy.data.collections.new(f"{name} Frames")
     created.append(coll)
-    for i, (f, (verts, faces), vel) in enumerate(zip(frames, surfaces, velocities)):
-        mesh = build_mesh(frame_object_name(name, i, f), verts, faces)
+    for i, (f, (verts, faces), vel, attrs) in enumerate(zip(frames, surfaces, velocities,
+                                                          attributes)):
+        mesh = build_mesh(frame_object_name(name, i, f), verts, faces, attrs)
         created.append(mesh)
         add_velocity(mesh, np.asarray(vel, dtype=np.float64) * fps)
-        if material is not None:
+        for material in materials:
             mesh.materials.append(material)
         obj = bpy.data.objects.new(frame_object_name(name, i, f), mesh)
         created.append(obj)
@@ -191,6 +252,23 @@ def build_sequence(name, frames, surfaces, velocities, fps, material=None, creat
     group = frame_switch_group(f"{name} Frame Switch", coll, frames[0], len(frames))
     created.append(group)
     return coll, group
+
+
+def _surface_attributes(animation):
+    """Per frame, the attributes of the frame's own surface (None without the artist's mesh)."""
+    if getattr(animation, "attributes", None) is None:
+        return None
+    return [animation.surface_attributes(i) for i in range(len(animation.surfaces))]
+
+
+def slot_materials(attributes, material_names):
+    """The output's material slots: the first keyframe's own slots in order (None for an
+    empty one) when its mesh is the template, then the keyframes' other materials to pick from."""
+    own = list(getattr(attributes, "material_names", None) or [])
+    mats = [bpy.data.materials.get(n) if n else None for n in own]
+    mats += [bpy.data.materials.get(n) for n in material_names if n not in own]
+    return [m for m in mats if m is not None] if not own else \
+        [m for i, m in enumerate(mats) if i < len(own) or m is not None]
 
 
 def resolve_output(mode, stats):
@@ -317,10 +395,10 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
     created = []
     coll_created = coll_linked = False
     try:
-        mats = [m for m in map(bpy.data.materials.get, material_names) if m is not None]
-        mat = mats[0] if mats else None  # the faces' material; the others ride in the slots
+        attributes = getattr(animation, "attributes", None)
+        mats = slot_materials(attributes, material_names)
         if kind == "shape_keys":
-            mesh = build_mesh(name, verts[0], animation.faces)
+            mesh = build_mesh(name, verts[0], animation.faces, attributes)
         else:
             mesh = bpy.data.meshes.new(name)
         for m in mats:
@@ -334,7 +412,7 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
         else:
             fps = scene.render.fps / scene.render.fps_base
             frames_coll, group = build_sequence(name, frames, surfaces, animation.velocities,
-                                                fps, mat, created)
+                                                fps, mats, created, _surface_attributes(animation))
             mod = obj.modifiers.new("Frame Switch", "NODES")
             mod.node_group = group
             obj[SEQUENCE_TAG] = True

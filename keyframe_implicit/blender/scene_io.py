@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.attributes import MeshAttributes
 from ..core.pipeline import Keyframe
 from . import features, validate
 
@@ -35,21 +36,61 @@ class BakeInput:
         return [k.frame for k in self.keyframes]
 
 
-def mesh_arrays(obj, depsgraph):
-    """World-space vertices (V, 3) float64 and triangles (T, 3) int64 of ``obj`` evaluated."""
+def _get(collection, prop, n, dtype, width=1):
+    out = np.empty(n * width, dtype=dtype)
+    collection.foreach_get(prop, out)
+    return out.reshape(-1, width) if width > 1 else out
+
+
+def mesh_attributes(obj, mesh, matrix):
+    """`MeshAttributes` of an evaluated mesh: polygons, UV maps (active first), colour
+    attributes, the object's material slots with per-face indices, smooth flags, sharp and
+    seam edges, custom split normals (world space) when the mesh has them."""
+    polys, loops, edges = mesh.polygons, mesh.loops, mesh.edges
+    n_poly, n_loop = len(polys), len(loops)
+    attrs = MeshAttributes(_get(polys, "loop_start", n_poly, np.int32).astype(np.int64),
+                           _get(polys, "loop_total", n_poly, np.int32).astype(np.int64),
+                           _get(loops, "vertex_index", n_loop, np.int32).astype(np.int64))
+    layers = sorted(mesh.uv_layers, key=lambda layer: not layer.active_render)
+    for layer in layers:
+        attrs.uv_maps[layer.name] = _get(layer.uv, "vector", n_loop, np.float32, 2)
+    for col in mesh.color_attributes:
+        if col.domain in ("POINT", "CORNER"):
+            n = len(mesh.vertices) if col.domain == "POINT" else n_loop
+            attrs.colors[col.name] = (col.domain, col.data_type,
+                                      _get(col.data, "color", n, np.float32, 4))
+    attrs.material_names = [slot.material.name if slot.material else "" for slot in
+                            obj.material_slots]
+    attrs.material_index = _get(polys, "material_index", n_poly, np.int32).astype(np.int64)
+    attrs.smooth = _get(polys, "use_smooth", n_poly, bool)
+    attrs.edges = _get(edges, "vertices", len(edges), np.int32, 2).astype(np.int64)
+    attrs.sharp_edges = _get(edges, "use_edge_sharp", len(edges), bool)
+    attrs.seams = _get(edges, "use_seam", len(edges), bool)
+    if mesh.has_custom_normals:
+        normals = _get(mesh.corner_normals, "vector", n_loop, np.float32, 3).astype(np.float64)
+        normals = normals @ np.linalg.inv(matrix[:3, :3])  # inverse transpose, row vectors
+        norm = np.linalg.norm(normals, axis=1, keepdims=True)
+        attrs.custom_normals = (normals / np.maximum(norm, 1e-12)).astype(np.float32)
+    return attrs
+
+
+def mesh_arrays(obj, depsgraph, attributes=False):
+    """World-space vertices (V, 3) float64 and triangles (T, 3) int64 of ``obj`` evaluated;
+    with ``attributes``, also its `MeshAttributes` (`mesh_attributes`)."""
     ob_eval = obj.evaluated_get(depsgraph)
+    matrix = np.array(ob_eval.matrix_world, dtype=np.float64)
     mesh = ob_eval.to_mesh()
     try:
         mesh.calc_loop_triangles()
-        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", co)
-        tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", tris)
+        co = _get(mesh.vertices, "co", len(mesh.vertices), np.float32, 3)
+        tris = _get(mesh.loop_triangles, "vertices", len(mesh.loop_triangles), np.int32, 3)
+        attrs = mesh_attributes(obj, mesh, matrix) if attributes else None
     finally:
         ob_eval.to_mesh_clear()
-    matrix = np.array(ob_eval.matrix_world, dtype=np.float64)
-    verts = co.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-    return verts, tris.reshape(-1, 3).astype(np.int64)
+    verts = co.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    if attributes:
+        return verts, tris.astype(np.int64), attrs
+    return verts, tris.astype(np.int64)
 
 
 def _segment_pairs(scene, n_seg):
@@ -91,13 +132,13 @@ def read_keyframes(scene, settings, depsgraph):
     with _restoring_frame(scene):
         for i, kf in enumerate(kfs):
             scene.frame_set(int(kf.frame))
-            verts, tris = mesh_arrays(kf.object, depsgraph)
+            verts, tris, attrs = mesh_arrays(kf.object, depsgraph, attributes=True)
             if len(tris) == 0:
                 raise ValueError(f"Keyframe {i} ('{kf.object.name}', frame {kf.frame}) has no "
                                  "faces after modifiers on that frame: check its modifier stack "
                                  "(a keyframe must be a closed surface).")
             keyframes.append(Keyframe(vertices=verts, faces=tris, frame=int(kf.frame),
-                                      name=kf.object.name))
+                                      name=kf.object.name, attributes=attrs))
             if i < len(rows):
                 side_a[i] = [_world(p.a, depsgraph) for p in rows[i]]
             if i > 0:

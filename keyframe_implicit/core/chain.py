@@ -27,7 +27,7 @@ from .grid import Grid
 from .progress import Reporter
 from .quality import frame_quality
 from .surface import extract_surface
-from .template import _initial_template, track_template, uncovered_area
+from .template import DetailTrack, _initial_template, track_template, uncovered_area
 
 __all__ = ["animate_chain", "ChainResult"]
 
@@ -60,7 +60,8 @@ class ChainResult:
 
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
-                  levelsets=False, progress=None, cancel=None, **options):
+                  levelsets=False, template=None, keyframe_meshes=None, progress=None,
+                  cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -87,6 +88,13 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         measure both outputs against it (`quality.frame_quality`).
     levelsets : bool
         Also keep every frame's level set (float32, grid.shape), e.g. for a volume export.
+    template : (vertices, faces), optional
+        The mesh carried through the frames, lying on keyframe 0's surface (e.g. the
+        artist's own mesh); default: marching cubes of ``phis[0]``.
+    keyframe_meshes : sequence of (vertices, triangles), optional
+        3D only: every keyframe's own mesh. The template then keeps its sub-cell detail
+        and ends each segment on the next keyframe's mesh itself (`template.DetailTrack`),
+        instead of on its grid's zero set.
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
@@ -121,7 +129,13 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
 
     t0 = time.perf_counter()
     all_frames = np.arange(frames[0], frames[-1] + 1)
-    verts, faces = _initial_template(phis[0], grid)
+    if template is None:
+        verts, faces = _initial_template(phis[0], grid)
+    else:
+        verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
+    if keyframe_meshes is not None and len(keyframe_meshes) != nk:
+        raise ValueError(f"keyframe_meshes must hold one mesh per keyframe ({nk}), "
+                         f"got {len(keyframe_meshes)}.")
     out = np.empty((all_frames.size,) + verts.shape)
     stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [], "uncovered_fraction": []}
     per_frame = surfaces and grid.dim == 3
@@ -140,11 +154,18 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
         frame_rep = seg.sub(0.5, 1.0)
         t_seg = time.perf_counter()
+        detail = None if keyframe_meshes is None else DetailTrack(inb, verts,
+                                                                  keyframe_meshes[k + 1])
         for i, f in enumerate(local):  # loop over the segment's frames
             s = (f - f0) / float(f1 - f0)
-            tr = track_template(inb, [s], template=(verts, faces), coverage=False)
-            p = out[f - frames[0]] = tr.vertices[0]
-            stats["max_abs_phi"].extend(tr.stats["max_abs_phi"])
+            if detail is None:
+                tr = track_template(inb, [s], template=(verts, faces), coverage=False)
+                p, err = tr.vertices[0], tr.stats["max_abs_phi"][0]
+            else:
+                p, err = detail(s)
+                err = float(err.max()) if err.size else 0.0
+            out[f - frames[0]] = p
+            stats["max_abs_phi"].append(err)
             if levelsets:
                 fields.append(inb.levelset(s).astype(np.float32))
             if coverage or per_frame:

@@ -26,12 +26,16 @@ class Keyframe:
     faces : sequence of index sequences (triangles or polygons), or an (F, k) int array.
     frame : int, the timeline frame this shape must be matched on.
     name : str, optional; the object's name, used in messages about this keyframe.
+    attributes : `attributes.MeshAttributes`, optional; the mesh's polygons, UV maps,
+        colours, materials, sharp and seam edges, custom normals. On the first keyframe they
+        make the artist's own mesh the shape-keyed result.
     """
 
     vertices: np.ndarray
     faces: object
     frame: int
     name: str = ""
+    attributes: object = None
 
 
 @dataclass
@@ -53,6 +57,9 @@ class Animation:
         ``surfaces`` in world units per frame (the trajectories' rate, eq. 3.1).
     levelsets : list, per frame, of float32 arrays of grid.shape: the in-between level sets
         (eq. 3.4), kept when `animate` is called with ``levelsets=True``.
+    attributes : `attributes.MeshAttributes` of ``vertices`` / ``faces`` (polygons, UVs,
+        materials, ...) when the template is the first keyframe's own mesh, else None
+        (``faces`` are then its polygons' fan triangles).
     """
 
     frames: np.ndarray
@@ -63,6 +70,22 @@ class Animation:
     surfaces: list = field(default_factory=list)
     velocities: list = field(default_factory=list)
     levelsets: list = field(default_factory=list)
+    attributes: object = None
+
+    def surface_attributes(self, i):
+        """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
+
+        Each surface vertex's source is its closest point on the tracked template of the
+        same frame, whose barycentric position on its triangle is a point of keyframe A's
+        mesh: UVs and colours are read there (`attributes.transfer`, seams kept out of
+        triangles), the material from the source face. Computed on demand: a bake stored as
+        shape keys never needs it.
+        """
+        if self.attributes is None or not self.surfaces:
+            return None
+        from .attributes import transfer
+
+        return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
 
 
 _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
@@ -270,7 +293,7 @@ def _notes(keyframes, loose, sdf_stats):
 
 
 def animate(keyframes, features, *, resolution=48, weights=None, progress=None, cancel=None,
-            padding_cells=4, max_bytes=None, feature_names=None, **options):
+            padding_cells=4, max_bytes=None, feature_names=None, template="keyframe", **options):
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -292,6 +315,11 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     max_bytes : int, optional memory limit for the bake; default: 75% of physical memory.
     feature_names : per segment, a sequence of (name_a, name_b) per feature row, optional;
         used in messages (e.g. the Empties' names).
+    template : {"keyframe", "grid"}
+        The mesh carried through the frames: the first keyframe's own mesh with its
+        attributes and sub-cell detail, ending every segment on the next keyframe's mesh
+        (`template.DetailTrack`; falls back to "grid" when it has loose vertices), or
+        marching cubes of its distance grid, pulled onto every frame's zero set.
     **options : passed to `chain.animate_chain` (solver, trajectory and level-set options).
 
     Returns
@@ -369,6 +397,9 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         stats["sdf"].append(sdf_stats)
     stats["sdf_seconds"] = time.perf_counter() - t0
 
+    artist = _artist_template(keyframes[0], surfaces[0], template)
+    if artist is not None:
+        opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
     chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
                           progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
     _check_result(chain, grid, keyframes)
@@ -376,6 +407,9 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     stats["loose_vertices"] = [s[2] for s in surfaces]
     stats["notes"] = _notes(keyframes, stats["loose_vertices"], stats["sdf"])
     if "quality" in stats:
+        if artist is not None:
+            _relative_to_keyframes(stats["quality"]["shape_keys"], chain.frames,
+                                   [kf.frame for kf in keyframes])
         rep(0.98, "Measuring the keyframe frames")
         _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing)
         stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
@@ -385,7 +419,46 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                      vertices=np.asarray(chain.vertices, dtype=np.float32),
                      faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats,
                      surfaces=chain.surfaces, velocities=chain.velocities,
-                     levelsets=chain.levelsets)
+                     levelsets=chain.levelsets, attributes=None if artist is None else artist[2])
+
+
+def _artist_template(keyframe, surface, template):
+    """(vertices, triangles, MeshAttributes) of the first keyframe's own mesh, or None for
+    the grid's template (asked for, or loose vertices that no surface carries)."""
+    from .attributes import MeshAttributes
+
+    if template not in ("keyframe", "grid"):
+        raise ValueError(f'template must be "keyframe" or "grid", got {template!r}.')
+    v, tris, loose = surface[:3]
+    if template == "grid" or loose:
+        return None
+    attrs = keyframe.attributes
+    if attrs is None:
+        return v, tris, MeshAttributes.from_triangles(tris)
+    try:
+        attrs.check(len(v))
+    except ValueError as exc:
+        raise ValueError(f"{_keyframe_label(0, keyframe)}: {exc}") from None
+    return v, attrs.triangles(), attrs
+
+
+def _relative_to_keyframes(per_frame, frames, key_frames):
+    """The artist's mesh measured against how it sits on the keyframes themselves.
+
+    The artist's mesh is not the grid's surface (faces inside the body, open holes, detail
+    finer than a cell), so its raw figures differ from the grid's already on the keyframe
+    frames. Each frame's area ratio and coverage are divided by, and its inverted share
+    reduced by, the keyframe frames' own values interpolated in time: what a frame adds to
+    what the keyframes show.
+    """
+    frames = np.asarray(frames)
+    at = [per_frame[int(f - frames[0])] for f in key_frames]
+    for name, relative in (("area_ratio", np.divide), ("coverage", np.divide),
+                           ("inverted_fraction", np.subtract)):
+        ref = np.interp(frames, key_frames, [q[name] for q in at])
+        for q, r in zip(per_frame, ref):
+            value = relative(q[name], r) if r > 0 or relative is np.subtract else q[name]
+            q[name] = float(min(value, 1.0) if name == "coverage" else max(value, 0.0))
 
 
 def _measure_keyframes(quality, keyframes, chain, spacing):

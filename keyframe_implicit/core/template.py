@@ -250,3 +250,105 @@ def track_template(inb, times, *, template=None, projection_steps=4, coverage=Tr
         rep((k + 1) / times.size, f"template frame {k + 1}/{times.size}")
     stats["seconds"] = time.perf_counter() - t0
     return TemplateTrack(times, out, faces, stats)
+
+
+def local_rotations(inb, points, s, step=0.5):
+    """Rotation part (P, 3, 3) of the trajectories' local motion at time s.
+
+    The Jacobian of x -> ``inb.trajectory(x, s)`` at each point (central
+    differences over ``step`` cells), split F = R S by `trajectory.polar`:
+    the locally rigid part of the motion (eq. 3.1's R(s)).
+    """
+    from .trajectory import polar
+
+    p = np.asarray(points, dtype=float)
+    d = p.shape[1]
+    delta = step * inb.grid.spacing
+    probes = np.concatenate([p[None] + delta * e[None, None] for e in np.eye(d)]
+                            + [p[None] - delta * e[None, None] for e in np.eye(d)])
+    moved = inb.trajectory(probes.reshape(-1, d), s).reshape(2 * d, len(p), d)
+    jac = np.stack([(moved[i] - moved[d + i]) / (2 * delta) for i in range(d)], axis=-1)
+    return polar(jac)[0]
+
+
+def surface_filter(points, radius, passes=3):
+    """Low-pass filter over points (V, 3): ``passes`` rounds of Gaussian-weighted averages
+    over neighbours within ``radius`` (sigma = radius / 2). Returns f(values) -> values."""
+    from scipy.sparse import csr_matrix, identity
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(points)
+    dist = tree.sparse_distance_matrix(tree, radius, output_type="coo_matrix")
+    w = np.exp(-2.0 * (dist.data / radius) ** 2)
+    n = len(points)
+    W = csr_matrix((w, (dist.row, dist.col)), shape=(n, n)) + identity(n, format="csr")
+    W = csr_matrix(W.multiply(1.0 / np.asarray(W.sum(axis=1))))
+
+    def apply(values):
+        for _ in range(passes):
+            values = W @ values
+        return values
+    return apply
+
+
+class DetailTrack:
+    """The artist's mesh of keyframe A carried through one segment with its sub-cell detail.
+
+    The grid sees each keyframe only down to about a cell, so pulling the
+    artist's vertices onto an in-between's zero set would flatten all finer
+    detail. Instead only the smooth part of that pull is applied: with p(s)
+    the trajectory of the artist's vertex V0 (eq. 3.1), P_s the projection
+    onto the zero set at s (`project_to_zero_set`), L a low-pass filter over
+    the mesh that removes wavelengths under about two cells
+    (`surface_filter`) and R(s) the local rotation of the trajectories
+    (`local_rotations`),
+
+        x(s) = p(s) + L[P_s(p(s)) - p(s)] - (1 - s) R(s) c_A + s R(s) R(1)^T c_B,
+
+    where c_A = L[P_0(V0) - V0] is the smooth offset between the artist's
+    mesh and its own grid surface (so x(0) = V0) and c_B the rest needed to
+    land on keyframe B's own triangles: x(1) = C_B(p(1) + L[P_1(p(1)) - p(1)]),
+    the closest point on B's mesh. Detail under a cell thus travels with the
+    locally rigid motion; the grid only steers the shape at its own scale.
+    x(0) is returned exactly as given.
+
+    Parameters
+    ----------
+    inb : Inbetween of the segment.
+    vertices : (V, 3) the template on keyframe A's mesh (world units).
+    end_mesh : (vertices (V_B, 3), triangles (T_B, 3)) of keyframe B.
+    projection_steps : int, steps of `project_to_zero_set`.
+    filter_cells : float, the filter's radius in cells.
+    """
+
+    def __init__(self, inb, vertices, end_mesh, projection_steps=4, filter_cells=1.0):
+        from .attributes import closest_points
+
+        self.inb = inb
+        self.start = np.asarray(vertices)
+        self.steps = projection_steps
+        v0 = self.start.astype(float)
+        self.smooth = surface_filter(v0, filter_cells * inb.grid.spacing)
+        self.offset_a = self._pull(v0, 0.0)[1]
+        p1 = inb.trajectory(v0, 1.0)
+        pulled = self._pull(p1, 1.0)[0]
+        self.end = closest_points(pulled, *end_mesh)[0]
+        self.offset_b = np.einsum("pji,pj->pi", local_rotations(inb, v0, 1.0), self.end - pulled)
+
+    def _pull(self, p, s):
+        """p + L[P_s(p) - p], L[P_s(p) - p] and |phi| at P_s(p)."""
+        q, err = project_to_zero_set(p, self.inb.levelset(s), self.inb.grid, self.steps)
+        smooth = self.smooth(q - p)
+        return p + smooth, smooth, err
+
+    def __call__(self, s):
+        """(V, 3) vertices at time s in [0, 1] and (V,) |phi| of their projection."""
+        s = float(s)
+        if s == 0.0:
+            return self.start.copy(), np.zeros(len(self.start))
+        if s == 1.0:
+            return self.end.copy(), np.zeros(len(self.end))
+        v0 = self.start.astype(float)
+        pulled, _, err = self._pull(self.inb.trajectory(v0, s), s)
+        offset = s * self.offset_b - (1.0 - s) * self.offset_a
+        return pulled + np.einsum("pij,pj->pi", local_rotations(self.inb, v0, s), offset), err

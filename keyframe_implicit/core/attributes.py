@@ -1,0 +1,235 @@
+"""The artist's mesh beyond its triangles, as plain arrays, and its transfer by closest points.
+
+A keyframe is a finished asset: polygons (quads and n-gons), UV maps, colour
+attributes, per-face materials and smooth flags, sharp and seam edges,
+custom split normals. `MeshAttributes` holds them as numpy arrays in
+Blender's own layout (polygons as loop start / loop total / loop vertex
+indices, UVs and corner colours per loop), so the core stays free of bpy
+and the Blender side copies them with ``foreach_get`` / ``foreach_set``.
+
+The thesis carries texture coordinates and colours through the map (its
+sec. 3.2). Two uses here:
+
+- shape keys: keyframe A's own mesh is the template (`template`), so its
+  attributes ride along unchanged;
+- a per-frame surface (mesh sequence): `transfer` gives every corner of a
+  new triangle mesh the attributes of its source point's closest point on
+  the keyframe mesh (barycentric within the source triangle), all three
+  corners of a triangle read from one side of a UV seam.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["MeshAttributes", "closest_points", "barycentric", "transfer"]
+
+
+@dataclass
+class MeshAttributes:
+    """Polygons and attributes of a keyframe mesh (Blender's layout, plain arrays).
+
+    loop_start, loop_total : (P,) int, each polygon's first loop and its corner count.
+    loop_vertices : (L,) int, the vertex of each loop (corner).
+    uv_maps : dict name -> (L, 2) float32, per loop; the first is the active one.
+    colors : dict name -> (domain, data_type, (N, 4) float32): domain "POINT" (N = V) or
+        "CORNER" (N = L), data_type Blender's ("FLOAT_COLOR" or "BYTE_COLOR").
+    material_index : (P,) int, optional; index into ``material_names``.
+    material_names : list of str, the object's material slots in order ("" for empty slots).
+    smooth : (P,) bool, optional; smooth-shaded polygons.
+    edges : (E, 2) int, optional; with ``sharp_edges`` and ``seams`` ((E,) bool) on them.
+    custom_normals : (L, 3) float32, optional; custom split normals per loop (world space).
+    """
+
+    loop_start: np.ndarray
+    loop_total: np.ndarray
+    loop_vertices: np.ndarray
+    uv_maps: dict = field(default_factory=dict)
+    colors: dict = field(default_factory=dict)
+    material_index: np.ndarray | None = None
+    material_names: list = field(default_factory=list)
+    smooth: np.ndarray | None = None
+    edges: np.ndarray | None = None
+    sharp_edges: np.ndarray | None = None
+    seams: np.ndarray | None = None
+    custom_normals: np.ndarray | None = None
+
+    @classmethod
+    def from_triangles(cls, faces):
+        """Attributes of a plain triangle mesh: polygons only."""
+        f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+        return cls(np.arange(0, f.size, 3), np.full(len(f), 3), f.reshape(-1))
+
+    @property
+    def n_polygons(self):
+        return len(self.loop_start)
+
+    @property
+    def n_loops(self):
+        return len(self.loop_vertices)
+
+    def check(self, n_vertices):
+        """ValueError naming the first inconsistency with a mesh of ``n_vertices`` vertices."""
+        start = np.asarray(self.loop_start)
+        total = np.asarray(self.loop_total)
+        loops = np.asarray(self.loop_vertices)
+        if start.shape != total.shape or start.ndim != 1:
+            raise ValueError("loop_start and loop_total must be (P,) arrays of the same length.")
+        if np.any(total < 3):
+            raise ValueError("every polygon needs at least 3 corners.")
+        if len(start) and (start.min() < 0 or (start + total).max() > len(loops)):
+            raise ValueError("polygons reach past the loops: loop_start + loop_total > loops.")
+        if len(loops) and (loops.min() < 0 or loops.max() >= n_vertices):
+            raise ValueError(f"loop vertices must lie in [0, {n_vertices - 1}].")
+        for name, uv in self.uv_maps.items():
+            if np.shape(uv) != (len(loops), 2):
+                raise ValueError(f"UV map '{name}' must have one (u, v) per loop "
+                                 f"({len(loops)}), got shape {np.shape(uv)}.")
+        for name, (domain, _, data) in self.colors.items():
+            n = n_vertices if domain == "POINT" else len(loops)
+            if np.shape(data) != (n, 4):
+                raise ValueError(f"colour attribute '{name}' must be ({n}, 4) on its {domain} "
+                                 f"domain, got shape {np.shape(data)}.")
+        for name in ("material_index", "smooth"):
+            a = getattr(self, name)
+            if a is not None and np.shape(a) != (len(start),):
+                raise ValueError(f"{name} must have one value per polygon ({len(start)}).")
+        if self.custom_normals is not None and np.shape(self.custom_normals) != (len(loops), 3):
+            raise ValueError(f"custom_normals must be ({len(loops)}, 3), one per loop.")
+
+    def triangle_loops(self):
+        """(T, 3) loop indices of the polygons' fan triangles, and (T,) their polygon.
+
+        Fans around each polygon's first corner, as `sdf.triangulate` makes them,
+        so ``loop_vertices[triangle_loops()[0]]`` are the mesh's triangles.
+        """
+        start = np.asarray(self.loop_start, dtype=np.int64)
+        total = np.asarray(self.loop_total, dtype=np.int64)
+        n_tri = total - 2
+        poly = np.repeat(np.arange(len(start)), n_tri)
+        first = np.repeat(start, n_tri)
+        k = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
+        return np.stack([first, first + k + 1, first + k + 2], axis=1), poly
+
+    def triangles(self):
+        """(T, 3) vertex triangles of the polygons (fans)."""
+        return np.asarray(self.loop_vertices, dtype=np.int64)[self.triangle_loops()[0]]
+
+
+def closest_points(points, vertices, triangles, candidates=16):
+    """Closest points on a triangle mesh: (P, 3) points, (P,) triangle, (P, 3) barycentrics.
+
+    Exact point-triangle closest points (`sdf` kernel) over the ``candidates``
+    triangles whose centroids lie nearest, the nearest of them kept.
+    """
+    from scipy.spatial import cKDTree
+
+    from .sdf import _Triangles
+
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    v = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    keep = np.flatnonzero(np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]],
+                                                  v[t[:, 2]] - v[t[:, 0]]), axis=1) > 0)
+    if len(keep) == 0:
+        raise ValueError("the mesh has no triangle of non-zero area.")
+    k = min(int(candidates), len(keep))
+    _, idx = cKDTree(v[t[keep]].mean(axis=1)).query(p, k=k, workers=-1)
+    cand = keep[idx.reshape(len(p), k)].reshape(-1)
+    kernel = _Triangles(v, t[keep])
+    local = np.searchsorted(keep, cand)
+    q = kernel.closest_point(np.repeat(p, k, axis=0), local).reshape(len(p), k, 3)
+    best = np.argmin(np.einsum("pkd,pkd->pk", q - p[:, None], q - p[:, None]), axis=1)
+    rows = np.arange(len(p))
+    q = q[rows, best]
+    tri = cand.reshape(len(p), k)[rows, best]
+    return q, tri, barycentric(q, *(v[t[tri, i]] for i in range(3)))
+
+
+def barycentric(p, a, b, c):
+    """Barycentric coordinates (P, 3) of points p in triangles (a, b, c), clipped to the triangle."""
+    bary = np.clip(_plane_barycentric(p, a, b, c), 0.0, 1.0)
+    return bary / np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+
+
+def transfer(attributes, vertices, sources, faces):
+    """Attributes of a new triangle mesh read from a keyframe mesh at source points.
+
+    Parameters
+    ----------
+    attributes : MeshAttributes of the keyframe mesh (polygons, UVs, colours, materials).
+    vertices : (V, 3) the keyframe mesh's vertices (or the same mesh tracked to a frame:
+        barycentric positions carry over).
+    sources : (N, 3) the source point of every vertex of the new mesh (on or near the mesh).
+    faces : (F, 3) int, the new mesh's triangles.
+
+    Returns
+    -------
+    MeshAttributes of the new mesh (one polygon per triangle): every corner takes the
+    barycentric UVs / colours at its source's closest point on the keyframe mesh. The
+    same corners also get the UVs of the one source triangle under the triangle's centroid,
+    extended past its edges (barycentric in its plane); where a corner's own UVs jump away
+    from those -- its source lies across a seam -- the triangle takes the extended UVs for
+    all three corners, so its UVs never span a seam. Material and smooth flag come from
+    the source polygon of the centroid.
+    """
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    src = np.asarray(sources, dtype=float).reshape(-1, 3)
+    tri_loops, tri_poly = attributes.triangle_loops()
+    lv = np.asarray(attributes.loop_vertices, dtype=np.int64)
+    tris = lv[tri_loops]
+    v = np.asarray(vertices, dtype=float)
+    corner_src = src[f.reshape(-1)]
+    centre_src = src[f].mean(axis=1)
+    _, t_corner, b_corner = closest_points(corner_src, v, tris)
+    _, t_centre, _ = closest_points(centre_src, v, tris)
+    t_corner = t_corner.reshape(-1, 3)
+    b_corner = b_corner.reshape(-1, 3, 3)
+    poly_centre = tri_poly[t_centre]
+    # barycentrics of every corner in the plane of its triangle's centre source triangle
+    a, b, c = (v[tris[np.repeat(t_centre, 3), i]] for i in range(3))
+    # extended at most one triangle's width past its edges (tiny source triangles)
+    b_plane = np.clip(_plane_barycentric(corner_src, a, b, c), -1.0, 2.0)
+    b_plane = (b_plane / b_plane.sum(axis=1, keepdims=True)).reshape(-1, 3, 3)
+
+    def corners(loop_values, seams):
+        """Per new corner (3F, k): each corner's own barycentric value, or with ``seams``
+        the centre triangle's extension for triangles whose corners jump across a seam."""
+        own = np.einsum("fci,fcik->fck", b_corner, loop_values[tri_loops[t_corner]])
+        if not seams:
+            return own.reshape(-1, own.shape[-1])
+        ext = np.einsum("fci,fik->fck", b_plane, loop_values[tri_loops[t_centre]])
+        span = np.ptp(ext, axis=1).max(axis=1)
+        jump = np.abs(own - ext).max(axis=(1, 2))
+        split = jump > 0.5 * span + 1e-3
+        return np.where(split[:, None, None], ext, own).reshape(-1, own.shape[-1])
+
+    out = MeshAttributes.from_triangles(f)
+    for name, uv in attributes.uv_maps.items():
+        uv = np.asarray(uv, dtype=float)
+        out.uv_maps[name] = corners(uv, True).astype(np.float32)
+    for name, (domain, dtype, data) in attributes.colors.items():
+        data = np.asarray(data, dtype=float)
+        loop_data = data[lv] if domain == "POINT" else data
+        out.colors[name] = ("CORNER", dtype, np.clip(corners(loop_data, False), 0.0, None)
+                            .astype(np.float32))
+    if attributes.material_index is not None:
+        out.material_index = np.asarray(attributes.material_index)[poly_centre]
+    out.material_names = list(attributes.material_names)
+    if attributes.smooth is not None:
+        out.smooth = np.asarray(attributes.smooth)[poly_centre]
+    return out
+
+
+def _plane_barycentric(p, a, b, c):
+    """Barycentric coordinates of p projected onto the planes of (a, b, c), not clipped."""
+    e0, e1, w = b - a, c - a, p - a
+    d00, d01, d11 = (np.einsum("ij,ij->i", x, y) for x, y in ((e0, e0), (e0, e1), (e1, e1)))
+    d20, d21 = np.einsum("ij,ij->i", w, e0), np.einsum("ij,ij->i", w, e1)
+    det = d00 * d11 - d01 ** 2
+    det = np.where(np.abs(det) > 0, det, 1.0)
+    u = (d11 * d20 - d01 * d21) / det
+    t = (d00 * d21 - d01 * d20) / det
+    return np.stack([1.0 - u - t, u, t], axis=1)

@@ -1,0 +1,69 @@
+"""The bake keeps the artist's mesh: Suzanne with UVs, a checker and two materials, turning."""
+
+import importlib.util
+import os
+import pathlib
+
+import bpy
+import numpy as np
+import pytest
+
+from keyframe_implicit.core.quality import mesh_distance
+
+_PATH = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "suzanne_check.py"
+_SPEC = importlib.util.spec_from_file_location("suzanne_check", _PATH)
+sc = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(sc)
+
+
+def test_suzanne_keeps_uvs_materials_and_exact_keyframes(scene):
+    a, b = sc.build(scene, resolution=16)
+    obj = sc.bake(scene, "SHAPE_KEYS")
+    h = obj["kfi_spacing"]
+    src_a, src_b = sc.evaluated(a, sc.FRAMES[0]), sc.evaluated(b, sc.FRAMES[1])
+    first, last = sc.evaluated(obj, sc.FRAMES[0]), sc.evaluated(obj, sc.FRAMES[1])
+    # the artist's own mesh: same polygons, UVs, slots and per-face materials
+    assert len(first["co"]) == len(src_a["co"])
+    np.testing.assert_array_equal(first["lv"], src_a["lv"])
+    np.testing.assert_array_equal(first["uv"], src_a["uv"])
+    assert first["names"] == ["Checker Red", "Checker Blue"]
+    np.testing.assert_array_equal(last["material"], src_a["material"])
+    assert 0 < src_a["material"].sum() < len(src_a["material"])
+    # frame A is the artist's float32 positions, frame B lies on B's mesh
+    assert np.array_equal(first["co"], src_a["co"])
+    assert mesh_distance(last["co"], src_b["co"], src_b["tris"]).max() <= 0.05 * h
+    # where B's mesh holds each loop's UV, the result is near it (a coarse grid: 16 cells)
+    assert np.mean(sc.uv_agreement(last, src_b) <= 0.03) >= 0.9
+    mesh = obj.data
+    sharp = np.empty(len(mesh.edges), bool)
+    mesh.edges.foreach_get("use_edge_sharp", sharp)
+    src_sharp = np.empty(len(a.data.edges), bool)
+    a.data.edges.foreach_get("use_edge_sharp", src_sharp)
+    assert sharp.sum() == src_sharp.sum() > 0
+
+
+def test_render_on_the_first_keyframe_equals_the_original(scene):
+    a, b = sc.build(scene, resolution=12)
+    obj = sc.bake(scene, "SHAPE_KEYS")
+    tmp = bpy.app.tempdir
+    a.hide_render = b.hide_render = True
+    result = sc.render(scene, sc.FRAMES[0], os.path.join(tmp, "kfi_result.png"), size=96)
+    obj.hide_render, a.hide_render = True, False
+    original = sc.render(scene, sc.FRAMES[0], os.path.join(tmp, "kfi_original.png"), size=96)
+    assert (original[..., 3] > 0.5).mean() > 0.05  # the head is in the picture
+    assert np.abs(result - original)[..., :3].mean() <= 0.01
+
+
+@pytest.mark.xfail(strict=True, reason="a few coarse-grid triangles still span up to 0.64 in UV: "
+                   "the seam fallback of attributes.transfer does not catch every seam yet")
+def test_mesh_sequence_frames_get_uvs_and_materials(scene):
+    a, b = sc.build(scene, resolution=12)
+    obj = sc.bake(scene, "MESH_SEQUENCE")
+    for f in sc.FRAMES:
+        out = sc.evaluated(obj, f)
+        assert len(out["co"]) != len(a.data.vertices)  # the frame's own surface
+        uv = out["uv"][out["tri_loops"]]
+        assert np.abs(uv).sum() > 0
+        span = np.ptp(uv, axis=1).max(axis=1)
+        assert span.max() < 0.5  # no triangle spans a seam (Suzanne's islands lie apart)
+        assert set(np.unique(out["material"])) == {0, 1}

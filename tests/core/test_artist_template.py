@@ -1,0 +1,161 @@
+"""The artist's own mesh as the template: exact keyframes, attributes kept, sub-cell detail kept."""
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf
+from keyframe_implicit.core.attributes import MeshAttributes, closest_points, transfer
+from keyframe_implicit.core.gridfit import fit_grid
+from keyframe_implicit.core.quality import mesh_distance
+from keyframe_implicit.core.sdf import triangulate
+
+
+def rot_z(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def uv_sphere(n_lat, radius=1.0, bump=None):
+    """Quads (and triangle fans at the poles) of a UV sphere; ``bump(theta, phi)`` adds to r.
+
+    Returns vertices, polygons (list), and MeshAttributes with a UV map (a seam at phi = 0)
+    and two materials (faces with x > 0 use slot 1)."""
+    n_lon = 2 * n_lat
+    th = np.linspace(0, np.pi, n_lat + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    r = radius + (0.0 if bump is None else bump(T, P))
+    ring = np.stack([r * np.sin(T) * np.cos(P), r * np.sin(T) * np.sin(P), r * np.cos(T)], -1)
+    v = np.concatenate([[[0, 0, radius]], ring.reshape(-1, 3), [[0, 0, -radius]]])
+    idx = 1 + np.arange(n_lat - 1)[:, None] * n_lon + np.arange(n_lon)[None]
+    nxt = np.roll(idx, -1, axis=1)
+    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], -1).reshape(-1, 4)
+    top = np.stack([np.zeros(n_lon, int), idx[0], nxt[0]], -1)
+    bottom = np.stack([np.full(n_lon, len(v) - 1), nxt[-1], idx[-1]], -1)
+    polys = [list(q) for q in quads] + [list(t) for t in top] + [list(t) for t in bottom]
+    total = np.array([len(p) for p in polys])
+    loops = np.concatenate(polys)
+    attrs = MeshAttributes(np.concatenate([[0], np.cumsum(total)[:-1]]), total, loops)
+    # UVs: (phi / 2pi, 1 - theta / pi), the seam where a face wraps past phi = 2pi
+    x = v[loops]
+    u = np.arctan2(x[:, 1], x[:, 0]) % (2 * np.pi) / (2 * np.pi)
+    poly = np.repeat(np.arange(len(polys)), total)
+    wraps = np.zeros(len(polys), bool)
+    np.logical_or.at(wraps, poly, u > 0.75)
+    u = np.where(wraps[poly] & (u < 0.25), u + 1.0, u)
+    vv = 1.0 - np.arccos(np.clip(x[:, 2] / np.linalg.norm(x, axis=1), -1, 1)) / np.pi
+    attrs.uv_maps["UVMap"] = np.stack([u, vv], 1).astype(np.float32)
+    centre = np.add.reduceat(x, attrs.loop_start) / total[:, None]
+    attrs.material_index = (centre[:, 0] > 0).astype(np.int64)
+    attrs.material_names = ["Red", "Blue"]
+    return v, polys, attrs
+
+
+def test_fan_triangles_match_triangulate():
+    v, polys, attrs = uv_sphere(6)
+    ours, theirs = attrs.triangles(), triangulate(polys, len(v))  # the same fans, other order
+    np.testing.assert_array_equal(np.unique(ours, axis=0), np.unique(theirs, axis=0))
+    assert len(ours) == len(theirs)
+
+
+def test_closest_points_land_on_the_mesh_with_barycentrics():
+    rng = np.random.default_rng(0)
+    v, polys, attrs = uv_sphere(12)
+    tris = attrs.triangles()
+    p = rng.normal(size=(500, 3))
+    q, tri, bary = closest_points(p, v, tris)
+    np.testing.assert_allclose(np.einsum("pk,pkd->pd", bary, v[tris[tri]]), q, atol=1e-9)
+    assert mesh_distance(q, v, tris).max() < 1e-6
+    # nearer than any vertex
+    d_vert = np.min(np.linalg.norm(p[:, None] - v[None], axis=2), axis=1)
+    assert np.all(np.linalg.norm(q - p, axis=1) <= d_vert + 1e-12)
+
+
+def test_transfer_reads_uvs_and_materials_at_the_source_points():
+    v, polys, attrs = uv_sphere(24)
+    coarse_v, coarse_polys, coarse = uv_sphere(7)
+    faces = coarse.triangles()
+    out = transfer(attrs, v, coarse_v, faces)
+    uv = out.uv_maps["UVMap"].reshape(-1, 3, 2)
+    x = coarse_v[faces]
+    # no triangle spans the seam: its corners' u differ by far less than the seam's jump
+    # (at the poles the test's own map squeezes a whole row of u into one vertex)
+    body = np.all(np.abs(x[..., 2]) < 0.8, axis=1)
+    assert np.ptp(uv[..., 0], axis=1)[body].max() < 0.3
+    # away from the seam and the poles the UVs are the sphere's (phi / 2pi, 1 - theta / pi)
+    u_true = np.arctan2(x[..., 1], x[..., 0]) % (2 * np.pi) / (2 * np.pi)
+    far = (np.abs(x[..., 2]) < 0.8) & (u_true > 0.05) & (u_true < 0.95)
+    assert np.abs(uv[..., 0] - u_true)[far].max() < 0.01
+    centre_x = x.mean(axis=1)[:, 0]
+    clear = np.abs(centre_x) > 0.2
+    np.testing.assert_array_equal(out.material_index[clear], (centre_x[clear] > 0).astype(int))
+
+
+@pytest.fixture(scope="module")
+def squash_bake():
+    """A UV sphere turning 90 degrees with a slight squash, three keyframes (a chain)."""
+    v, polys, attrs = uv_sphere(20)
+    squash = np.diag([1.05, 1.05, 0.9])
+    vb = (v @ rot_z(np.pi / 2).T) @ squash.T + [0.4, 0.0, 0.0]
+    vc = v + [0.8, 0.2, 0.0]
+    fa = np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, -1]])
+    fb = (fa @ rot_z(np.pi / 2).T) @ squash.T + [0.4, 0.0, 0.0]
+    fc = fa + [0.8, 0.2, 0.0]
+    kfs = [Keyframe(v.astype(np.float32), polys, 1, "A", attrs), Keyframe(vb, polys, 7, "B"),
+           Keyframe(vc, polys, 11, "C")]
+    return kfs, animate(kfs, [(fa, fb), (fb, fc)], resolution=20)
+
+
+def test_keyframe_frames_are_the_artists_mesh(squash_bake):
+    kfs, an = squash_bake
+    h = an.grid.spacing
+    assert an.attributes is kfs[0].attributes
+    np.testing.assert_array_equal(an.faces, kfs[0].attributes.triangles())
+    assert an.vertices.dtype == np.float32
+    assert np.array_equal(an.vertices[0], kfs[0].vertices)  # bit for bit
+    for kf in kfs[1:]:
+        i = kf.frame - an.frames[0]
+        d = mesh_distance(an.vertices[i], kf.vertices, triangulate(kf.faces, len(kf.vertices)))
+        assert d.max() <= 0.05 * h
+    q = an.stats["quality"]["shape_keys"]
+    assert max(q[kf.frame - 1]["keyframe_max"] for kf in kfs) < 0.5
+
+
+def test_grid_template_is_still_available(squash_bake):
+    kfs, an = squash_bake
+    grid = animate(kfs[:2], [(np.zeros((0, 3)), np.zeros((0, 3)))], resolution=12,
+                   template="grid", surfaces=False)
+    assert grid.attributes is None
+    assert not np.array_equal(grid.vertices[0][: len(kfs[0].vertices)], kfs[0].vertices)
+    with pytest.raises(ValueError, match="template"):
+        animate(kfs[:2], [(np.zeros((0, 3)), np.zeros((0, 3)))], template="marching")
+
+
+def test_bumps_under_two_cells_survive_a_rigid_turn():
+    """Bumps of amplitude 0.3 h and wavelength 2 h turning rigidly keep >= 80 % at mid-way."""
+    res = 12
+    h = fit_grid([np.array([[-1.0, -1, -1], [1, 1, 1]])], res, padding_cells=4).spacing
+    k = np.pi / h  # wavelength 2 h along the surface of the unit sphere
+
+    def bump(t, p):
+        return 0.3 * h * np.sin(k * t) * np.sin(np.round(k * np.sin(t)) * p)
+    v, polys, _ = uv_sphere(int(np.ceil(np.pi / (2 * h) * 8)), bump=bump)
+    tris = triangulate(polys, len(v))
+    grid = fit_grid([v], res, padding_cells=4)
+    turn = rot_z(np.pi / 2)
+    phis = [mesh_to_sdf(v, tris, grid), mesh_to_sdf(v @ turn.T, tris, grid)]
+    mapped = grid.points() @ turn.T
+    kept = {}
+    for kind, extra in (("detail", dict(keyframe_meshes=[(v, tris), (v @ turn.T, tris)])),
+                        ("zero set", {})):
+        ch = animate_chain(phis, grid, None, [1, 9], maps=[mapped], coverage=False,
+                           surfaces=False, template=(v, tris), **extra)
+        r = np.linalg.norm(ch.vertices[4], axis=1)
+        r0 = np.linalg.norm(v, axis=1)
+        kept[kind] = np.dot(r - r.mean(), r0 - r0.mean()) / np.dot(r0 - r0.mean(), r0 - r0.mean())
+        if kind == "detail":
+            assert np.array_equal(ch.vertices[0], v)
+            expected = v @ rot_z(np.pi / 4).T
+            assert np.linalg.norm(ch.vertices[4] - expected, axis=1).mean() < 0.1 * h
+    assert kept["detail"] >= 0.8
+    assert kept["zero set"] < 0.5  # pulled onto the grid's zero set, the bumps flatten
