@@ -168,12 +168,10 @@ def transfer(attributes, vertices, sources, faces):
     Returns
     -------
     MeshAttributes of the new mesh (one polygon per triangle): every corner takes the
-    barycentric UVs / colours at its source's closest point on the keyframe mesh. The
-    same corners also get the UVs of the one source triangle under the triangle's centroid,
-    extended past its edges (barycentric in its plane); where a corner's own UVs jump away
-    from those -- its source lies across a seam -- the triangle takes the extended UVs for
-    all three corners, so its UVs never span a seam. Material and smooth flag come from
-    the source polygon of the centroid.
+    barycentric UVs / colours at its source's closest point on the keyframe mesh. A
+    triangle whose corners land in different UV islands (across a seam) reads all three
+    corners from the island under its centroid (`uv_islands`), so its UVs never span a
+    seam. Material and smooth flag come from the source polygon of the centroid.
     """
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     src = np.asarray(sources, dtype=float).reshape(-1, 3)
@@ -182,38 +180,31 @@ def transfer(attributes, vertices, sources, faces):
     tris = lv[tri_loops]
     v = np.asarray(vertices, dtype=float)
     corner_src = src[f.reshape(-1)]
-    centre_src = src[f].mean(axis=1)
     _, t_corner, b_corner = closest_points(corner_src, v, tris)
-    _, t_centre, _ = closest_points(centre_src, v, tris)
-    t_corner = t_corner.reshape(-1, 3)
-    b_corner = b_corner.reshape(-1, 3, 3)
+    _, t_centre, _ = closest_points(src[f].mean(axis=1), v, tris)
+    t_corner, b_corner = t_corner.reshape(-1, 3), b_corner.reshape(-1, 3, 3)
     poly_centre = tri_poly[t_centre]
-    # barycentrics of every corner in the plane of its triangle's centre source triangle
-    a, b, c = (v[tris[np.repeat(t_centre, 3), i]] for i in range(3))
-    # extended at most one triangle's width past its edges (tiny source triangles)
-    b_plane = np.clip(_plane_barycentric(corner_src, a, b, c), -1.0, 2.0)
-    b_plane = (b_plane / b_plane.sum(axis=1, keepdims=True)).reshape(-1, 3, 3)
-
-    def corners(loop_values, seams):
-        """Per new corner (3F, k): each corner's own barycentric value, or with ``seams``
-        the centre triangle's extension for triangles whose corners jump across a seam."""
+    if attributes.uv_maps:
+        uv = np.concatenate([np.asarray(m, dtype=float) for m in attributes.uv_maps.values()], 1)
+        across = _spans_seam(uv, tri_loops, t_corner, b_corner, v, tris, corner_src.reshape(-1, 3, 3))
+        # those read all corners from the source triangle under their centroid, extended
+        # past its edges in its plane (UVs are smooth within it)
+        a, b, c = (v[tris[np.repeat(t_centre[across], 3), i]] for i in range(3))
+        ext = _plane_barycentric(corner_src.reshape(-1, 3, 3)[across].reshape(-1, 3), a, b, c)
+        t_corner[across] = t_centre[across, None]
+        b_corner[across] = ext.reshape(-1, 3, 3)
+    def corners(loop_values):
+        """Per new corner (3F, k): the barycentric value at its source point."""
         own = np.einsum("fci,fcik->fck", b_corner, loop_values[tri_loops[t_corner]])
-        if not seams:
-            return own.reshape(-1, own.shape[-1])
-        ext = np.einsum("fci,fik->fck", b_plane, loop_values[tri_loops[t_centre]])
-        span = np.ptp(ext, axis=1).max(axis=1)
-        jump = np.abs(own - ext).max(axis=(1, 2))
-        split = jump > 0.5 * span + 1e-3
-        return np.where(split[:, None, None], ext, own).reshape(-1, own.shape[-1])
+        return own.reshape(-1, own.shape[-1])
 
     out = MeshAttributes.from_triangles(f)
     for name, uv in attributes.uv_maps.items():
-        uv = np.asarray(uv, dtype=float)
-        out.uv_maps[name] = corners(uv, True).astype(np.float32)
+        out.uv_maps[name] = corners(np.asarray(uv, dtype=float)).astype(np.float32)
     for name, (domain, dtype, data) in attributes.colors.items():
         data = np.asarray(data, dtype=float)
         loop_data = data[lv] if domain == "POINT" else data
-        out.colors[name] = ("CORNER", dtype, np.clip(corners(loop_data, False), 0.0, None)
+        out.colors[name] = ("CORNER", dtype, np.clip(corners(loop_data), 0.0, None)
                             .astype(np.float32))
     if attributes.material_index is not None:
         out.material_index = np.asarray(attributes.material_index)[poly_centre]
@@ -221,6 +212,22 @@ def transfer(attributes, vertices, sources, faces):
     if attributes.smooth is not None:
         out.smooth = np.asarray(attributes.smooth)[poly_centre]
     return out
+
+
+def _spans_seam(uv, tri_loops, t_corner, b_corner, v, tris, corners):
+    """(F,) bool: new triangles whose corners' UVs lie much farther apart than their
+    positions, compared with the keyframe mesh's own UV-to-space scale: their corners
+    landed on the two sides of a UV seam."""
+    def uv_over_space(uv_tri, pos_tri):
+        duv = np.linalg.norm(uv_tri - np.roll(uv_tri, 1, axis=1), axis=-1)
+        dx = np.linalg.norm(pos_tri - np.roll(pos_tri, 1, axis=1), axis=-1)
+        return duv, dx
+
+    duv, dx = uv_over_space(uv[tri_loops], v[tris])
+    scale = np.median(duv[dx > 0] / dx[dx > 0])
+    own = np.einsum("fci,fcik->fck", b_corner, uv[tri_loops[t_corner]])
+    duv, dx = uv_over_space(own, corners)
+    return np.any(duv > 4.0 * scale * dx + 1e-6, axis=1)
 
 
 def _plane_barycentric(p, a, b, c):
