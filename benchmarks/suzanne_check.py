@@ -12,6 +12,8 @@ import os
 import bpy
 import numpy as np
 
+from keyframe_implicit.blender.materials import shader_node_tree
+
 SQUASH = (1.05, 1.05, 0.9)
 FRAMES = (1, 13)
 
@@ -19,8 +21,8 @@ FRAMES = (1, 13)
 def checker_material(name, colour):
     """Emission of a checker texture read through the active UV map."""
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tree = shader_node_tree(mat)
+    nodes, links = tree.nodes, tree.links
     nodes.clear()
     coords = nodes.new("ShaderNodeTexCoord")
     checker = nodes.new("ShaderNodeTexChecker")

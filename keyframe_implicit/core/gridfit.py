@@ -265,8 +265,8 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
                       + _SOLVER_FIXED),
         "inbetween": int(N * _INBETWEEN_BYTES_PER_NODE[d] + _TRANSPORT_FILL * fill * M_t ** power),
     }
-    out["peak"] = out["keyframes"] + max(out["sdf"], _CONCURRENT_SOLVES * out["solver"],
-                                         out["inbetween"])
+    out["peak"] = out["keyframes"] + int(max(out["sdf"], _CONCURRENT_SOLVES * out["solver"],
+                                             out["inbetween"]))
     return out
 
 

@@ -58,7 +58,9 @@ def test_estimate_grows_with_the_grid_and_adds_up():
     small = estimate_memory(fit_grid(pts, 16))
     big = estimate_memory(fit_grid(pts, 32))
     for est in (small, big):
-        assert est["peak"] == est["keyframes"] + max(est["sdf"], est["solver"], est["inbetween"])
+        # two maps are solved at once: the solver stage counts 1.5 times (see the model)
+        assert est["peak"] == est["keyframes"] + int(max(est["sdf"], 1.5 * est["solver"],
+                                                         est["inbetween"]))
     ratio = big["nodes"] / small["nodes"]
     assert big["peak"] > small["peak"]
     for stage in ("keyframes", "solver"):  # array sizes: linear in the nodes at most
