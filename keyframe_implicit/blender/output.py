@@ -448,13 +448,14 @@ def _sequence_blocks(obj):
     """The frame-switch groups of a sequence output, and what they reach of the layout
     of earlier versions (one object per frame in an unlinked collection, picked by
     Collection Info): the frame collection, objects and meshes."""
+    groups = [m.node_group for m in obj.modifiers if m.type == "NODES" and m.node_group]
     blocks = []
-    for group in [m.node_group for m in obj.modifiers if m.type == "NODES" and m.node_group]:
+    for group in groups:
         for node in group.nodes:
-            coll = (node.inputs["Collection"].default_value
-                    if node.bl_idname == "GeometryNodeCollectionInfo" else None)
-            if coll is not None:
-                blocks += list(coll.objects) + [o.data for o in coll.objects] + [coll]
+            if node.bl_idname == "GeometryNodeCollectionInfo":
+                coll = node.inputs["Collection"].default_value
+                if coll is not None:
+                    blocks += [o for o in coll.objects] + [o.data for o in coll.objects] + [coll]
         blocks.append(group)
     return blocks
 

@@ -64,6 +64,22 @@ def test_mesh_sequence_plays_each_frames_surface_with_velocity_per_second(scene,
     assert scene.keyframe_implicit.output_object.data.shape_keys is not None
 
 
+def test_failure_while_writing_a_sequence_removes_partial_data(scene, kfi, monkeypatch):
+    from keyframe_implicit.blender import output
+
+    scene, _ = _bake_moving_sphere(kfi)
+    scene.keyframe_implicit.output_collection = "Fresh Collection"  # created, then removed again
+    state = kfi.snapshot()
+
+    def fail_late(*args):  # the new mesh, frame switch, object and collection exist by now
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(output, "retire_output", fail_late)
+    with pytest.raises(RuntimeError, match="disk full"):
+        bpy.ops.keyframe_implicit.bake(resolution=RES)
+    assert kfi.snapshot() == state
+
+
 def test_sequence_blend_plays_without_the_add_on(scene, kfi, tmp_path):
     scene, out = _bake_moving_sphere(kfi)
     counts = {}
