@@ -17,16 +17,18 @@ Shape keys (issue 5, item 4):
 
 Mesh sequence (topology free, for merges and splits; PAPER-NOTES section 9):
 
-- every frame's own surface as a mesh object "<name> F<frame>" in a collection
-  "<name> Frames" that is not linked to any scene (hidden, never rendered
-  itself); each frame mesh carries the float3 point attribute ``velocity`` in
-  world units per second (scene fps / fps_base), which Cycles uses for motion
-  blur when the vertex count changes from frame to frame;
-- the output object holds a Geometry Nodes modifier (group "<name> Frame
-  Switch"): Collection Info of that collection with separated children,
-  the one instance whose index is the scene frame minus the first frame
-  (rounded, clamped to the range) is kept and realised. Only built-in nodes,
-  so the .blend plays and renders without the add-on.
+- one mesh holding every frame's own surface, the frames laid end to end,
+  with the integer face attribute ``kfi_frame`` (the frame's index from the
+  first frame) and the float3 point attribute ``velocity`` in world units per
+  second (scene fps / fps_base), which Cycles uses for motion blur when the
+  vertex count changes from frame to frame;
+- on the output object a Geometry Nodes modifier (group "<name> Frame
+  Switch") keeps the faces whose ``kfi_frame`` is the scene frame minus the
+  first frame (rounded, clamped to the range) with Separate Geometry. The
+  evaluated mesh thus always comes from the object's own mesh and keeps its
+  name, so the Alembic exporter writes one animated shape (it names shapes
+  after the mesh). Only built-in nodes, so the .blend plays and renders
+  without the add-on.
 
 Geometry and shape keys are written with ``foreach_set`` (as glTF-Blender-IO's
 importer does); F-curves go through `fcurves`. If anything fails half way,
@@ -42,6 +44,7 @@ from . import fcurves
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
 SEQUENCE_TAG = "kfi_sequence"
+FRAME_ATTRIBUTE = "kfi_frame"
 
 
 def frame_key_name(frame):
@@ -174,11 +177,6 @@ def add_velocity(mesh, velocity):
     return attr
 
 
-def frame_object_name(name, index, frame):
-    """Name of the ``index``-th frame's object; zero padded so that name order is frame order."""
-    return f"{name} {int(index):05d} frame {int(frame)}"
-
-
 def _link(tree, a, out, b, inp):
     tree.links.new(a.outputs[out], b.inputs[inp])
 
@@ -193,65 +191,63 @@ def _math(tree, operation, a=None, value=None):
     return node
 
 
-def frame_switch_group(name, collection, first, count):
-    """Geometry Nodes group: the child of ``collection`` for the scene frame, realised.
+def frame_switch_group(name, first, count):
+    """Geometry Nodes group: the faces of the input mesh that belong to the scene frame.
 
-    Instance i of Collection Info (separate children, sorted by name) is frame
-    ``first + i``; the frame is rounded (sub-frames of motion blur keep their
-    frame's mesh) and clamped to the baked range.
+    A face belongs to frame ``first + i`` when its ``FRAME_ATTRIBUTE`` is i; the
+    scene frame is rounded (sub-frames of motion blur keep their frame's mesh) and
+    clamped to the ``count`` baked frames. Separate Geometry on faces drops the other
+    frames' faces, edges and vertices.
     """
     tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
-    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    info = tree.nodes.new("GeometryNodeCollectionInfo")
-    info.transform_space = "ORIGINAL"
-    info.inputs["Collection"].default_value = collection
-    info.inputs["Separate Children"].default_value = True
-    info.inputs["Reset Children"].default_value = True
+    for in_out in ("INPUT", "OUTPUT"):
+        tree.interface.new_socket("Geometry", in_out=in_out, socket_type="NodeSocketGeometry")
+    source = tree.nodes.new("NodeGroupInput")
     time = tree.nodes.new("GeometryNodeInputSceneTime")
     offset = _math(tree, "SUBTRACT", time.outputs["Frame"], first)
     low = _math(tree, "MAXIMUM", _math(tree, "ROUND", offset.outputs[0]).outputs[0], 0)
     pick = _math(tree, "MINIMUM", low.outputs[0], count - 1)
-    index = tree.nodes.new("GeometryNodeInputIndex")
-    same = _math(tree, "COMPARE", index.outputs[0], None)
+    index = tree.nodes.new("GeometryNodeInputNamedAttribute")
+    index.data_type = "INT"
+    index.inputs["Name"].default_value = FRAME_ATTRIBUTE
+    same = _math(tree, "COMPARE", index.outputs["Attribute"], None)
     _link(tree, pick, 0, same, 1)
     same.inputs[2].default_value = 0.25
     keep = tree.nodes.new("GeometryNodeSeparateGeometry")
-    keep.domain = "INSTANCE"
-    _link(tree, info, "Instances", keep, "Geometry")
+    keep.domain = "FACE"
+    _link(tree, source, 0, keep, "Geometry")
     _link(tree, same, 0, keep, "Selection")
-    real = tree.nodes.new("GeometryNodeRealizeInstances")
-    _link(tree, keep, "Selection", real, "Geometry")
     out = tree.nodes.new("NodeGroupOutput")
-    _link(tree, real, "Geometry", out, "Geometry")
+    _link(tree, keep, "Selection", out, "Geometry")
     for i, node in enumerate(tree.nodes):  # readable when an artist opens the group
         node.location = (200 * i, 0)
     return tree
 
 
-def build_sequence(name, frames, surfaces, velocities, fps, materials=(), created=None,
-                   attributes=None):
-    """Per-frame meshes (with ``velocity`` per second) in an unlinked collection, and
-    the Geometry Nodes group that shows the frame's mesh. Returns (collection, group);
-    every data-block made is appended to ``created`` (for cleanup on failure).
-    ``materials`` fill every frame mesh's slots; ``attributes``, per frame, optional
-    `MeshAttributes` (UVs, colours, material indices) of each surface."""
-    created = [] if created is None else created
-    attributes = attributes or [None] * len(frames)
-    coll = bpy.data.collections.new(f"{name} Frames")
-    created.append(coll)
-    for i, (f, (verts, faces), vel, attrs) in enumerate(zip(frames, surfaces, velocities,
-                                                          attributes)):
-        mesh = build_mesh(frame_object_name(name, i, f), verts, faces, attrs)
-        created.append(mesh)
-        add_velocity(mesh, np.asarray(vel, dtype=np.float64) * fps)
-        for material in materials:
-            mesh.materials.append(material)
-        obj = bpy.data.objects.new(frame_object_name(name, i, f), mesh)
-        created.append(obj)
-        coll.objects.link(obj)
-    group = frame_switch_group(f"{name} Frame Switch", coll, frames[0], len(frames))
-    created.append(group)
-    return coll, group
+def build_sequence(name, surfaces, velocities, fps, attributes=None):
+    """One mesh holding every frame's surface, frame after frame, with the face attribute
+    ``FRAME_ATTRIBUTE`` (the frame's index) and ``velocity`` per second (``velocities`` are
+    per frame). ``attributes``, per frame, optional `MeshAttributes` (UVs, colours,
+    material indices) of each surface; without them a surface's degenerate triangles are
+    dropped."""
+    from ..core.attributes import MeshAttributes, concatenate
+
+    attributes = attributes or [None] * len(surfaces)
+    parts = [a if a is not None else MeshAttributes.from_triangles(_clean_faces(faces))
+             for (_, faces), a in zip(surfaces, attributes)]
+    verts = [np.asarray(v, dtype=np.float32).reshape(-1, 3) for v, _ in surfaces]
+    mesh = build_mesh(name, np.concatenate(verts), None,
+                      concatenate(parts, [len(v) for v in verts]))
+    try:
+        frame = mesh.attributes.new(FRAME_ATTRIBUTE, "INT", "FACE")
+        frame.data.foreach_set("value", _ints(np.repeat(np.arange(len(parts)),
+                                                        [p.n_polygons for p in parts])))
+        add_velocity(mesh, np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1, 3)
+                                           for v in velocities]) * fps)
+    except Exception:
+        bpy.data.meshes.remove(mesh)
+        raise
+    return mesh
 
 
 def _surface_attributes(animation):
@@ -318,8 +314,9 @@ def _in_scene(scene, coll):
 
 
 def remove_output(obj):
-    """Delete a baked object with its mesh, shape keys and their action, or its frame meshes
-    and frame switch (only what is unused elsewhere)."""
+    """Delete a baked object with its mesh, shape keys and their action, and the frame switch
+    of a sequence (also one of the earlier layout, `_sequence_blocks`), only what is unused
+    elsewhere."""
     if obj is None:
         return
     mesh = obj.data if obj.type == "MESH" else None
@@ -391,17 +388,17 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
         raise ValueError("This bake holds no per-frame surfaces: choose Shape Keys as the output.")
     name = settings.output_name or "KFI Animation"
     coll_name = settings.output_collection or "Keyframe Implicit"
-    mesh = obj = coll = None
-    created = []
+    mesh = obj = group = coll = None
     coll_created = coll_linked = False
     try:
         attributes = getattr(animation, "attributes", None)
-        mats = slot_materials(attributes, material_names)
         if kind == "shape_keys":
             mesh = build_mesh(name, verts[0], animation.faces, attributes)
         else:
-            mesh = bpy.data.meshes.new(name)
-        for m in mats:
+            fps = scene.render.fps / scene.render.fps_base
+            mesh = build_sequence(name, surfaces, animation.velocities, fps,
+                                  _surface_attributes(animation))
+        for m in slot_materials(attributes, material_names):
             mesh.materials.append(m)
         obj = bpy.data.objects.new(name, mesh)
         if kind == "shape_keys":
@@ -410,14 +407,10 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
             names = ((key, bpy.data.shape_keys, f"{name} Key"),
                      (key.animation_data.action, bpy.data.actions, f"{name} Frames"))
         else:
-            fps = scene.render.fps / scene.render.fps_base
-            frames_coll, group = build_sequence(name, frames, surfaces, animation.velocities,
-                                                fps, mats, created, _surface_attributes(animation))
-            mod = obj.modifiers.new("Frame Switch", "NODES")
-            mod.node_group = group
+            group = frame_switch_group(f"{name} Frame Switch", frames[0], len(frames))
+            obj.modifiers.new("Frame Switch", "NODES").node_group = group
             obj[SEQUENCE_TAG] = True
-            names = ((frames_coll, bpy.data.collections, f"{name} Frames"),
-                     (group, bpy.data.node_groups, f"{name} Frame Switch"))
+            names = ((group, bpy.data.node_groups, f"{name} Frame Switch"),)
         coll, coll_created, coll_linked = _ensure_collection(scene, coll_name)
         coll.objects.link(obj)
         obj[OUTPUT_TAG] = True
@@ -446,24 +439,15 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
             if block.name != wanted and coll_.get(wanted) is None:
                 block.name = wanted  # the old output is gone: take back the plain names
     except Exception:
-        _undo_partial(scene, obj, mesh, coll, coll_created, coll_linked)
-        _remove_blocks(created)
+        _undo_partial(scene, obj, mesh, group, coll, coll_created, coll_linked)
         raise
     return obj
 
 
-def _remove_blocks(blocks):
-    """Remove data-blocks made by `build_sequence` (objects before their meshes)."""
-    order = (bpy.types.Object, bpy.types.Mesh, bpy.types.Collection, bpy.types.NodeTree)
-    stores = (bpy.data.objects, bpy.data.meshes, bpy.data.collections, bpy.data.node_groups)
-    for kind, store in zip(order, stores):
-        for block in blocks:
-            if isinstance(block, kind):
-                store.remove(block)
-
-
 def _sequence_blocks(obj):
-    """The frame-switch group, frame collection, frame objects and meshes of a sequence output."""
+    """The frame-switch groups of a sequence output, and what they reach of the layout
+    of earlier versions (one object per frame in an unlinked collection, picked by
+    Collection Info): the frame collection, objects and meshes."""
     groups = [m.node_group for m in obj.modifiers if m.type == "NODES" and m.node_group]
     blocks = []
     for group in groups:
@@ -486,8 +470,9 @@ def _remove_sequence(blocks):
                 store.remove(block)
 
 
-def _undo_partial(scene, obj, mesh, coll, coll_created, coll_linked):
-    """Remove what a failed `write_animation` created (object, mesh, keys, action, collection)."""
+def _undo_partial(scene, obj, mesh, group, coll, coll_created, coll_linked):
+    """Remove what a failed `write_animation` created (object, mesh, keys, action, frame
+    switch, collection)."""
     key = mesh.shape_keys if mesh is not None else None
     action = key.animation_data.action if key is not None and key.animation_data else None
     if obj is not None:
@@ -496,6 +481,8 @@ def _undo_partial(scene, obj, mesh, coll, coll_created, coll_linked):
         bpy.data.meshes.remove(mesh)
     if action is not None:
         bpy.data.actions.remove(action)
+    if group is not None:
+        bpy.data.node_groups.remove(group)
     if coll is not None:
         if coll_created:
             bpy.data.collections.remove(coll)

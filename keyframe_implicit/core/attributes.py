@@ -15,7 +15,8 @@ sec. 3.2). Two uses here:
 - a per-frame surface (mesh sequence): `transfer` gives every corner of a
   new triangle mesh the attributes of its source point's closest point on
   the keyframe mesh (barycentric within the source triangle), all three
-  corners of a triangle read from one side of a UV seam.
+  corners of a triangle read from one side of a UV seam; `concatenate`
+  joins the frames' attributes into those of one mesh holding every frame.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MeshAttributes", "closest_points", "barycentric", "transfer"]
+__all__ = ["MeshAttributes", "closest_points", "barycentric", "transfer", "concatenate"]
 
 
 @dataclass
@@ -211,6 +212,69 @@ def transfer(attributes, vertices, sources, faces):
     out.material_names = list(attributes.material_names)
     if attributes.smooth is not None:
         out.smooth = np.asarray(attributes.smooth)[poly_centre]
+    return out
+
+
+def concatenate(parts, n_vertices):
+    """The attributes of one mesh made of several laid end to end.
+
+    Parameters
+    ----------
+    parts : sequence of MeshAttributes, one per mesh, in order.
+    n_vertices : sequence of int, each mesh's vertex count: part k's loop vertices and
+        edges are offset by the vertices of the parts before it.
+
+    Returns
+    -------
+    MeshAttributes whose polygons, loops, UV maps, colours, material indices, smooth
+    flags, edge flags and custom normals are the parts' in order. An attribute that only
+    some parts have is filled with its neutral value on the others: UV (0, 0), colour 0,
+    material 0, smooth, no sharp edge or seam, custom normal (0, 0, 0) (Blender's own).
+    ``material_names`` are the first part's.
+    """
+    parts = list(parts)
+    if len(parts) != len(n_vertices):
+        raise ValueError(f"{len(parts)} attribute sets for {len(n_vertices)} vertex counts.")
+    loops = [p.n_loops for p in parts]
+    polygons = [p.n_polygons for p in parts]
+    v_off = np.concatenate([[0], np.cumsum(n_vertices, dtype=np.int64)[:-1]])
+    l_off = np.concatenate([[0], np.cumsum(loops, dtype=np.int64)[:-1]])
+
+    def joined(values, rows, fill, dtype):
+        """``values`` (one array or None per part) in one array; None -> ``fill`` rows."""
+        if all(v is None for v in values):
+            return None
+        width = next(np.shape(v)[1:] for v in values if v is not None)
+        return np.concatenate([np.full((n,) + width, fill, dtype) if v is None
+                               else np.asarray(v, dtype) for v, n in zip(values, rows)])
+
+    out = MeshAttributes(
+        np.concatenate([np.asarray(p.loop_start, np.int64) + o for p, o in zip(parts, l_off)]),
+        np.concatenate([np.asarray(p.loop_total, np.int64) for p in parts]),
+        np.concatenate([np.asarray(p.loop_vertices, np.int64) + o
+                        for p, o in zip(parts, v_off)]),
+        material_names=list(parts[0].material_names))
+    for name in dict.fromkeys(n for p in parts for n in p.uv_maps):
+        out.uv_maps[name] = joined([p.uv_maps.get(name) for p in parts], loops, 0.0, np.float32)
+    for name in dict.fromkeys(n for p in parts for n in p.colors):
+        kinds = {p.colors[name][:2] for p in parts if name in p.colors}
+        if len(kinds) > 1:
+            raise ValueError(f"colour attribute '{name}' has different domains or types: "
+                             f"{sorted(kinds)}.")
+        domain, data_type = kinds.pop()
+        data = [p.colors[name][2] if name in p.colors else None for p in parts]
+        rows = n_vertices if domain == "POINT" else loops
+        out.colors[name] = (domain, data_type, joined(data, rows, 0.0, np.float32))
+    out.material_index = joined([p.material_index for p in parts], polygons, 0, np.int64)
+    out.smooth = joined([p.smooth for p in parts], polygons, True, bool)
+    out.custom_normals = joined([p.custom_normals for p in parts], loops, 0.0, np.float32)
+    edged = [(p, o) for p, o in zip(parts, v_off) if p.edges is not None]
+    if edged:
+        out.edges = np.concatenate([np.reshape(p.edges, (-1, 2)).astype(np.int64) + o
+                                    for p, o in edged])
+        counts = [len(p.edges) for p, _ in edged]
+        out.sharp_edges = joined([p.sharp_edges for p, _ in edged], counts, False, bool)
+        out.seams = joined([p.seams for p, _ in edged], counts, False, bool)
     return out
 
 

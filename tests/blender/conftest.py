@@ -135,6 +135,7 @@ def snapshot():
         "actions": sorted(a.name for a in d.actions),
         "shape_keys": sorted(k.name for k in d.shape_keys),
         "materials": sorted(m.name for m in d.materials),
+        "node_groups": sorted(g.name for g in d.node_groups),
         "mesh_hashes": {m.name: mesh_hash(m) for m in d.meshes},
         "matrices": {o.name: tuple(map(tuple, o.matrix_world)) for o in d.objects},
         "output": (bpy.context.scene.keyframe_implicit.output_object.name

@@ -39,6 +39,8 @@ def test_mesh_sequence_plays_each_frames_surface_with_velocity_per_second(scene,
     scene, out = _bake_moving_sphere(kfi)
     assert out["kfi_output_kind"] == "mesh_sequence"
     assert out.data.shape_keys is None
+    # every frame lives in the output's own mesh: no frame objects outside the scene
+    assert set(bpy.data.objects) <= set(scene.objects)
     h = float(out["kfi_spacing"])
     centres = []
     for f in range(1, 10):
@@ -62,6 +64,22 @@ def test_mesh_sequence_plays_each_frames_surface_with_velocity_per_second(scene,
     assert scene.keyframe_implicit.output_object.data.shape_keys is not None
 
 
+def test_failure_while_writing_a_sequence_removes_partial_data(scene, kfi, monkeypatch):
+    from keyframe_implicit.blender import output
+
+    scene, _ = _bake_moving_sphere(kfi)
+    scene.keyframe_implicit.output_collection = "Fresh Collection"  # created, then removed again
+    state = kfi.snapshot()
+
+    def fail_late(*args):  # the new mesh, frame switch, object and collection exist by now
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(output, "retire_output", fail_late)
+    with pytest.raises(RuntimeError, match="disk full"):
+        bpy.ops.keyframe_implicit.bake(resolution=RES)
+    assert kfi.snapshot() == state
+
+
 def test_sequence_blend_plays_without_the_add_on(scene, kfi, tmp_path):
     scene, out = _bake_moving_sphere(kfi)
     counts = {}
@@ -83,10 +101,6 @@ def test_sequence_blend_plays_without_the_add_on(scene, kfi, tmp_path):
 
 @pytest.mark.skipif(not bpy.app.build_options.alembic,
                     reason="this Blender is built without Alembic (Debian's 4.3 package)")
-@pytest.mark.xfail(bpy.app.version >= (5, 2, 0), strict=True,
-                   reason="known defect: from Blender 5.2 the evaluated mesh takes each frame "
-                          "mesh's name, and the Alembic exporter writes one static shape per "
-                          "frame; the fix is to keep every frame in the output's own mesh")
 def test_alembic_export_writes_per_frame_vertex_counts(scene, kfi, tmp_path):
     kfi.build_spheres([("A", (-0.5, 0, 0), 0.6, 1), ("B", (0.0, 0, 0), 0.75, 7)])
     scene.keyframe_implicit.output_mode = "MESH_SEQUENCE"
@@ -161,3 +175,23 @@ def test_cycles_motion_blur_streaks_along_the_motion(scene, kfi):
     gained = (blurred > 0.1) & ~sharp
     gx = np.nonzero(gained)[1]
     assert gx.size and np.mean(gx) > xs.mean(), (np.mean(gx), xs.mean())
+
+
+def test_removing_a_sequence_of_the_earlier_layout_leaves_none_of_its_blocks(scene):
+    """Earlier versions kept one object per frame in an unlinked collection, picked by a
+    Collection Info node: re-baking such a file removes all of it."""
+    from keyframe_implicit.blender import output
+
+    frames = bpy.data.collections.new("Old Frames")
+    for i in range(3):
+        frames.objects.link(bpy.data.objects.new(f"Old {i}", bpy.data.meshes.new(f"Old {i}")))
+    group = bpy.data.node_groups.new("Old Frame Switch", "GeometryNodeTree")
+    info = group.nodes.new("GeometryNodeCollectionInfo")
+    info.inputs["Collection"].default_value = frames
+    old = bpy.data.objects.new("Old", bpy.data.meshes.new("Old"))
+    scene.collection.objects.link(old)
+    old.modifiers.new("Frame Switch", "NODES").node_group = group
+    old[output.SEQUENCE_TAG] = True
+    output.remove_output(old)
+    assert not bpy.data.objects and not bpy.data.meshes
+    assert not bpy.data.node_groups and not bpy.data.collections

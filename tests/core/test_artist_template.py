@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf
-from keyframe_implicit.core.attributes import MeshAttributes, closest_points, transfer
+from keyframe_implicit.core.attributes import (MeshAttributes, closest_points, concatenate,
+                                               transfer)
 from keyframe_implicit.core.gridfit import fit_grid
 from keyframe_implicit.core.quality import mesh_distance
 from keyframe_implicit.core.sdf import triangulate
@@ -89,6 +90,44 @@ def test_transfer_reads_uvs_and_materials_at_the_source_points():
     centre_x = x.mean(axis=1)[:, 0]
     clear = np.abs(centre_x) > 0.2
     np.testing.assert_array_equal(out.material_index[clear], (centre_x[clear] > 0).astype(int))
+
+
+def test_concatenate_offsets_polygons_and_fills_what_a_part_lacks():
+    v_a, polys_a, a = uv_sphere(4)
+    a.colors["Col"] = ("POINT", "FLOAT_COLOR", np.full((len(v_a), 4), 0.5, np.float32))
+    a.edges = np.array([[0, 1], [1, 2]])
+    a.seams = np.array([True, False])
+    v_b, _, b = uv_sphere(3)
+    b.uv_maps.clear()
+    b.material_index = None
+    b.custom_normals = np.tile(np.float32([0, 0, 1]), (b.n_loops, 1))
+    out = concatenate([a, b], [len(v_a), len(v_b)])
+    out.check(len(v_a) + len(v_b))
+    n_loop = a.n_loops
+    # the same polygons, the second part's loops and vertices moved past the first's
+    np.testing.assert_array_equal(out.loop_start, np.r_[a.loop_start, b.loop_start + n_loop])
+    np.testing.assert_array_equal(out.loop_vertices, np.r_[a.loop_vertices,
+                                                           b.loop_vertices + len(v_a)])
+    np.testing.assert_array_equal(out.triangles()[:len(a.triangles())], a.triangles())
+    np.testing.assert_array_equal(out.triangles()[len(a.triangles()):],
+                                  b.triangles() + len(v_a))
+    # attributes only one part has: that part's values, the neutral value on the other
+    np.testing.assert_array_equal(out.uv_maps["UVMap"][:n_loop], a.uv_maps["UVMap"])
+    assert not out.uv_maps["UVMap"][n_loop:].any()
+    np.testing.assert_array_equal(out.material_index, np.r_[a.material_index,
+                                                            np.zeros(b.n_polygons, int)])
+    domain, _, col = out.colors["Col"]
+    assert domain == "POINT" and col.shape == (len(v_a) + len(v_b), 4)
+    assert np.all(col[:len(v_a)] == 0.5) and not col[len(v_a):].any()
+    assert not out.custom_normals[:n_loop].any() and np.all(out.custom_normals[n_loop:, 2] == 1)
+    assert out.smooth is None and out.material_names == ["Red", "Blue"]
+    np.testing.assert_array_equal(out.edges, a.edges)
+    np.testing.assert_array_equal(out.seams, [True, False])
+    assert out.sharp_edges is None
+    a.colors["Col"] = ("CORNER", "FLOAT_COLOR", np.zeros((a.n_loops, 4), np.float32))
+    b.colors["Col"] = ("POINT", "FLOAT_COLOR", np.zeros((len(v_b), 4), np.float32))
+    with pytest.raises(ValueError, match="Col"):
+        concatenate([a, b], [len(v_a), len(v_b)])
 
 
 @pytest.fixture(scope="module")
