@@ -303,7 +303,7 @@ def _plots(results, outdir):
     # 2. cost growth against active voxels: one line per (method, case) over the sizes
     from matplotlib.ticker import NullFormatter
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    markers = dict(zip(CASE_NAMES, "osD^v"))
+    markers = dict(zip(CASE_NAMES, "osD^vPX"))
     for m in methods:
         slopes = [cost_slopes(results, m, c) for c in CASE_NAMES]
         slopes = [sl for sl in slopes if sl]
