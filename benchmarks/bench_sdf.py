@@ -77,7 +77,7 @@ def main():
         steps = ", ".join(f"{k[8:]} {stats[k]:.2f}" for k in stats if k.startswith("seconds_")
                           and k != "seconds_total" and k != "seconds_sign")
         print(f"{n}^3: {best:.2f} s (best of {args.repeat}; {steps}); band nodes "
-              f"{stats['band_nodes']}, winding evaluations {stats['winding_nodes']}; max |error| on "
+              f"{stats['shell_nodes']}, winding evaluations {stats['winding_nodes']}; max |error| on "
               f"{len(pick)} band nodes vs brute force {err:.2e} h, sign errors {sign_bad}")
 
 

@@ -9,17 +9,17 @@ methods that do not assume a clean closed manifold:
 Magnitude (`mesh_to_sdf`, steps 1-3)
     1. Every triangle is covered by sample points no farther than ``delta`` from
        any of its points (barycentric lattices). The grid nodes near a sample are
-       the *band*: every node within ``band_cells * h`` of the surface is in it.
+       the exact *shell*: every node within ``exact_cells * h`` of the surface is in it.
     2. Band nodes get the exact point-triangle distance. Candidate triangles come
        from a `scipy.spatial.cKDTree` over the samples: if ``d0`` is the exact
        distance to the triangle of the nearest sample, the closest triangle owns
        a sample within ``d0 + delta``, so querying that radius is exact.
-    3. Nodes outside the band get ``|x - c(b)|``, ``b`` the nearest band node
+    3. Nodes outside the shell get ``|x - c(b)|``, ``b`` the nearest shell node
        (`scipy.ndimage.distance_transform_edt`) and ``c(b)`` its closest surface
        point: an upper bound on the true distance, exact whenever x and b share
        their closest point, and never above ``|x - b| + d(b)``. Where the surface
-       leaves the grid (no band nodes there) the distance to the triangle of the
-       nearest sample is used too; with no band node at all, it alone.
+       leaves the grid (no shell nodes there) the distance to the triangle of the
+       nearest sample is used too; with no shell node at all, it alone.
 
 Sign (steps 4-5)
     0. First every connected part's faces are made to agree (`orient_faces`): the
@@ -35,10 +35,10 @@ Sign (steps 4-5)
     5. The other nodes are split into 6-connected regions (`scipy.ndimage.label`)
        that the one-cell layer separates; each region takes the unanimous sign of
        the layer nodes bordering it. A region whose border disagrees leaks through
-       a hole wider than the layer; there w is evaluated on its band nodes and on a
+       a hole wider than the layer; there w is evaluated on its shell nodes and on a
        stride-2 sub-lattice, and each remaining node copies the sub-lattice node
        at most sqrt(3) cells away (same side of the surface, since the node is
-       more than ``band_cells`` cells from it).
+       more than ``exact_cells`` cells from it).
 
 Overlaps (step 6)
     6. Where parts overlap (|w| >= 1.5 seen near the surface) the faces inside the
@@ -60,13 +60,14 @@ from scipy.spatial import cKDTree
 
 from .grid import Grid
 from .progress import Reporter
+from .renamed import take_renamed
 
 __all__ = ["mesh_to_sdf", "orient_faces", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
 _SAMPLE_RADIUS = 0.7      # triangle points lie within this many cells of a sample
 _WORKERS = -1             # cKDTree query threads (all cores)
-_K = 32                   # nearest samples fetched per band node (more on demand)
+_K = 32                   # nearest samples fetched per shell node (more on demand)
 _MAX_LATTICE = 256        # subdivisions per triangle edge at most (delta grows beyond)
 
 
@@ -543,7 +544,7 @@ def winding_number(vertices, faces, points, *, beta=2.0):
 
 
 # ---------------------------------------------------------------------------
-# band: triangle samples and exact distances
+# exact shell: triangle samples and exact distances
 # ---------------------------------------------------------------------------
 def _triangle_samples(v, tris, delta_target):
     """Points on every triangle, every triangle point within ``delta`` of one of them.
@@ -574,7 +575,7 @@ def _triangle_samples(v, tris, delta_target):
     return np.concatenate(pts), np.concatenate(ids), rad / n
 
 
-def _band_candidates(grid, samples, radius_cells):
+def _shell_candidates(grid, samples, radius_cells):
     """Flat indices of a superset of the nodes within ``radius_cells`` of a sample's nearest node.
 
     The nodes nearest to the samples are marked and dilated by a cube of half-width
@@ -630,11 +631,11 @@ def _nearest_sample_distance(out, nodes, grid, tree, tri, sample_tri, keep_min=F
         out[o] = np.minimum(out[o], d) if keep_min else d
 
 
-def _band_distance(X, tri, tree, sample_tri, tri_delta, band_r, k=_K):
-    """Exact unsigned distance for the points X within ``band_r`` of the surface.
+def _shell_distance(X, tri, tree, sample_tri, tri_delta, shell_r, k=_K):
+    """Exact unsigned distance for the points X within ``shell_r`` of the surface.
 
-    Returns (keep, dist, tri): ``keep`` marks the points whose distance may be <= band_r
-    (nearest sample within band_r + delta), ``dist`` their exact distance, ``tri``
+    Returns (keep, dist, tri): ``keep`` marks the points whose distance may be <= shell_r
+    (nearest sample within shell_r + delta), ``dist`` their exact distance, ``tri``
     their closest triangle. If d0 is the exact distance to the triangle of the
     nearest sample, the closest triangle t owns a sample within d0 + delta_t
     (module step 2; ``tri_delta`` holds delta_t), so all those are tested: the k
@@ -642,11 +643,11 @@ def _band_distance(X, tri, tree, sample_tri, tri_delta, band_r, k=_K):
     """
     delta = float(tri_delta.max())
     k = min(k, len(tree.data))
-    ds, _ = tree.query(X, k=1, distance_upper_bound=band_r + delta * (1 + 1e-9) + 1e-12,
+    ds, _ = tree.query(X, k=1, distance_upper_bound=shell_r + delta * (1 + 1e-9) + 1e-12,
                        workers=_WORKERS)
     keep = np.isfinite(ds)
     X = X[keep]
-    dd, ii = tree.query(X, k=k, distance_upper_bound=band_r + 2 * delta + 1e-12, workers=_WORKERS)
+    dd, ii = tree.query(X, k=k, distance_upper_bound=shell_r + 2 * delta + 1e-12, workers=_WORKERS)
     dd = dd.reshape(len(X), k)
     ii = ii.reshape(len(X), k)
     best_t = sample_tri[ii[:, 0]]
@@ -675,8 +676,8 @@ def _band_distance(X, tri, tree, sample_tri, tri_delta, band_r, k=_K):
 # ---------------------------------------------------------------------------
 # public: meshes
 # ---------------------------------------------------------------------------
-def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, cancel=None,
-                stats=None, beta=2.0):
+def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, cancel=None,
+                stats=None, beta=2.0, **renamed):
     """Signed distance grid of a (possibly open, self-intersecting) polygon mesh.
 
     Parameters
@@ -687,15 +688,15 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
         Triangles, quads or n-gons (ragged lists allowed; triangulated as fans).
     grid : Grid
         3D grid to sample on.
-    band_cells : float
-        Nodes within ``band_cells * h`` of the surface get the exact distance; the rest
+    exact_cells : float
+        Nodes within ``exact_cells * h`` of the surface get the exact distance; the rest
         the upper bound ``|x - c(b)|``, c(b) the closest surface point of the nearest
-        band node ``b``.
+        shell node ``b``.
     progress, cancel : callables, optional
         See `keyframe_implicit.core.progress`.
     stats : dict, optional
         Filled with counts (triangles, degenerate_triangles, reoriented_faces,
-        non_orientable_faces, samples, band_nodes, winding_nodes, leaky_regions) and
+        non_orientable_faces, samples, shell_nodes, winding_nodes, leaky_regions) and
         seconds per step.
     beta : float
         Opening criterion of the fast winding number (see `winding_number`).
@@ -717,9 +718,12 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
         raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
     if grid.dim != 3:
         raise ValueError("mesh_to_sdf needs a 3D grid; use polygon_to_sdf for 2D loops.")
-    band_cells = float(band_cells)
-    if not np.isfinite(band_cells) or band_cells < 1.0:
-        raise ValueError(f"band_cells must be >= 1 (cells of exact distance), got {band_cells}.")
+    renamed = take_renamed(dict(renamed), {"band_cells": "exact_cells"}, "mesh_to_sdf")
+    exact_cells = float(renamed.pop("exact_cells", exact_cells))
+    if renamed:
+        raise TypeError(f"mesh_to_sdf got unexpected options {sorted(renamed)}.")
+    if not np.isfinite(exact_cells) or exact_cells < 1.0:
+        raise ValueError(f"exact_cells must be >= 1 (cells of exact distance), got {exact_cells}.")
     rep = Reporter(progress, cancel)
     st = {} if stats is None else stats
     t_start = time.perf_counter()
@@ -729,60 +733,60 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     h = grid.spacing
     rep(0.02, "triangle samples")
 
-    # 1. samples and band
+    # 1. samples and shell
     samples, sample_tri, tri_delta = _triangle_samples(v, tris, _SAMPLE_RADIUS * h)
     delta = float(tri_delta.max())
     tree = cKDTree(samples)
     st["samples"] = len(samples)
-    band_r = band_cells * h
-    cand = _band_candidates(grid, samples, band_cells + 0.5 * np.sqrt(3.0) + delta / h + 1e-6)
+    shell_r = exact_cells * h
+    cand = _shell_candidates(grid, samples, exact_cells + 0.5 * np.sqrt(3.0) + delta / h + 1e-6)
     t1 = time.perf_counter()
-    st["seconds_band"] = t1 - t_start
+    st["seconds_shell"] = t1 - t_start
     rep(0.1, "exact distance near the surface")
 
-    # 2. exact distances in the band
+    # 2. exact distances in the shell
     tri = _Triangles(v, tris)
     keep = np.zeros(len(cand), dtype=bool)
-    dist_band = np.empty(len(cand))
-    tri_band = np.empty(len(cand), dtype=np.int64)
+    dist_shell = np.empty(len(cand))
+    tri_shell = np.empty(len(cand), dtype=np.int64)
     sub = rep.sub(0.1, 0.45)
     for s in range(0, len(cand), _CHUNK):
         c = cand[s:s + _CHUNK]
         pts_c = grid.to_world(np.stack(np.unravel_index(c, grid.shape), axis=1))
-        kp, dist, near_t = _band_distance(pts_c, tri, tree, sample_tri, tri_delta, band_r)
+        kp, dist, near_t = _shell_distance(pts_c, tri, tree, sample_tri, tri_delta, shell_r)
         keep[s:s + _CHUNK] = kp
-        dist_band[s:s + _CHUNK][kp] = dist
-        tri_band[s:s + _CHUNK][kp] = near_t
+        dist_shell[s:s + _CHUNK][kp] = dist
+        tri_shell[s:s + _CHUNK][kp] = near_t
         sub(min(1.0, (s + _CHUNK) / max(len(cand), 1)), "exact distance near the surface")
-    cand, dist_band, tri_band = cand[keep], dist_band[keep], tri_band[keep]
-    inband = dist_band <= band_r
-    cand, dist_band, tri_band = cand[inband], dist_band[inband], tri_band[inband]
+    cand, dist_shell, tri_shell = cand[keep], dist_shell[keep], tri_shell[keep]
+    inshell = dist_shell <= shell_r
+    cand, dist_shell, tri_shell = cand[inshell], dist_shell[inshell], tri_shell[inshell]
     pts = grid.to_world(np.stack(np.unravel_index(cand, grid.shape), axis=1))
-    st["band_nodes"] = len(cand)
+    st["shell_nodes"] = len(cand)
     t2 = time.perf_counter()
     st["seconds_exact"] = t2 - t1
 
-    # 3. far field: |x - c(b)|, c(b) the closest surface point of the nearest band node b
+    # 3. far field: |x - c(b)|, c(b) the closest surface point of the nearest shell node b
     unsigned = np.empty(grid.size)
-    unsigned[cand] = dist_band
-    band_mask = np.zeros(grid.size, dtype=bool)
-    band_mask[cand] = True
+    unsigned[cand] = dist_shell
+    shell_mask = np.zeros(grid.size, dtype=bool)
+    shell_mask[cand] = True
     rep(0.5, "far field")
-    outside_parts = bool(np.any(~grid.contains(samples, margin=band_r)))
+    outside_parts = bool(np.any(~grid.contains(samples, margin=shell_r)))
     if len(cand) == 0:
         # surface entirely away from the grid: distance to the triangle of the
         # nearest sample (an upper bound, at most delta above the true distance)
         _nearest_sample_distance(unsigned, np.arange(grid.size), grid, tree, tri, sample_tri)
-    elif not band_mask.all():
-        edt, inds = ndimage.distance_transform_edt(~band_mask.reshape(grid.shape),
+    elif not shell_mask.all():
+        edt, inds = ndimage.distance_transform_edt(~shell_mask.reshape(grid.shape),
                                                    return_indices=True)
         nb = np.ravel_multi_index(tuple(inds), grid.shape).reshape(-1)
         del edt
-        off = np.flatnonzero(~band_mask)
-        # closest surface points of the band nodes that are someone's nearest
+        off = np.flatnonzero(~shell_mask)
+        # closest surface points of the shell nodes that are someone's nearest
         need = np.unique(nb[off])
         bi = np.searchsorted(cand, need)
-        cp = tri.closest_point(pts[bi], tri_band[bi])
+        cp = tri.closest_point(pts[bi], tri_shell[bi])
         for s in range(0, len(off), 8 * _CHUNK):
             o = off[s:s + 8 * _CHUNK]
             c = cp[np.searchsorted(need, nb[o])]
@@ -790,7 +794,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
             unsigned[o] = np.sqrt(np.sum((x - c) ** 2, axis=1))
         del inds, nb
         if outside_parts:
-            # surface beyond the grid has no band nodes: bound through its samples too
+            # surface beyond the grid has no shell nodes: bound through its samples too
             _nearest_sample_distance(unsigned, off, grid, tree, tri, sample_tri, keep_min=True)
     t3 = time.perf_counter()
     st["seconds_far"] = t3 - t2
@@ -798,7 +802,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
     # 4. winding numbers in the one-cell layer
     rep(0.6, "inside/outside (winding numbers)")
     wt = _WindingTree(v, tris, beta=beta)
-    layer_sel = dist_band <= h * (1 + 1e-9)
+    layer_sel = dist_shell <= h * (1 + 1e-9)
     layer = cand[layer_sel]
     inside = np.zeros(grid.size, dtype=bool)
     known = np.zeros(grid.size, dtype=bool)
@@ -841,12 +845,12 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, band_cells=3, progress=None, can
         leaky = len(mixed)
         if leaky:
             in_mixed = np.isin(labels, mixed)
-            if band_cells >= 1.0 + np.sqrt(3.0):
+            if exact_cells >= 1.0 + np.sqrt(3.0):
                 lattice = np.ones(grid.shape, dtype=bool)
                 lattice[1::2, :, :] = False
                 lattice[:, 1::2, :] = False
                 lattice[:, :, 1::2] = False
-                evaluate = in_mixed & (band_mask | lattice.reshape(-1))
+                evaluate = in_mixed & (shell_mask | lattice.reshape(-1))
             else:
                 evaluate = in_mixed
             ev = np.flatnonzero(evaluate)
@@ -936,7 +940,7 @@ def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
 def _segments_distance(grid, A, B):
     """Exact distance from every 2D grid node to the nearest segment (A_s, B_s).
 
-    Same scheme as the 3D band (module step 2) on all nodes: each segment is cut
+    Same scheme as the 3D shell (module step 2) on all nodes: each segment is cut
     into n pieces of at most one cell, represented by their midpoints (every point
     of a segment within L / (2 n) of one); the closest segment of a node owns a
     midpoint within d0 + delta of it, d0 the distance to the nearest midpoint's

@@ -63,7 +63,7 @@ def test_sphere_matches_analytic_distance_in_band_and_sign_everywhere(sphere64):
     # far field is a bound from above, within half a cell
     assert np.all(np.abs(d) >= np.abs(r) - 0.02 * h)
     assert np.abs(d - r).max() <= 0.5 * h
-    assert stats["band_nodes"] == np.count_nonzero(np.abs(d) <= 3 * h)
+    assert stats["shell_nodes"] == np.count_nonzero(np.abs(d) <= 3 * h)
     assert stats["degenerate_triangles"] == 0 and stats["leaky_regions"] == 0
 
 
@@ -116,7 +116,7 @@ def test_band_distance_is_exact_against_brute_force_on_irregular_mesh():
     v = np.concatenate([vs, vb])
     f = np.concatenate([fs, triangulate(qb, len(vb)) + len(vs)])
     g = cube_grid(40)
-    d = mesh_to_sdf(v, f, g, band_cells=3)
+    d = mesh_to_sdf(v, f, g, exact_cells=3)
     idx = np.flatnonzero(np.abs(d).reshape(-1) <= 3 * g.spacing)
     pick = rng.choice(idx, size=400, replace=False)
     ref = brute_distance(g.points().reshape(-1, 3)[pick], v, f)
@@ -373,3 +373,15 @@ def test_polygon_sdf_matches_brute_force_on_a_star_with_a_hole(rule):
     clear = ref > 1e-9
     assert np.array_equal((d.reshape(-1) < 0)[clear], (w != 0)[clear])
     assert d[tuple(np.rint(g.to_index([0.03, -0.02])).astype(int))] > 0  # the hole
+
+
+def test_old_name_of_the_exact_shell_still_works():
+    """``band_cells`` was the exact shell's old name: it warns with the new one and gives
+    the same field."""
+    v, f = icosphere(2, 0.4)
+    g = cube_grid(20)
+    with pytest.warns(DeprecationWarning, match="'exact_cells'"):
+        old = mesh_to_sdf(v, f, g, band_cells=2)
+    np.testing.assert_array_equal(old, mesh_to_sdf(v, f, g, exact_cells=2))
+    with pytest.raises(TypeError, match="unexpected options"):
+        mesh_to_sdf(v, f, g, exact_cels=2)
