@@ -10,7 +10,7 @@ Magnitude (`mesh_to_sdf`, steps 1-3)
     1. Every triangle is covered by sample points no farther than ``delta`` from
        any of its points (barycentric lattices). The grid nodes near a sample are
        the exact *shell*: every node within ``exact_cells * h`` of the surface is in it.
-    2. Band nodes get the exact point-triangle distance. Candidate triangles come
+    2. Shell nodes get the exact point-triangle distance. Candidate triangles come
        from a `scipy.spatial.cKDTree` over the samples: if ``d0`` is the exact
        distance to the triangle of the nearest sample, the closest triangle owns
        a sample within ``d0 + delta``, so querying that radius is exact.
