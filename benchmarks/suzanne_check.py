@@ -159,6 +159,7 @@ def render(scene, frame, path, size=160):
     r.engine = "CYCLES"
     scene.cycles.samples = 4
     scene.cycles.seed = 0
+    scene.cycles.use_denoising = False  # emission needs none, and not every build has one
     r.resolution_x = r.resolution_y = size
     r.resolution_percentage = 100
     r.film_transparent = True
