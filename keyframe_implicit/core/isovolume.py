@@ -13,7 +13,8 @@ unit gradient), i.e. it is the least change of shape that fixes the volume.
 Volumes are those of the surface the artist gets (`surface.enclosed_volume`,
 marching cubes of the field). The root is found by a few secant-like steps:
 the change of volume with c comes from a smoothed Heaviside of L / |grad L|
-on the grid (cheap, monotone in c), its level from one surface per step.
+on the grid (cheap, monotone in c; solved by safeguarded Newton), its level
+from one surface per step.
 """
 
 from __future__ import annotations
@@ -60,8 +61,12 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     inner = np.count_nonzero(flat[~near] < 0) * grid.cell_volume
     fn, ghn = flat[near], gh[near]
 
-    def smooth(c):  # smoothed-Heaviside volume of {f < c}, increasing in c
-        return inner + np.clip(0.5 - (fn - c) / ghn, 0.0, 1.0).sum() * grid.cell_volume
+    def smooth(c):
+        """Smoothed-Heaviside volume of {f < c} and its derivative in c (both increasing)."""
+        ramp = 0.5 - (fn - c) / ghn
+        inside = (ramp > 0.0) & (ramp < 1.0)
+        vol = inner + np.clip(ramp, 0.0, 1.0).sum() * grid.cell_volume
+        return vol, float(np.sum(1.0 / ghn[inside])) * grid.cell_volume
 
     lim = max_cells * h
     c = 0.0
@@ -71,12 +76,15 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
         err = (v - target) / target
         if abs(err) <= rtol:
             break
-        want = smooth(c) + (target - v)
+        want = smooth(c)[0] + (target - v)
         lo, hi = -lim, lim
-        for _ in range(40):  # bisection on the monotone smooth volume
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if smooth(mid) < want else (lo, mid)
-        c = 0.5 * (lo + hi)
+        for _ in range(30):  # safeguarded Newton on the monotone smooth volume
+            vol, slope = smooth(c)
+            lo, hi = (c, hi) if vol < want else (lo, c)
+            if abs(vol - want) <= 1e-6 * abs(target):
+                break
+            step = c + (want - vol) / slope if slope > 0 else np.inf
+            c = step if lo < step < hi else 0.5 * (lo + hi)
     else:
         err = (enclosed_volume(f - c, grid) - target) / target
     return float(c), float(err)

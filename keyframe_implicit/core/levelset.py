@@ -243,15 +243,22 @@ class Inbetween:
         st = dict(stats or {})
         t0 = time.perf_counter()
         material = phi_a < 0 if material is None else material
-        forward = Transport(phi_a, Trajectories(grid, mapped, material, components, **traj_opts),
-                            **lookup_opts)
+
+        def carried(field, y, mat, comps=None):
+            return Transport(field, Trajectories(grid, y, mat, comps, **traj_opts), **lookup_opts)
+
         backward = None
-        if transport == "two-sided":
-            if mapped_back is None:
-                mapped_back = invert_map(grid, forward)
-            back_traj = Trajectories(grid, np.asarray(mapped_back, dtype=float), phi_b < 0,
-                                     **traj_opts)
-            backward = Transport(phi_b, back_traj, **lookup_opts)
+        if transport == "two-sided" and mapped_back is not None:
+            with ThreadPoolExecutor(max_workers=1) as pool:  # two factorisations, two cores
+                back = pool.submit(carried, phi_b, np.asarray(mapped_back, dtype=float),
+                                   phi_b < 0)
+                forward = carried(phi_a, mapped, material, components)
+                backward = back.result()
+        else:
+            forward = carried(phi_a, mapped, material, components)
+            if transport == "two-sided":
+                backward = carried(phi_b, invert_map(grid, forward), phi_b < 0)
+        if backward is not None:
             # one truncation for both, so that the far field is one value
             w = min(forward.border_value, backward.border_value)
             forward.truncation = backward.truncation = w
@@ -296,8 +303,10 @@ class Inbetween:
     def _two_sided(self, s):
         """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach."""
         w = self.outside_value
-        phi_s = self.forward.carry(s, other=self.backward)
-        psi_s = self.backward.carry(1.0 - s, other=self.forward)
+        with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
+            back = pool.submit(self.backward.carry, 1.0 - s, other=self.forward)
+            phi_s = self.forward.carry(s, other=self.backward)
+            psi_s = back.result()
         self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
         return (1.0 - s) * np.nan_to_num(phi_s, nan=w) + s * np.nan_to_num(psi_s, nan=w)
 
