@@ -30,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from keyframe_implicit import examples  # noqa: E402
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf  # noqa: E402
 from keyframe_implicit.core.gridfit import fit_grid  # noqa: E402
 from keyframe_implicit.core.sdf import triangulate  # noqa: E402
@@ -42,20 +43,8 @@ def rot_z(angle):
 
 def uv_sphere(n_lat, radius=1.0, bump=None):
     """Vertices and triangles of a UV sphere; ``bump(theta, phi)`` is added to the radius."""
-    n_lon = 2 * n_lat
-    th = np.linspace(0, np.pi, n_lat + 1)[1:-1]
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    r = radius + (0.0 if bump is None else bump(T, P))
-    ring = np.stack([r * np.sin(T) * np.cos(P), r * np.sin(T) * np.sin(P), r * np.cos(T)], -1)
-    v = np.concatenate([[[0, 0, radius]], ring.reshape(-1, 3), [[0, 0, -radius]]])
-    idx = 1 + np.arange(n_lat - 1)[:, None] * n_lon + np.arange(n_lon)[None]
-    nxt = np.roll(idx, -1, axis=1)
-    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], -1).reshape(-1, 4)
-    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]],
-                           np.stack([np.zeros(n_lon, int), idx[0], nxt[0]], -1),
-                           np.stack([np.full(n_lon, len(v) - 1), nxt[-1], idx[-1]], -1)])
-    return v, tris
+    v, polys = examples.uv_sphere(n_lat, radius, bump)
+    return v, triangulate(polys, len(v))
 
 
 def bump_kept(res):

@@ -139,6 +139,26 @@ def icosphere(n_sub, radius=1.0, center=(0.0, 0.0, 0.0)):
     return v * radius + np.asarray(center), f
 
 
+def uv_sphere(n_lat, radius=1.0, bump=None):
+    """A UV sphere: quads, and triangle fans at the poles; ``bump(theta, phi)`` adds to r.
+
+    Returns vertices (V, 3) and polygons (a list of index lists, quads first).
+    """
+    n_lon = 2 * n_lat
+    th = np.linspace(0, np.pi, n_lat + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    r = radius + (0.0 if bump is None else bump(T, P))
+    ring = np.stack([r * np.sin(T) * np.cos(P), r * np.sin(T) * np.sin(P), r * np.cos(T)], -1)
+    v = np.concatenate([[[0, 0, radius]], ring.reshape(-1, 3), [[0, 0, -radius]]])
+    idx = 1 + np.arange(n_lat - 1)[:, None] * n_lon + np.arange(n_lon)[None]
+    nxt = np.roll(idx, -1, axis=1)
+    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], -1).reshape(-1, 4)
+    top = np.stack([np.zeros(n_lon, int), idx[0], nxt[0]], -1)
+    bottom = np.stack([np.full(n_lon, len(v) - 1), nxt[-1], idx[-1]], -1)
+    return v, [list(q) for q in quads] + [list(t) for t in top] + [list(t) for t in bottom]
+
+
 def rotation(axis, degrees):
     """3x3 rotation matrix about `axis` (any non-zero 3-vector) by `degrees` (right hand)."""
     axis = np.asarray(axis, dtype=float)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from keyframe_implicit import examples
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf
 from keyframe_implicit.core.attributes import (MeshAttributes, closest_points, concatenate,
                                                transfer)
@@ -17,23 +18,11 @@ def rot_z(angle):
 
 
 def uv_sphere(n_lat, radius=1.0, bump=None):
-    """Quads (and triangle fans at the poles) of a UV sphere; ``bump(theta, phi)`` adds to r.
+    """`keyframe_implicit.examples.uv_sphere` with its attributes.
 
     Returns vertices, polygons (list), and MeshAttributes with a UV map (a seam at phi = 0)
     and two materials (faces with x > 0 use slot 1)."""
-    n_lon = 2 * n_lat
-    th = np.linspace(0, np.pi, n_lat + 1)[1:-1]
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    r = radius + (0.0 if bump is None else bump(T, P))
-    ring = np.stack([r * np.sin(T) * np.cos(P), r * np.sin(T) * np.sin(P), r * np.cos(T)], -1)
-    v = np.concatenate([[[0, 0, radius]], ring.reshape(-1, 3), [[0, 0, -radius]]])
-    idx = 1 + np.arange(n_lat - 1)[:, None] * n_lon + np.arange(n_lon)[None]
-    nxt = np.roll(idx, -1, axis=1)
-    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], -1).reshape(-1, 4)
-    top = np.stack([np.zeros(n_lon, int), idx[0], nxt[0]], -1)
-    bottom = np.stack([np.full(n_lon, len(v) - 1), nxt[-1], idx[-1]], -1)
-    polys = [list(q) for q in quads] + [list(t) for t in top] + [list(t) for t in bottom]
+    v, polys = examples.uv_sphere(n_lat, radius, bump)
     total = np.array([len(p) for p in polys])
     loops = np.concatenate(polys)
     attrs = MeshAttributes(np.concatenate([[0], np.cumsum(total)[:-1]]), total, loops)
