@@ -452,12 +452,14 @@ def _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius, p
     d, chunk = g.dim, int(options["chunk_elements"])
     diag = 1.01 * np.sqrt(d) * g.spacing  # a patch must hold its feature's cell
     rad = max(float(radius), diag) if radius > 0 else 0.0
+    floor = None  # the start's own det F floor: the region and its cells do not depend on rad
     while True:
         level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, patch_rigidity)
         if rad == 0.0 or level.cons.n_patch == 0:
             return level
         raw = base.reshape(-1, d)[level.active]
-        floor = _det_floor(level.det_stats(raw, chunk), options["min_det"])
+        if floor is None:
+            floor = _det_floor(level.det_stats(raw, chunk), options["min_det"])
         if _det_floor(level.det_stats(level.cons.enforce(raw), chunk), options["min_det"]) >= floor:
             return level
         rad = rad / 2 if rad / 2 >= diag else 0.0
