@@ -2,7 +2,7 @@
 
 Run with the bpy venv (scripts/env.sh)::
 
-    python benchmarks/bench_output.py [--sizes 48 64] [--cases merge splash bend drop3]
+    python benchmarks/bench_output.py [--sizes 48 64] [--cases merge splash bend suzanne drop3]
                                       [--blend-sizes 64 128]
 
 Part 1 (core only): per case and grid size, for each output (shape keys = the tracked
@@ -29,8 +29,34 @@ from keyframe_implicit import examples  # noqa: E402
 from keyframe_implicit.core import animate  # noqa: E402
 
 
+def suzanne():
+    """Blender's Suzanne turning 90 degrees about z with a slight squash (as in
+    suzanne_check.py), six feature pairs on its silhouette; needs bpy."""
+    import bpy
+
+    from keyframe_implicit.core import Keyframe
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True, load_ui=False)
+    bpy.ops.mesh.primitive_monkey_add(size=2.0)
+    mesh = bpy.context.active_object.data
+    co = np.empty(3 * len(mesh.vertices), np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3).astype(float)
+    faces = [tuple(p.vertices) for p in mesh.polygons]
+    c, s = 0.0, 1.0  # cos, sin of 90 degrees
+    m = np.diag([1.05, 1.05, 0.9]) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    cob = co @ m.T + [0.3, 0.0, 0.0]
+    x, y, z = co.T
+    mid = np.abs(x) < 0.02
+    picks = [np.argmin(x), np.argmax(x), np.argmin(np.where(mid, z, np.inf)),
+             np.argmax(np.where(mid, z, -np.inf)), np.argmax(np.where(mid, y, -np.inf))]
+    return [Keyframe(co, faces, 1), Keyframe(cob, faces, 13)], [(co[picks], cob[picks])]
+
+
 def case(name):
     """Keyframes and features of a case; "drop3" is the splash's first three keyframes."""
+    if name == "suzanne":
+        return suzanne()
     if name == "drop3":
         ex = examples.example("splash")
         return ex.keyframes[:3], ex.features[:2]
@@ -102,7 +128,7 @@ def blend_figures(sizes):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="*", default=["merge", "splash", "bend", "drop3"])
+    ap.add_argument("--cases", nargs="*", default=["merge", "splash", "bend", "suzanne", "drop3"])
     ap.add_argument("--sizes", nargs="+", type=int, default=[48, 64])
     ap.add_argument("--blend-sizes", nargs="*", type=int, default=[64, 128])
     args = ap.parse_args(argv)

@@ -174,3 +174,46 @@ def render(scene, frame, path, size=160):
     r.filepath = path
     bpy.ops.render.render(write_still=True)
     return pixels(path)
+
+
+def report(renders=None, resolution=40):
+    """Print the Suzanne figures for both outputs: render difference on the first keyframe
+    frame, UV agreement on every frame, materials kept, frame A exact, frame B's distance to
+    B's mesh; with ``renders`` (a folder) the first, middle and last frames are saved there."""
+    from keyframe_implicit.core.quality import mesh_distance
+
+    for mode in ("SHAPE_KEYS", "MESH_SEQUENCE"):
+        bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True, load_ui=False)
+        import keyframe_implicit
+
+        keyframe_implicit.register()
+        scene = bpy.context.scene
+        a, b = build(scene, resolution)
+        obj = bake(scene, mode)
+        h = obj["kfi_spacing"]
+        src = {FRAMES[0]: evaluated(a, FRAMES[0]), FRAMES[1]: evaluated(b, FRAMES[1])}
+        first, last = evaluated(obj, FRAMES[0]), evaluated(obj, FRAMES[1])
+        exact_a = len(first["co"]) == len(src[FRAMES[0]]["co"]) and \
+            np.array_equal(first["co"], src[FRAMES[0]]["co"])
+        to_b = mesh_distance(last["co"].astype(float), src[FRAMES[1]]["co"].astype(float),
+                             src[FRAMES[1]]["tris"]).max() / h
+        uv_kf = [np.mean(uv_agreement(evaluated(obj, f), s) <= 0.01) if
+                 len(evaluated(obj, f)["lv"]) == len(s["lv"]) else np.nan for f, s in src.items()]
+        mats = sorted(set(np.unique(last["material"]).tolist()))
+        print(f"Suzanne {resolution} cells, {mode.lower()}: frame A exact {exact_a}, frame B to "
+              f"B's mesh max {to_b:.3f} h, UVs within 0.01 on keyframe frames "
+              f"{', '.join(f'{100 * u:.1f} %' for u in uv_kf)}, materials on frame B {mats}, "
+              f"slots {last['names']}", flush=True)
+        if mode == "SHAPE_KEYS":
+            a.hide_render = b.hide_render = True
+            tmp = renders or bpy.app.tempdir
+            result = render(scene, FRAMES[0], os.path.join(tmp, "suzanne_result_first.png"))
+            if renders:
+                mid = (FRAMES[0] + FRAMES[1]) // 2
+                render(scene, mid, os.path.join(renders, "suzanne_result_middle.png"))
+                render(scene, FRAMES[1], os.path.join(renders, "suzanne_result_last.png"))
+            obj.hide_render, a.hide_render = True, False
+            original = render(scene, FRAMES[0], os.path.join(tmp, "suzanne_original_first.png"))
+            diff = np.abs(result - original)[..., :3].mean()
+            print(f"  render on frame {FRAMES[0]}: mean pixel difference to the original "
+                  f"{100 * diff:.3f} %", flush=True)

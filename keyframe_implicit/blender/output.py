@@ -44,6 +44,7 @@ from . import fcurves
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
 SEQUENCE_TAG = "kfi_sequence"
+VOLUME_TAG = "kfi_volume"  # the output's OpenVDB Volume object (a child of the output)
 FRAME_ATTRIBUTE = "kfi_frame"
 
 
@@ -257,10 +258,11 @@ def _surface_attributes(animation):
     return [animation.surface_attributes(i) for i in range(len(animation.surfaces))]
 
 
-def slot_materials(attributes, material_names):
-    """The output's material slots: the first keyframe's own slots in order (None for an
-    empty one) when its mesh is the template, then the keyframes' other materials to pick from."""
-    own = list(getattr(attributes, "material_names", None) or [])
+def slot_materials(own, material_names):
+    """The output's material slots: ``own`` slot names in order (the first keyframe's own
+    slots when its mesh is the template, or every frame's slots of a mesh sequence; "" for
+    an empty one), then the keyframes' other materials to pick from."""
+    own = list(own or [])
     mats = [bpy.data.materials.get(n) if n else None for n in own]
     mats += [bpy.data.materials.get(n) for n in material_names if n not in own]
     return [m for m in mats if m is not None] if not own else \
@@ -324,6 +326,11 @@ def remove_output(obj):
     action = key.animation_data.action if key is not None and key.animation_data else None
     colls = list(obj.users_collection)
     sequence = _sequence_blocks(obj) if obj.get(SEQUENCE_TAG) else []
+    for child in [c for c in obj.children if c.get(VOLUME_TAG)]:  # its OpenVDB volume
+        volume = child.data
+        bpy.data.objects.remove(child)
+        if volume is not None and volume.users == 0:
+            bpy.data.volumes.remove(volume)
     bpy.data.objects.remove(obj)
     _remove_sequence(sequence)
     if mesh is not None and mesh.users == 0:
@@ -394,11 +401,14 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
         attributes = getattr(animation, "attributes", None)
         if kind == "shape_keys":
             mesh = build_mesh(name, verts[0], animation.faces, attributes)
+            own = getattr(attributes, "material_names", None)
         else:
             fps = scene.render.fps / scene.render.fps_base
-            mesh = build_sequence(name, surfaces, animation.velocities, fps,
-                                  _surface_attributes(animation))
-        for m in slot_materials(attributes, material_names):
+            per_frame = _surface_attributes(animation)
+            mesh = build_sequence(name, surfaces, animation.velocities, fps, per_frame)
+            own = list(dict.fromkeys(n for a in per_frame or [] if a is not None
+                                     for n in a.material_names))
+        for m in slot_materials(own, material_names):
             mesh.materials.append(m)
         obj = bpy.data.objects.new(name, mesh)
         if kind == "shape_keys":

@@ -230,7 +230,8 @@ def concatenate(parts, n_vertices):
     flags, edge flags and custom normals are the parts' in order. An attribute that only
     some parts have is filled with its neutral value on the others: UV (0, 0), colour 0,
     material 0, smooth, no sharp edge or seam, custom normal (0, 0, 0) (Blender's own).
-    ``material_names`` are the first part's.
+    ``material_names`` are every part's, each name once, in order of first use; each
+    part's material indices are renumbered into them.
     """
     parts = list(parts)
     if len(parts) != len(n_vertices):
@@ -265,7 +266,9 @@ def concatenate(parts, n_vertices):
         data = [p.colors[name][2] if name in p.colors else None for p in parts]
         rows = n_vertices if domain == "POINT" else loops
         out.colors[name] = (domain, data_type, joined(data, rows, 0.0, np.float32))
-    out.material_index = joined([p.material_index for p in parts], polygons, 0, np.int64)
+    out.material_names = list(dict.fromkeys(n for p in parts for n in p.material_names))
+    out.material_index = joined([_slots_in(p, out.material_names) for p in parts], polygons, 0,
+                                np.int64)
     out.smooth = joined([p.smooth for p in parts], polygons, True, bool)
     out.custom_normals = joined([p.custom_normals for p in parts], loops, 0.0, np.float32)
     edged = [(p, o) for p, o in zip(parts, v_off) if p.edges is not None]
@@ -276,6 +279,15 @@ def concatenate(parts, n_vertices):
         out.sharp_edges = joined([p.sharp_edges for p, _ in edged], counts, False, bool)
         out.seams = joined([p.seams for p, _ in edged], counts, False, bool)
     return out
+
+
+def _slots_in(part, names):
+    """``part.material_index`` renumbered into the slot list ``names`` (a part without slot
+    names keeps its indices)."""
+    if part.material_index is None or not part.material_names:
+        return part.material_index
+    where = np.array([names.index(n) for n in part.material_names], dtype=np.int64)
+    return where[np.clip(np.asarray(part.material_index, np.int64), 0, len(where) - 1)]
 
 
 def _spans_seam(uv, tri_loops, t_corner, b_corner, v, tris, corners):

@@ -94,7 +94,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     keyframe_meshes : sequence of (vertices, triangles), optional
         3D only: every keyframe's own mesh. The template then keeps its sub-cell detail
         and ends each segment on the next keyframe's mesh itself (`template.DetailTrack`),
-        instead of on its grid's zero set.
+        instead of on its grid's zero set; and each keyframe's frame in ``surfaces`` is
+        that keyframe's own mesh, not its grid surface.
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
@@ -176,10 +177,11 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                 stats["uncovered_area"].append(unc)
                 stats["uncovered_fraction"].append(unc / tot if tot > 0 else 0.0)
             if per_frame:
+                own = _frame_mesh(surf, keyframe_meshes, k, s)
                 stats["quality"]["shape_keys"].append(frame_quality(ls, grid, p, faces, surf))
-                stats["quality"]["mesh_sequence"].append(frame_quality(ls, grid, *surf, surf))
-                meshes.append((surf[0].astype(np.float32), surf[1].astype(np.int32)))
-                velocities.append((inb.velocity(surf[0], s) / float(f1 - f0)).astype(np.float32))
+                stats["quality"]["mesh_sequence"].append(frame_quality(ls, grid, *own, surf))
+                meshes.append((own[0].astype(np.float32), own[1].astype(np.int32)))
+                velocities.append((inb.velocity(own[0], s) / float(f1 - f0)).astype(np.float32))
             frame_rep((i + 1) / local.size, f"frame {f} ({i + 1}/{local.size})")
         verts = out[local[-1] - frames[0]]
         stats["segments"].append(dict(inb.stats, template_seconds=time.perf_counter() - t_seg))
@@ -188,3 +190,13 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     stats["vertices"] = int(len(verts))
     stats["faces"] = int(len(faces))
     return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)
+
+
+def _frame_mesh(surface, keyframe_meshes, k, s):
+    """A frame's own mesh for the mesh sequence: on a keyframe's frame (s = 0 of the first
+    segment, s = 1 of every segment) the keyframe mesh the artist modelled, when given;
+    else the frame's grid surface."""
+    if keyframe_meshes is not None and (s == 1.0 or (s == 0.0 and k == 0)):
+        v, tris = keyframe_meshes[k + int(s == 1.0)]
+        return np.asarray(v, dtype=float).reshape(-1, 3), np.asarray(tris).reshape(-1, 3)
+    return surface

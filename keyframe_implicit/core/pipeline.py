@@ -60,6 +60,9 @@ class Animation:
     attributes : `attributes.MeshAttributes` of ``vertices`` / ``faces`` (polygons, UVs,
         materials, ...) when the template is the first keyframe's own mesh, else None
         (``faces`` are then its polygons' fan triangles).
+    keyframe_attributes : dict timeline frame -> `attributes.MeshAttributes` of the keyframe
+        mesh that frame's surface is (with the artist's mesh, a keyframe's frame in
+        ``surfaces`` is the keyframe's own mesh).
     """
 
     frames: np.ndarray
@@ -71,6 +74,7 @@ class Animation:
     velocities: list = field(default_factory=list)
     levelsets: list = field(default_factory=list)
     attributes: object = None
+    keyframe_attributes: dict = field(default_factory=dict)
 
     def surface_attributes(self, i):
         """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
@@ -83,6 +87,9 @@ class Animation:
         """
         if self.attributes is None or not self.surfaces:
             return None
+        own = self.keyframe_attributes.get(int(self.frames[i]))
+        if own is not None:  # a keyframe's frame shows the keyframe's own mesh
+            return own
         from .attributes import transfer
 
         return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
@@ -410,6 +417,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         if artist is not None:
             _relative_to_keyframes(stats["quality"]["shape_keys"], chain.frames,
                                    [kf.frame for kf in keyframes])
+            _keyframes_are_reference(stats["quality"]["mesh_sequence"], chain.frames,
+                                     [kf.frame for kf in keyframes])
         rep(0.98, "Measuring the keyframe frames")
         _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing)
         stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
@@ -419,7 +428,9 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                      vertices=np.asarray(chain.vertices, dtype=np.float32),
                      faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats,
                      surfaces=chain.surfaces, velocities=chain.velocities,
-                     levelsets=chain.levelsets, attributes=None if artist is None else artist[2])
+                     levelsets=chain.levelsets, attributes=None if artist is None else artist[2],
+                     keyframe_attributes={} if artist is None else
+                     _keyframe_attributes(keyframes, surfaces, artist[2]))
 
 
 def _artist_template(keyframe, surface, template):
@@ -447,18 +458,51 @@ def _relative_to_keyframes(per_frame, frames, key_frames):
 
     The artist's mesh is not the grid's surface (faces inside the body, open holes, detail
     finer than a cell), so its raw figures differ from the grid's already on the keyframe
-    frames. Each frame's area ratio and coverage are divided by, and its inverted share
-    reduced by, the keyframe frames' own values interpolated in time: what a frame adds to
-    what the keyframes show.
+    frames. Each frame's area ratio and coverage are divided by the keyframe frames' own
+    values interpolated in time, and its inverted share reduced by the larger of its two
+    keyframes' shares (faces finer than a cell, such as an eyelid, turn against the grid's
+    gradient by amounts that vary from frame to frame): what a frame adds to what the
+    keyframes show.
     """
     frames = np.asarray(frames)
+    key_frames = np.asarray(key_frames)
     at = [per_frame[int(f - frames[0])] for f in key_frames]
+    seg = np.clip(np.searchsorted(key_frames, frames, side="right") - 1, 0, len(key_frames) - 2)
     for name, relative in (("area_ratio", np.divide), ("coverage", np.divide),
                            ("inverted_fraction", np.subtract)):
-        ref = np.interp(frames, key_frames, [q[name] for q in at])
+        values = np.array([q[name] for q in at])
+        ref = (np.interp(frames, key_frames, values) if relative is np.divide
+               else np.maximum(values[seg], values[seg + 1]))
         for q, r in zip(per_frame, ref):
             value = relative(q[name], r) if r > 0 or relative is np.subtract else q[name]
             q[name] = float(min(value, 1.0) if name == "coverage" else max(value, 0.0))
+
+
+def _keyframes_are_reference(per_frame, frames, key_frames):
+    """On a keyframe's frame the mesh sequence shows the keyframe mesh itself: the reference
+    `_relative_to_keyframes` measures the shape keys against, so its relative figures there
+    are neutral (area ratio 1, coverage 1, no inverted area beyond the keyframe's own). What
+    is checked on those frames is the two-way distance to the keyframe (`_measure_keyframes`)."""
+    for f in key_frames:
+        per_frame[int(f - frames[0])].update(area_ratio=1.0, coverage=1.0, inverted_fraction=0.0)
+
+
+def _keyframe_attributes(keyframes, surfaces, first):
+    """Per keyframe frame, the `MeshAttributes` of its own mesh: the first keyframe's are the
+    template's (``first``); another keyframe's are its own when they fit its mesh, else its
+    triangles."""
+    from .attributes import MeshAttributes
+
+    out = {}
+    for k, (kf, surface) in enumerate(zip(keyframes, surfaces)):
+        attrs = first if k == 0 else kf.attributes
+        try:
+            if attrs is not None:
+                attrs.check(len(surface[0]))
+        except ValueError:
+            attrs = None
+        out[int(kf.frame)] = attrs if attrs is not None else MeshAttributes.from_triangles(surface[1])
+    return out
 
 
 def _measure_keyframes(quality, keyframes, chain, spacing):

@@ -291,6 +291,18 @@ def surface_filter(points, radius, passes=3):
     return apply
 
 
+def same_vertices(landing, end_vertices, spacing, median_cells=1.0, max_cells=6.0):
+    """Whether keyframe B's vertices are the template's own, posed: the same count, and
+    the template's landing points on B (closest points) lie near B's vertex of the same
+    index (median within ``median_cells`` cells, all within ``max_cells``). A different
+    mesh with the same vertex count fails the median by far: its vertex i lies elsewhere."""
+    end_vertices = np.asarray(end_vertices, dtype=float).reshape(-1, 3)
+    if len(end_vertices) != len(landing) or not len(landing):
+        return False
+    d = np.linalg.norm(landing - end_vertices, axis=1) / float(spacing)
+    return bool(np.median(d) <= median_cells and d.max() <= max_cells)
+
+
 class DetailTrack:
     """The artist's mesh of keyframe A carried through one segment with its sub-cell detail.
 
@@ -311,6 +323,13 @@ class DetailTrack:
     the closest point on B's mesh. Detail under a cell thus travels with the
     locally rigid motion; the grid only steers the shape at its own scale.
     x(0) is returned exactly as given.
+
+    When keyframe B is the same mesh as the template, posed (the artist
+    duplicated A and moved its vertices: same vertex count, and the closest
+    points above lie near B's own vertices, `same_vertices`), x(1) is B's
+    vertex for vertex instead: a point of the closest-point landing may slide
+    along B's surface by a fraction of a cell, which shows as swimming texture
+    on a UV-mapped keyframe.
 
     Parameters
     ----------
@@ -333,6 +352,9 @@ class DetailTrack:
         p1 = inb.trajectory(v0, 1.0)
         pulled = self._pull(p1, 1.0)[0]
         self.end = closest_points(pulled, *end_mesh)[0]
+        self.end_by_index = same_vertices(self.end, end_mesh[0], inb.grid.spacing)
+        if self.end_by_index:
+            self.end = np.asarray(end_mesh[0], dtype=float).copy()
         self.offset_b = np.einsum("pji,pj->pi", local_rotations(inb, v0, 1.0), self.end - pulled)
 
     def _pull(self, p, s):

@@ -187,3 +187,50 @@ def test_bumps_under_two_cells_survive_a_rigid_turn():
             assert np.linalg.norm(ch.vertices[4] - expected, axis=1).mean() < 0.1 * h
     assert kept["detail"] >= 0.8
     assert kept["zero set"] < 0.5  # pulled onto the grid's zero set, the bumps flatten
+
+
+def test_posed_copies_land_vertex_for_vertex(squash_bake):
+    kfs, an = squash_bake
+    for kf in kfs[1:]:  # B and C are A's mesh moved: each vertex ends on its own counterpart
+        np.testing.assert_allclose(an.vertices[kf.frame - an.frames[0]], kf.vertices, atol=1e-6)
+
+
+def test_same_vertex_count_alone_is_not_a_posed_copy():
+    from keyframe_implicit.core.template import same_vertices
+
+    v, _, _ = uv_sphere(12)
+    rng = np.random.default_rng(1)
+    h = 0.1
+    near = v + rng.normal(scale=0.2 * h, size=v.shape)  # slid a fifth of a cell
+    assert same_vertices(near, v, h)
+    assert not same_vertices(near, v[rng.permutation(len(v))], h)  # renumbered
+    assert not same_vertices(near[:-1], v[:-1] * 1.0 + [0, 0, 1.0], h)  # far away
+    assert not same_vertices(near, v[:-1], h)  # another vertex count
+
+
+def test_mesh_sequence_shows_each_keyframe_mesh_on_its_frame(squash_bake):
+    kfs, an = squash_bake
+    for kf in kfs:
+        i = kf.frame - an.frames[0]
+        v, tris = an.surfaces[i]
+        np.testing.assert_allclose(v, kf.vertices, atol=1e-6)
+        np.testing.assert_array_equal(tris, triangulate(kf.faces, len(kf.vertices)))
+        assert len(an.velocities[i]) == len(v)
+        q = an.stats["quality"]["mesh_sequence"][i]
+        assert q["keyframe_max"] < 1e-6
+    assert an.surface_attributes(0) is kfs[0].attributes
+    b = an.surface_attributes(kfs[1].frame - an.frames[0])  # B has no attributes: its polygons
+    assert b.n_polygons == len(triangulate(kfs[1].faces, len(kfs[1].vertices)))
+    mid = an.surface_attributes(3)  # an in-between: transferred from A
+    assert mid.n_loops == 3 * len(an.surfaces[3][1]) and "UVMap" in mid.uv_maps
+
+
+def test_concatenate_renumbers_each_parts_material_slots():
+    v, _, a = uv_sphere(4)
+    _, _, b = uv_sphere(4)
+    b.material_names = ["Blue", "Green"]
+    out = concatenate([a, b], [len(v), len(v)])
+    assert out.material_names == ["Red", "Blue", "Green"]
+    names = np.array(out.material_names)[out.material_index]
+    np.testing.assert_array_equal(names[:a.n_polygons], np.array(a.material_names)[a.material_index])
+    np.testing.assert_array_equal(names[a.n_polygons:], np.array(b.material_names)[b.material_index])
