@@ -17,12 +17,13 @@ Threaded use (what the modal operator does)::
     if job.state == DONE: job.apply(scene)
 """
 
+import os
 import threading
 import time
 
 from ..core import pipeline
 from ..core.progress import Cancelled
-from . import output, scene_io
+from . import output, scene_io, volumes
 
 READY, RUNNING, DONE, CANCELLED, FAILED = "READY", "RUNNING", "DONE", "CANCELLED", "FAILED"
 
@@ -84,6 +85,7 @@ class BakeJob:
                 progress=self._progress,
                 cancel=self._cancel.is_set,
                 feature_names=inp.feature_names or None,
+                levelsets=inp.levelsets,
             )
             self.state = DONE
         except Cancelled:
@@ -133,9 +135,16 @@ class BakeJob:
         self.notes = list(stats.pop("notes", []))
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
-        return output.write_animation(scene, scene.keyframe_implicit, self.result,
-                                      material_names=self.inputs.material_names, stats=stats,
-                                      notes=self.notes)
+        settings = scene.keyframe_implicit
+        paths = volumes.write_result(settings, self.result) if self.inputs.levelsets else []
+        obj = output.write_animation(scene, settings, self.result,
+                                     material_names=self.inputs.material_names, stats=stats,
+                                     notes=self.notes)
+        if paths:
+            vol = volumes.add_volume_object(obj, paths, int(self.result.frames[0]))
+            obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "
+                                  f"{os.path.dirname(paths[0])}.")
+        return obj
 
 
 def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None):

@@ -80,6 +80,9 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
         col.prop(settings, "output_mode")
+        col.prop(settings, "volume_export")
+        if settings.volume_export:
+            col.prop(settings, "volume_directory")
         from .ops import _running
 
         if _running:

@@ -106,6 +106,15 @@ class KFI_Settings(bpy.types.PropertyGroup):
         type=bpy.types.Object,
         description="The baked object; Bake replaces it (and nothing else)",
     )
+    volume_export: BoolProperty(
+        name="OpenVDB Volume", default=False,
+        description="Also write the in-between level sets as a .vdb sequence (one file per "
+        "frame) with a Volume object that plays it, for Houdini and volume workflows",
+    )
+    volume_directory: StringProperty(
+        name="Folder", subtype="DIR_PATH", default="//kfi_volumes/",
+        description="Where the .vdb files go; '//' is the folder of the saved .blend",
+    )
     show_keyframes: BoolProperty(
         name="Show Keyframes", default=False,
         description="Show the keyframe objects as wireframes over the baked result, to compare "

@@ -30,6 +30,7 @@ class BakeInput:
     material_names: list = field(default_factory=list)  # the keyframes' materials, first use first
     pair_ids: list = field(default_factory=list)  # per segment, the pair ids in row order
     feature_names: list = field(default_factory=list)  # per segment, (Empty A, Empty B) per row
+    levelsets: bool = False  # keep every frame's level set (the OpenVDB volume)
 
     @property
     def frames(self):
@@ -177,4 +178,5 @@ def collect(scene, depsgraph, resolution=0):
         material_names=materials,
         pair_ids=ids,
         feature_names=feature_names(scene, settings),
+        levelsets=bool(settings.volume_export),
     )

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import features
+from . import features, volumes
 
 ERROR = "ERROR"
 WARNING = "WARNING"
@@ -115,6 +115,9 @@ def problems(scene, settings=None, depsgraph=None):
                                         f"{count(n, 'feature pair')}: {MIN_PAIRS_HINT} or more on "
                                         "distinctive points guide the motion better (Add Feature "
                                         "Pair).", seg))
+    volume = volumes.problem(settings)
+    if volume:
+        out.append(Problem(ERROR, volume))
     out.sort(key=lambda p: p.level != ERROR)
     return out
 

@@ -64,8 +64,12 @@ def write_sequence(directory, name, frames, levelsets, grid):
     return paths
 
 
-def add_volume_object(collection, name, paths, first_frame):
-    """A Volume object that plays the .vdb sequence from ``first_frame``."""
+def add_volume_object(output_obj, paths, first_frame):
+    """A Volume object that plays the .vdb sequence from ``first_frame``, in the output's
+    collection and parented to it, so that removing the output removes it too."""
+    from .output import VOLUME_TAG
+
+    name = f"{output_obj.name} Volume"
     vol = bpy.data.volumes.new(name)
     vol.filepath = paths[0]
     vol.is_sequence = len(paths) > 1
@@ -73,5 +77,37 @@ def add_volume_object(collection, name, paths, first_frame):
     vol.frame_duration = len(paths)
     vol.frame_offset = int(first_frame) - 1  # file number = scene frame
     obj = bpy.data.objects.new(name, vol)
-    collection.objects.link(obj)
+    obj[VOLUME_TAG] = True
+    obj.parent = output_obj
+    for coll in output_obj.users_collection:
+        coll.objects.link(obj)
     return obj
+
+
+def directory(settings):
+    """The absolute folder the settings name for the .vdb files."""
+    return bpy.path.abspath(settings.volume_directory or "//kfi_volumes/")
+
+
+def problem(settings):
+    """Why the volume export asked for in ``settings`` cannot run ("" when it can): no
+    OpenVDB module, or a folder relative to a .blend that was never saved."""
+    if not settings.volume_export:
+        return ""
+    if openvdb_module()[0] is None:
+        return openvdb_module()[1].replace("the volume export is skipped", "turn OpenVDB "
+                                           "Volume off")
+    if settings.volume_directory.startswith("//") and not bpy.data.filepath:
+        return (f"The OpenVDB folder '{settings.volume_directory}' is relative to the .blend, "
+                "which is not saved yet: save the file or pick an absolute folder.")
+    return ""
+
+
+def write_result(settings, animation):
+    """Write a bake's level sets where ``settings`` say; returns the paths. The files are
+    written before anything enters the scene, so a full disk leaves the scene unchanged."""
+    levelsets = getattr(animation, "levelsets", None) or []
+    if not levelsets:
+        return []
+    name = bpy.path.clean_name(settings.output_name or "KFI Animation")
+    return write_sequence(directory(settings), name, animation.frames, levelsets, animation.grid)
