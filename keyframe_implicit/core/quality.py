@@ -175,12 +175,26 @@ def _badness(figures, limits=LIMITS):
     return max(parts)
 
 
+def _nearness(figures, limits=LIMITS):
+    """How close a frame comes to its limits: each figure's departure from its ideal
+    value as a share of what the limit allows (1 = on the limit)."""
+    lo, hi = limits["area_ratio"]
+    r = figures["area_ratio"]
+    parts = [(1.0 - r) / (1.0 - lo) if r < 1.0 else (r - 1.0) / (hi - 1.0),
+             figures["inverted_fraction"] / limits["inverted_fraction"],
+             (1.0 - figures["coverage"]) / (1.0 - limits["coverage"])]
+    parts += [figures[key] / limits[key] for key in ("keyframe_mean", "keyframe_max")
+              if key in figures]
+    return max(parts)
+
+
 def worst_frame(frames, per_frame, limits=LIMITS):
-    """(frame, figures, failures) of the frame farthest past the limits (the first
-    frame when every frame passes: then its failures list is empty)."""
+    """(frame, figures, failures) of the frame farthest past the limits, or, when every
+    frame passes (its failures list is then empty), of the frame nearest to them."""
     if not len(per_frame):
         raise ValueError("no frames to rank")
-    k = int(np.argmax([_badness(q, limits) for q in per_frame]))
+    k = max(range(len(per_frame)),
+            key=lambda i: (_badness(per_frame[i], limits), _nearness(per_frame[i], limits)))
     return int(frames[k]), per_frame[k], failures(per_frame[k], limits)
 
 
@@ -201,7 +215,7 @@ def choose_output(frames, quality, limits=LIMITS):
     if not fails:
         return "shape_keys", "every frame of the tracked mesh passes the cleanliness limits"
     return "mesh_sequence", (f"the tracked mesh fails the cleanliness limits on frame {frame} "
-                             f"({', '.join(fails)}): topology changes need a mesh per frame")
+                             f"({', '.join(fails)}): each frame gets its own surface instead")
 
 
 def describe_worst(frames, per_frame, limits=LIMITS):

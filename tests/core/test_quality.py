@@ -54,6 +54,8 @@ def test_worst_frame_is_the_one_farthest_past_a_limit():
     frame, q, fails = worst_frame([3, 4, 5], [ok, bad, worse])
     assert frame == 5 and fails == ["inverted area 5.0 %"]
     assert worst_frame([3, 4], [ok, ok])[2] == []
+    near = dict(ok, area_ratio=1.02)  # within the limits, but the nearest to them
+    assert worst_frame([3, 4, 5], [ok, near, dict(ok, coverage=0.995)])[:3:2] == (4, [])
 
 
 @pytest.mark.parametrize("name", ["merge", "splash"])
