@@ -275,7 +275,11 @@ class _Triangles:
         e0, e1 = b - a, c - a
         e2 = c - b
         n = np.cross(e0, e1)
-        n /= np.linalg.norm(n, axis=1)[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # a degenerate (zero-area) triangle gets a NaN normal and Gram inverse: its
+            # "inside" test is then False and `distance` measures it by its edges
+            n /= np.linalg.norm(n, axis=1)[:, None]
+            self.inv = 1.0 / (_dot(e0, e0) * _dot(e1, e1) - _dot(e0, e1) ** 2)
         self.n_tri = len(tris)
         self.a = [np.ascontiguousarray(a[:, i]) for i in range(3)]
         self.e0 = [np.ascontiguousarray(e0[:, i]) for i in range(3)]
@@ -286,7 +290,6 @@ class _Triangles:
         self.d11 = _dot(e1, e1)
         self.d22 = _dot(e2, e2)
         self.e02 = _dot(e0, e2)
-        self.inv = 1.0 / (self.d00 * self.d11 - self.d01 ** 2)
         cen = (a + b + c) / 3.0
         self.cen = [np.ascontiguousarray(cen[:, i]) for i in range(3)]
         self.rad = np.sqrt(np.maximum.reduce([_dot(a - cen, a - cen), _dot(b - cen, b - cen),
@@ -321,9 +324,10 @@ class _Triangles:
         dv1 = vx * self.e1[0][t] + vy * self.e1[1][t] + vz * self.e1[2][t]
         d00, d01, d11, d22 = self.d00[t], self.d01[t], self.d11[t], self.d22[t]
         inv = self.inv[t]
-        u = (d11 * dv0 - d01 * dv1) * inv
-        w = (d00 * dv1 - d01 * dv0) * inv
-        inside = (u >= 0) & (w >= 0) & (u + w <= 1)
+        with np.errstate(invalid="ignore"):  # NaN on degenerate triangles: not inside
+            u = (d11 * dv0 - d01 * dv1) * inv
+            w = (d00 * dv1 - d01 * dv0) * inv
+            inside = (u >= 0) & (w >= 0) & (u + w <= 1)
         pn = vx * self.n[0][t] + vy * self.n[1][t] + vz * self.n[2][t]
         vv = vx * vx + vy * vy + vz * vz
         t0 = np.clip(dv0 / d00, 0.0, 1.0)
@@ -345,9 +349,10 @@ class _Triangles:
         v = p - a
         dv0, dv1 = _dot(v, e0), _dot(v, e1)
         d00, d01, d11 = self.d00[t], self.d01[t], self.d11[t]
-        u = (d11 * dv0 - d01 * dv1) * self.inv[t]
-        w = (d00 * dv1 - d01 * dv0) * self.inv[t]
-        inside = (u >= 0) & (w >= 0) & (u + w <= 1)
+        with np.errstate(invalid="ignore"):  # NaN on degenerate triangles: not inside
+            u = (d11 * dv0 - d01 * dv1) * self.inv[t]
+            w = (d00 * dv1 - d01 * dv0) * self.inv[t]
+            inside = (u >= 0) & (w >= 0) & (u + w <= 1)
         best = a + u[:, None] * e0 + w[:, None] * e1
         bd = np.where(inside, 0.0, np.inf)
         for s0, e in ((a, e0), (a, e1), (a + e0, e1 - e0)):  # the three edges
