@@ -219,10 +219,14 @@ def choose_output(frames, quality, limits=LIMITS):
 
 
 def describe_worst(frames, per_frame, limits=LIMITS):
-    """One sentence on the worst frame of an output, for the bake report."""
+    """One sentence on the worst frame of an output, for the bake report: the frame
+    farthest past the limits, or, when all pass, the one nearest to them."""
     frame, q, fails = worst_frame(frames, per_frame, limits)
-    text = (f"worst frame {frame}: area ratio {q['area_ratio']:.3f}, inverted area "
-            f"{100 * q['inverted_fraction']:.1f} %, coverage {100 * q['coverage']:.1f} %")
+    figures = (f"area ratio {q['area_ratio']:.3f}, inverted area "
+               f"{100 * q['inverted_fraction']:.1f} %, coverage {100 * q['coverage']:.1f} %")
     if "keyframe_max" in q:
-        text += f", keyframe distance mean {q['keyframe_mean']:.2f} h max {q['keyframe_max']:.2f} h"
-    return text + (" (within the limits)" if not fails else f" (over the limits: {', '.join(fails)})")
+        figures += (f", keyframe distance mean {q['keyframe_mean']:.2f} h max "
+                    f"{q['keyframe_max']:.2f} h")
+    if not fails:
+        return f"worst frame {frame}, within the limits: {figures}"
+    return f"worst frame {frame}: {figures} (over the limits: {', '.join(fails)})"
