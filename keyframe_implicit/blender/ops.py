@@ -328,7 +328,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         except Exception as exc:  # the core failed: tell the user, leave the scene as it was
-            self.report({"ERROR"}, _failed("Bake failed", f"{type(exc).__name__}: {exc}"))
+            self.report({"ERROR"}, _failed("Bake failed", bake.failure_text(exc)))
             return {"CANCELLED"}
         return self._done(context, obj, notes=notes)
 
