@@ -15,7 +15,7 @@ Background use (what the modal operator does)::
 
     job = BakeJob(scene_io.collect(scene, depsgraph))
     job.start()            # a thread that talks to the worker process
-    ... job.fraction, job.message, job.cancel() ...
+    ... job.poll(), job.fraction, job.message, job.cancel() ...
     if job.state == DONE: job.apply(scene)
 """
 
@@ -46,6 +46,13 @@ class BakeJob:
     inputs : scene_io.BakeInput
     on_progress : callable(job, fraction, message), optional
         Called after each progress report, from the thread that runs the job (`run`).
+
+    Attributes
+    ----------
+    max_poll_gap : float
+        The longest time, in seconds, between two consecutive `poll` calls while the bake
+        ran: how long the polling main loop went without a turn (the modal operator's timer
+        step included).
     """
 
     def __init__(self, inputs, on_progress=None):
@@ -57,11 +64,13 @@ class BakeJob:
         self.result = None
         self.error = None
         self.seconds = 0.0
+        self.max_poll_gap = 0.0
         self.notes = []  # what the user should know about a successful bake (warnings)
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._thread = None
         self._worker = None
+        self._last_poll = None
 
     # -- cancellation (the path ESC uses) ---------------------------------
     def cancel(self):
@@ -130,6 +139,15 @@ class BakeJob:
     def join(self, timeout=None):
         if self._thread is not None:
             self._thread.join(timeout)
+
+    def poll(self):
+        """What the main loop calls on each of its turns while the bake runs (the modal
+        operator's timer events): updates `max_poll_gap`; returns `finished`."""
+        now = time.perf_counter()
+        if self._last_poll is not None:
+            self.max_poll_gap = max(self.max_poll_gap, now - self._last_poll)
+        self._last_poll = now
+        return self.finished
 
     def status(self):
         """(fraction, message) of the last progress report, safe from any thread."""

@@ -374,9 +374,10 @@ class KFI_OT_bake(bpy.types.Operator):
             return {"RUNNING_MODAL"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        finished = job.poll()
         fraction, message = job.status()
         context.window_manager.progress_update(int(100 * fraction))
-        if not job.finished:
+        if not finished:
             self._status(context, f"Baking {100 * fraction:.0f}%: {message} (ESC to cancel)")
             return {"RUNNING_MODAL"}
         self._finish(context)
