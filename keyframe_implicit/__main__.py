@@ -95,8 +95,11 @@ def main(argv=None):
         return 1
     except Exception as exc:  # noqa: BLE001 - every failure becomes a message and exit 1
         from .core.progress import Cancelled
+        from .worker import WorkerError
 
-        kind = "" if isinstance(exc, (ValueError, Cancelled)) else f"{type(exc).__name__}: "
+        # these say what happened and what to do in their own words
+        told = isinstance(exc, (ValueError, Cancelled, WorkerError))
+        kind = "" if told else f"{type(exc).__name__}: "
         print(f"error: bake failed: {kind}{exc}", file=sys.stderr)
         return 1
     return 0

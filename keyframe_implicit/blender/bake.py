@@ -1,19 +1,21 @@
-"""Baking: scene -> `BakeInput` -> core.animate (any thread) -> output (main thread).
+"""Baking: scene -> `BakeInput` -> core.animate (worker process) -> output (main thread).
 
-`BakeJob` is the one cancellation path: the modal operator calls
+The core runs in a worker process (`keyframe_implicit.worker`): Blender's main loop only
+polls it, and a crash or an out-of-memory kill there leaves the session and the scene as
+they were. `BakeJob` is the one cancellation path: the modal operator calls
 ``job.cancel()`` on ESC, a script or test may call it from anywhere (e.g. from
-``on_progress``). The job only ever touches numpy data; `BakeJob.apply` writes
-the result into the scene and must run on the main thread.
+``on_progress``). `BakeJob.apply` writes the result into the scene and must run on the
+main thread.
 
 Blocking use (scripts, ``blender -b``)::
 
-    obj = bake_scene(bpy.context.scene)            # raises ValueError / Cancelled
+    obj = bake_scene(bpy.context.scene)            # raises ValueError / Cancelled / WorkerError
 
-Threaded use (what the modal operator does)::
+Background use (what the modal operator does)::
 
     job = BakeJob(scene_io.collect(scene, depsgraph))
-    job.start()            # worker thread
-    ... job.fraction, job.message, job.cancel() ...
+    job.start()            # a thread that talks to the worker process
+    ... job.poll(), job.fraction, job.message, job.cancel() ...
     if job.state == DONE: job.apply(scene)
 """
 
@@ -21,21 +23,36 @@ import os
 import threading
 import time
 
-from ..core import pipeline
 from ..core.progress import Cancelled
+from ..worker import Worker, WorkerError
 from . import output, scene_io, volumes
 
 READY, RUNNING, DONE, CANCELLED, FAILED = "READY", "RUNNING", "DONE", "CANCELLED", "FAILED"
 
 
+def failure_text(exc):
+    """What the user reads about a failed bake: a ValueError's or `WorkerError`'s own text
+    (they say what to do), else the exception's type and text."""
+    if isinstance(exc, (ValueError, WorkerError)):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"
+
+
 class BakeJob:
-    """One run of the core on data already copied out of the scene.
+    """One run of the core, in a worker process, on data already copied out of the scene.
 
     Parameters
     ----------
     inputs : scene_io.BakeInput
     on_progress : callable(job, fraction, message), optional
-        Called from the thread running the core after each progress report.
+        Called after each progress report, from the thread that runs the job (`run`).
+
+    Attributes
+    ----------
+    max_poll_gap : float
+        The longest time, in seconds, between two consecutive `poll` calls while the bake
+        ran: how long the polling main loop went without a turn (the modal operator's timer
+        step included).
     """
 
     def __init__(self, inputs, on_progress=None):
@@ -47,15 +64,21 @@ class BakeJob:
         self.result = None
         self.error = None
         self.seconds = 0.0
+        self.max_poll_gap = 0.0
         self.notes = []  # what the user should know about a successful bake (warnings)
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._thread = None
+        self._worker = None
+        self._last_poll = None
 
     # -- cancellation (the path ESC uses) ---------------------------------
     def cancel(self):
-        """Ask the running core to stop at its next progress check."""
-        self._cancel.set()
+        """Stop the bake now (from any thread): its worker process is ended at once."""
+        with self._lock:
+            self._cancel.set()
+            if self._worker is not None:
+                self._worker.cancel()
 
     @property
     def cancel_requested(self):
@@ -69,24 +92,27 @@ class BakeJob:
         if self.on_progress is not None:
             self.on_progress(self, float(fraction), str(message))
 
+    def _arguments(self):
+        inp = self.inputs
+        return dict(keyframes=inp.keyframes, features=inp.features, resolution=inp.resolution,
+                    weights=inp.weights, feature_names=inp.feature_names or None,
+                    levelsets=inp.levelsets)
+
+    def _bake(self):
+        """The core's `Animation`, from a worker process started here."""
+        with self._lock:
+            if self._cancel.is_set():
+                raise Cancelled("cancelled before start")
+            self._worker = Worker(self._arguments())
+        return self._worker.result(self._progress)
+
     def run(self):
-        """Run the core in the calling thread; sets state to DONE, CANCELLED or FAILED."""
+        """Bake in a worker process, waiting in the calling thread; sets state to DONE,
+        CANCELLED or FAILED."""
         self.state = RUNNING
         t0 = time.perf_counter()
         try:
-            if self._cancel.is_set():
-                raise Cancelled("cancelled before start")
-            inp = self.inputs
-            self.result = pipeline.animate(
-                inp.keyframes,
-                inp.features,
-                resolution=inp.resolution,
-                weights=inp.weights,
-                progress=self._progress,
-                cancel=self._cancel.is_set,
-                feature_names=inp.feature_names or None,
-                levelsets=inp.levelsets,
-            )
+            self.result = self._bake()
             self.state = DONE
         except Cancelled:
             self.result = None
@@ -100,7 +126,7 @@ class BakeJob:
         return self.state
 
     def start(self):
-        """Run the core in a daemon worker thread."""
+        """Run the job in a daemon thread (which mostly waits for the worker's messages)."""
         self._thread = threading.Thread(target=self.run, name="keyframe_implicit bake", daemon=True)
         self.state = RUNNING
         self._thread.start()
@@ -114,17 +140,22 @@ class BakeJob:
         if self._thread is not None:
             self._thread.join(timeout)
 
+    def poll(self):
+        """What the main loop calls on each of its turns while the bake runs (the modal
+        operator's timer events): updates `max_poll_gap`; returns `finished`."""
+        now = time.perf_counter()
+        if self._last_poll is not None:
+            self.max_poll_gap = max(self.max_poll_gap, now - self._last_poll)
+        self._last_poll = now
+        return self.finished
+
     def status(self):
         """(fraction, message) of the last progress report, safe from any thread."""
         with self._lock:
             return self.fraction, self.message
 
     def error_message(self):
-        if self.error is None:
-            return ""
-        if isinstance(self.error, ValueError):
-            return str(self.error)
-        return f"{type(self.error).__name__}: {self.error}"
+        return "" if self.error is None else failure_text(self.error)
 
     # -- writing back (main thread only) ------------------------------------
     def apply(self, scene):
@@ -154,7 +185,8 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None
     (faces reoriented, loose vertices ignored, a previous output kept, ...).
 
     Raises ValueError (setup or input problems, with what to do), `Cancelled`
-    (``on_progress`` called ``job.cancel()``), or the core's own exception.
+    (``on_progress`` called ``job.cancel()``), or `WorkerError` (the worker process crashed,
+    ran out of memory, or the core failed otherwise).
     The scene is unchanged unless the bake succeeds.
     """
     import bpy

@@ -328,7 +328,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         except Exception as exc:  # the core failed: tell the user, leave the scene as it was
-            self.report({"ERROR"}, _failed("Bake failed", f"{type(exc).__name__}: {exc}"))
+            self.report({"ERROR"}, _failed("Bake failed", bake.failure_text(exc)))
             return {"CANCELLED"}
         return self._done(context, obj, notes=notes)
 
@@ -374,9 +374,10 @@ class KFI_OT_bake(bpy.types.Operator):
             return {"RUNNING_MODAL"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        finished = job.poll()
         fraction, message = job.status()
         context.window_manager.progress_update(int(100 * fraction))
-        if not job.finished:
+        if not finished:
             self._status(context, f"Baking {100 * fraction:.0f}%: {message} (ESC to cancel)")
             return {"RUNNING_MODAL"}
         self._finish(context)

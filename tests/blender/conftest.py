@@ -11,6 +11,7 @@ import hashlib
 import os
 import pathlib
 import re
+import textwrap
 import warnings
 
 import bpy
@@ -164,6 +165,23 @@ def volume(verts, tris):
     """Enclosed volume of a closed triangle mesh (divergence theorem)."""
     a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+@pytest.fixture
+def in_worker(tmp_path, monkeypatch):
+    """``in_worker(source)``: run Python ``source`` at the start of the bake's worker processes
+    this test starts (a monkeypatch in this process cannot reach them).
+
+    The worker is a fresh Python that inherits this process's ``PYTHONPATH`` after its own
+    folders; Python imports a ``sitecustomize`` module found there at start-up, so the test
+    writes one. Inside, this package is ``keyframe_implicit``.
+    """
+    def install(source):
+        (tmp_path / "sitecustomize.py").write_text(textwrap.dedent(source))
+        monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+            [str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])]))
+
+    return install
 
 
 @pytest.fixture

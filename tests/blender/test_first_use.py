@@ -8,8 +8,7 @@ import bpy
 import numpy as np
 import pytest
 
-from keyframe_implicit.blender import ops, panel, result_view, scene_io, validate
-from keyframe_implicit.core import pipeline
+from keyframe_implicit.blender import bake, ops, panel, result_view, scene_io, validate
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
 
@@ -192,8 +191,8 @@ def test_open_plane_is_refused_before_any_work(scene, kfi, monkeypatch):
     plane.name = "Plane"
     _keyframe(plane, 40)
     scene.frame_end = 30
-    calls = []
-    monkeypatch.setattr(pipeline, "animate", lambda *a, **k: calls.append(1))
+    calls = []  # no worker process is started: the refusal comes before any work
+    monkeypatch.setattr(bake, "Worker", lambda *a, **k: calls.append(1))
     state = kfi.snapshot()
     with pytest.raises(RuntimeError) as err:
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)

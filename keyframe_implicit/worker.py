@@ -1,0 +1,223 @@
+"""The bake in a worker process: `core.pipeline.animate` in a Python process of its own.
+
+Why a process and not a thread of Blender's: the core's long numpy/scipy calls hold the
+GIL, so a thread stalls Blender's main loop for as long as each call lasts, and a crash or
+an out-of-memory kill in the core would take the artist's session with it. With the work in
+another process the main loop only polls, a crash is an exit code, and cancel always ends
+the work at once (the process is killed; it holds nothing the scene depends on).
+
+The worker is the same Python (``sys.executable``: Blender's bundled Python, or the Python
+that has the bpy module) running ``python -m <package>.worker`` on this package's own files;
+it never imports bpy. Its ``PYTHONPATH`` holds the folder above this package and the folders
+numpy, scipy and scikit-image were found in (in Blender: the extension's unpacked wheels),
+ahead of the parent's own ``PYTHONPATH``.
+
+Protocol: pickles on the worker's standard streams.
+
+- parent -> stdin: the sender's package name, then `animate`'s keyword arguments. The
+  worker leaves as soon as stdin reaches its end (the parent has gone).
+- worker -> stdout: ``("progress", fraction, message)`` any number of times, then
+  ``("done", animation)`` or ``("failed", type name, text, is a ValueError)``. Whatever else
+  the worker prints goes to stderr (the console), never into this stream.
+
+Pickles name this package's classes by the sender's package name (in an installed extension
+``bl_ext.user_default.keyframe_implicit``, in the worker ``keyframe_implicit``); the receiver
+maps them onto its own (`receive`).
+"""
+
+import importlib.util
+import os
+import pickle
+import signal
+import site
+import subprocess
+import sys
+import threading
+import traceback
+
+from .core.progress import Cancelled
+
+__all__ = ["Worker", "WorkerError"]
+
+#: This package's name here, and as the worker imports it (the name of its folder).
+ROOT = __package__
+WORKER_ROOT = os.path.basename(os.path.dirname(os.path.abspath(__file__)))
+#: The distributions the core imports, found by the worker where the parent found them.
+_NEEDS = ("numpy", "scipy", "skimage")
+
+
+class WorkerError(RuntimeError):
+    """The worker process failed in a way the user cannot fix by changing the input: it
+    crashed, ran out of memory, or the core raised something other than a ValueError.
+    The text says what happened, at which stage, and what to try."""
+
+
+def send(stream, message):
+    """Write one message (any picklable object) and flush it."""
+    pickle.dump(message, stream, protocol=5)
+    stream.flush()
+
+
+class _Unpickler(pickle.Unpickler):
+    def __init__(self, stream, sender_root):
+        super().__init__(stream)
+        self._sender = sender_root
+
+    def find_class(self, module, name):
+        if module == self._sender or module.startswith(self._sender + "."):
+            module = ROOT + module[len(self._sender):]
+        return super().find_class(module, name)
+
+
+def receive(stream, sender_root):
+    """Read one message sent from a process whose copy of this package is ``sender_root``;
+    raises EOFError at the end of the stream."""
+    return _Unpickler(stream, sender_root).load()
+
+
+def _python_path():
+    """The worker's PYTHONPATH: the folder holding this package, then the folders numpy,
+    scipy and scikit-image come from unless they are this Python's own site-packages
+    (which the worker has anyway), then the parent's PYTHONPATH."""
+    own = set(site.getsitepackages())
+    dirs = [os.path.dirname(os.path.dirname(os.path.abspath(__file__)))]
+    for name in _NEEDS:
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.submodule_search_locations:
+            where = os.path.dirname(os.path.abspath(list(spec.submodule_search_locations)[0]))
+            if where not in own and where not in dirs:
+                dirs.append(where)
+    return os.pathsep.join(dirs + [p for p in [os.environ.get("PYTHONPATH")] if p])
+
+
+class Worker:
+    """One worker process running `core.pipeline.animate` on ``arguments`` (started at once).
+
+    Parameters
+    ----------
+    arguments : dict
+        `animate`'s keyword arguments, all picklable (no callables).
+    """
+
+    def __init__(self, arguments):
+        self.arguments = arguments
+        self.stage = "starting"  # the last progress message, named in failure messages
+        self.cancelled = False
+        # -P: no working directory on the worker's sys.path (it could shadow any module)
+        self.process = subprocess.Popen(
+            [sys.executable, "-P", "-m", f"{WORKER_ROOT}.worker"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            env=dict(os.environ, PYTHONPATH=_python_path()))
+
+    def cancel(self):
+        """End the bake now (from any thread): the process is killed, `result` raises
+        `Cancelled`."""
+        self.cancelled = True
+        self.process.kill()
+
+    def result(self, progress):
+        """Send the inputs, pass progress on to ``progress(fraction, message)`` (in this
+        thread) and return the `Animation`, once the worker has ended.
+
+        Raises `Cancelled` after `cancel`, ValueError with the core's own text on input the
+        user must fix, and `WorkerError` on any other failure.
+        """
+        answer = None
+        try:
+            self._send_inputs()
+            for message in self._messages():
+                if message[0] == "progress":
+                    self.stage = message[2]
+                    progress(message[1], message[2])
+                else:
+                    answer = message
+        finally:
+            self.process.stdin.close()
+            self.process.stdout.close()
+            self.process.wait()
+        if self.cancelled:
+            raise Cancelled("cancelled by the user")
+        if answer is None:
+            raise WorkerError(self._exit_text(self.process.returncode))
+        if answer[0] == "failed":
+            raise self._failure(*answer[1:])
+        return answer[1]
+
+    def _send_inputs(self):
+        try:
+            send(self.process.stdin, ROOT)
+            send(self.process.stdin, self.arguments)
+        except OSError:  # the worker ended early (killed, or it could not start): say why below
+            pass
+
+    def _messages(self):
+        while True:
+            try:
+                yield receive(self.process.stdout, WORKER_ROOT)
+            except EOFError:
+                return
+
+    def _failure(self, kind, text, is_value_error):
+        if is_value_error:
+            return ValueError(text)
+        if kind == "MemoryError":
+            return WorkerError(f"The bake's worker process ran out of memory at '{self.stage}': "
+                               f"{self._lower_resolution()}")
+        return WorkerError(f"{kind} at '{self.stage}': {text}")
+
+    def _exit_text(self, code):
+        """What an exit without an answer means for the user."""
+        if code == -getattr(signal, "SIGKILL", 9):
+            return (f"The bake's worker process ran out of memory (killed by the system) at "
+                    f"'{self.stage}': {self._lower_resolution()}")
+        if code < 0:
+            return (f"The bake's worker process crashed ({_signal_name(-code)}) at "
+                    f"'{self.stage}'; the console shows what it printed. Try again, or another "
+                    f"resolution.")
+        return (f"The bake's worker process stopped unexpectedly (exit code {code}) at "
+                f"'{self.stage}'; the console shows what it printed.")
+
+    def _lower_resolution(self):
+        return (f"lower the resolution (it is {self.arguments.get('resolution')}), or close "
+                "other programs, and bake again.")
+
+
+def _signal_name(number):
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
+
+
+def main():
+    """The worker: read the inputs from stdin, run `animate`, answer on stdout."""
+    answers = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)  # prints (Python's or a library's) go to stderr, never into the answers
+    sys.stdout = sys.stderr
+    sender = pickle.load(sys.stdin.buffer)  # a str: no class to map
+    arguments = receive(sys.stdin.buffer, sender)
+    threading.Thread(target=_leave_when_parent_gone, daemon=True).start()
+    from .core import pipeline
+
+    try:
+        result = pipeline.animate(**arguments,
+                                  progress=lambda f, m: send(answers, ("progress", f, m)))
+    except Exception as exc:  # every failure is the parent's to report
+        if not isinstance(exc, ValueError):
+            traceback.print_exc()
+        send(answers, ("failed", type(exc).__name__, str(exc), isinstance(exc, ValueError)))
+        return
+    send(answers, ("done", result))
+
+
+def _leave_when_parent_gone():
+    """A worker whose parent has gone (its stdin ends) stops at once instead of baking on.
+    Reads the file descriptor, not ``sys.stdin``: a daemon thread blocked inside a buffered
+    file's lock would abort the interpreter's shutdown."""
+    while os.read(0, 4096):
+        pass
+    os._exit(1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,166 @@
+"""The bake's worker process (issue 14): cancel at any stage within a second, crashes and
+out-of-memory in the worker told clearly, the core's own errors kept, the same result as
+the core in this process, and a main loop that is never held up by the bake."""
+
+import time
+
+import bpy
+import numpy as np
+import pytest
+
+from keyframe_implicit.blender import bake, scene_io
+from keyframe_implicit.core import pipeline
+
+TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
+
+#: In the worker: after the first progress report past AFTER, do ACTION once (the report's
+#: message is the stage the parent last heard of).
+FAULT = """
+    import os, resource, signal, sys, time
+    from keyframe_implicit.core import pipeline
+
+    _animate = pipeline.animate
+    done = []
+
+    def animate(*args, progress, **kwargs):
+        def report(fraction, message):
+            progress(fraction, message)
+            if fraction > {after} and not done:
+                done.append(message)
+                {action}
+        return _animate(*args, progress=report, **kwargs)
+
+    pipeline.animate = animate
+"""
+
+
+def _job(scene, kfi, **kwargs):
+    return bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+                        **kwargs)
+
+
+@pytest.mark.parametrize("stage", ["Gauss-Newton iteration 2", "trajectories", "frame 6"])
+def test_cancel_mid_bake_ends_within_a_second(scene, kfi, stage):
+    kfi.build_spheres(TWO)
+    state = kfi.snapshot()
+    asked = []
+
+    def observer(job, fraction, message):
+        if stage in message and not asked:  # the worker has begun that stage
+            job.cancel()  # what ESC does
+            asked.append(time.perf_counter())
+
+    job = _job(scene, kfi, on_progress=observer)
+    job.start()
+    while not job.finished:
+        time.sleep(0.005)
+    latency = time.perf_counter() - asked[0]
+    print(f"cancel at {stage!r}: the bake ended {latency * 1000:.0f} ms later")
+    assert job.state == bake.CANCELLED and job.result is None and job.error is None
+    assert latency < 1.0
+    assert job._worker.process.returncode is not None  # the worker is gone too
+    with pytest.raises(RuntimeError):
+        job.apply(scene)
+    assert kfi.snapshot() == state
+
+
+@pytest.mark.parametrize("action, text", [
+    ("os.kill(os.getpid(), signal.SIGKILL)",  # what the kernel's out-of-memory killer does
+     "The bake's worker process ran out of memory (killed by the system) at '{stage}': lower "
+     "the resolution (it is 20)"),
+    ("raise MemoryError()",
+     "The bake's worker process ran out of memory at '{stage}': lower the resolution (it is 20)"),
+    # (with no core file left behind)
+    ("resource.setrlimit(resource.RLIMIT_CORE, (0, 0)); os.kill(os.getpid(), signal.SIGSEGV)",
+     "The bake's worker process crashed (SIGSEGV) at '{stage}'"),
+    ("os._exit(139)",
+     "The bake's worker process stopped unexpectedly (exit code 139) at '{stage}'"),
+    ("raise TypeError('a bug in the core')", "TypeError at '{stage}': a bug in the core"),
+])
+def test_worker_failure_is_told_clearly_and_changes_nothing(scene, kfi, in_worker, action, text):
+    kfi.build_spheres(TWO)
+    assert bpy.ops.keyframe_implicit.bake(resolution=kfi.RES) == {"FINISHED"}  # an output to keep
+    state = kfi.snapshot()
+    in_worker(FAULT.format(after=0.3, action=action))
+    stages = []
+    job = _job(scene, kfi, on_progress=lambda j, f, m: stages.append((f, m)))
+    job.run()
+    stage = next(m for f, m in stages if f > 0.3)
+    assert job.state == bake.FAILED and stages[-1][1] == stage  # nothing reported after it
+    assert text.format(stage=stage) in job.error_message()
+    assert kfi.snapshot() == state
+    # the Bake button says the same and leaves the scene as it was
+    with pytest.raises(RuntimeError, match="worker process|TypeError at") as err:
+        bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
+    assert "The scene is unchanged." in str(err.value)
+    assert kfi.snapshot() == state
+
+
+def test_core_refusal_keeps_its_text(scene, kfi):
+    kfi.build_spheres(TWO)
+    state = kfi.snapshot()
+    inputs = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 4000)
+    with pytest.raises(ValueError) as here:  # the core's own refusal, in this process
+        pipeline.animate(inputs.keyframes, inputs.features, resolution=4000)
+    job = bake.BakeJob(inputs)
+    job.run()
+    assert job.state == bake.FAILED and type(job.error) is ValueError
+    assert job.error_message() == str(here.value)
+    assert kfi.snapshot() == state
+
+
+def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
+    kfi.build_spheres(TWO)
+    job = _job(scene, kfi)
+    job.run()
+    assert job.state == bake.DONE, job.error_message()
+    mine = pipeline.animate(**job._arguments())
+    np.testing.assert_array_equal(job.result.vertices, mine.vertices)
+    np.testing.assert_array_equal(job.result.faces, mine.faces)
+    assert type(job.result) is pipeline.Animation  # mapped onto this process's classes
+    out = job.apply(scene)
+    keys = out.data.shape_keys.key_blocks[1:]
+    assert len(keys) == len(mine.frames)
+    world = np.array(out.matrix_world)
+    for key, expected in zip(keys, mine.vertices):
+        co = np.empty(len(key.data) * 3, np.float32)
+        key.data.foreach_get("co", co)
+        co = co.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3]
+        np.testing.assert_allclose(co, expected, rtol=0, atol=1e-5)
+
+
+#: A core stage holding the GIL for a while, as a long C call does at high resolution (at
+#: the tests' resolution none lasts long enough to show): a bake in a thread of this process
+#: stops the main loop for that long, a bake in the worker process does not.
+HOLD_GIL = "sum(range(40_000_000))"
+
+
+class _InThreadJob(bake.BakeJob):
+    """The bake as it ran before the worker process: the core in a thread of this process."""
+
+    def _bake(self):
+        return pipeline.animate(**self._arguments(), progress=self._progress)
+
+
+def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypatch):
+    from test_bake import _drive, _modal_operator
+
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    fault = FAULT.format(after=0.3, action=HOLD_GIL)
+    in_worker(fault)
+    gaps = {}
+    for kind in (bake.BakeJob, _InThreadJob):
+        if kind is _InThreadJob:  # the same stage, in this process's core
+            monkeypatch.setattr(pipeline, "animate", pipeline.animate)
+            exec(compile(__import__("textwrap").dedent(fault), "fault", "exec"), {})
+        job = kind(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+        me, ctx, reports = _modal_operator(job, scene)
+        job.start()
+        assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}, reports
+        gaps[kind.__name__] = job.max_poll_gap
+    print("largest gap between the modal operator's polls (20 ms apart):",
+          ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in gaps.items()))
+    assert gaps["_InThreadJob"] > 0.25  # the measurement sees a stalled main loop
+    assert gaps["BakeJob"] < 0.1
