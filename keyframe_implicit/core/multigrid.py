@@ -94,7 +94,9 @@ class BlockMultigrid:
             A = (P.T @ (A @ P)).tocsr()
             coords = coarse
         check()
-        self.coarse = np.linalg.pinv(A.toarray(), hermitian=True)
+        # the constants are an exact null vector: cut them (and roundoff) from the inverse
+        # the constants are an exact null vector: cut them (and roundoff) from the inverse
+        self.coarse = np.linalg.pinv(A.toarray(), rcond=1e-10, hermitian=True)
         self.sizes = [lv[0].shape[0] for lv in self.levels] + [A.shape[0]]
 
     def __call__(self, r):

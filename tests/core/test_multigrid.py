@@ -86,3 +86,14 @@ def test_cg_polls_cancel_every_iteration():
     with pytest.raises(Cancelled):
         BlockMultigrid(tr._L, np.stack(np.unravel_index(tr._nodes, grid.shape), 1),
                        coarse_size=10, check=check)
+
+
+def test_coarsest_inverse_cuts_the_translations():
+    """Constants span L's null space; a pseudo-inverse that keeps roundoff there stalls CG."""
+    grid = Grid((-1.0, -1.0, -1.0), 2.0 / 95, (96, 96, 96))
+    x = grid.points()
+    mat = np.linalg.norm(x / [0.6, 0.45, 0.45], axis=-1) < 1
+    tr = Trajectories(grid, 1.1 * x, mat)
+    one = np.ones(tr._mg.coarse.shape[0])
+    assert np.abs(tr._mg.coarse @ one).max() < 1e-8 * np.abs(tr._mg.coarse).max()
+    assert max(tr.stats["cg_iterations"]) < 30
