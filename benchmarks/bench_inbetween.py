@@ -60,8 +60,8 @@ def run(n, frames, method, solver):
         ib = Inbetween.from_map(phi_a, phi_b, grid, mapped, resample=method)
     setup = time.perf_counter() - t - ib.stats.get("map_seconds", 0.0)
     ts = ib.trajectories.stats
-    print(f"trajectory setup          {setup:7.2f} s   (factor {ts.get('factor_seconds', 0):.2f} s, "
-          f"{ts.get('active_nodes', 0)} active nodes, LU nnz {ts.get('factor_nnz', 0)})")
+    print(f"trajectory setup          {setup:7.2f} s   (setup {ts.get('setup_seconds', 0):.2f} s, "
+          f"{ts.get('active_nodes', 0)} active nodes, multigrid levels {ts.get('multigrid_levels')})")
     times = np.linspace(0.0, 1.0, frames)
     # one pass over the frames, as the pipeline does it: trajectories, level set,
     # surface, template step (track_template's loop body, timed stage by stage)

@@ -146,7 +146,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     for k in range(nk - 1):  # loop over segments (keyframe pairs)
         seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
         if maps is not None:
-            inb = Inbetween.from_map(phis[k], phis[k + 1], grid, maps[k], **options)
+            inb = Inbetween.from_map(phis[k], phis[k + 1], grid, maps[k], cancel=cancel, **options)
         else:
             fa, fb = features[k]
             inb = inbetween(phis[k], phis[k + 1], grid, fa, fb, progress=seg.sub(0.0, 0.5),
@@ -157,7 +157,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         t_seg = time.perf_counter()
         detail = None if keyframe_meshes is None else DetailTrack(inb, verts,
                                                                   keyframe_meshes[k + 1])
-        for i, f in enumerate(local):  # loop over the segment's frames
+        # loop over the segment's frames; each step of a frame is followed by a cancel check
+        for i, f in enumerate(local):
             s = (f - f0) / float(f1 - f0)
             if detail is None:
                 tr = track_template(inb, [s], template=(verts, faces), coverage=False)
@@ -167,19 +168,23 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                 err = float(err.max()) if err.size else 0.0
             out[f - frames[0]] = p
             stats["max_abs_phi"].append(err)
+            frame_rep.check()
             if levelsets:
                 fields.append(inb.levelset(s).astype(np.float32))
             if coverage or per_frame:
                 ls = inb.levelset(s)
                 surf = extract_surface(ls, grid)
+                frame_rep.check()
             if coverage:
                 unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
                 stats["uncovered_area"].append(unc)
                 stats["uncovered_fraction"].append(unc / tot if tot > 0 else 0.0)
+                frame_rep.check()
             if per_frame:
                 own = _frame_mesh(surf, keyframe_meshes, k, s)
                 stats["quality"]["shape_keys"].append(frame_quality(ls, grid, p, faces, surf))
                 stats["quality"]["mesh_sequence"].append(frame_quality(ls, grid, *own, surf))
+                frame_rep.check()
                 meshes.append((own[0].astype(np.float32), own[1].astype(np.int32)))
                 velocities.append((inb.velocity(own[0], s) / float(f1 - f0)).astype(np.float32))
             frame_rep((i + 1) / local.size, f"frame {f} ({i + 1}/{local.size})")

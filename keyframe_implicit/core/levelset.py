@@ -177,7 +177,7 @@ class Inbetween:
                  keep_volume=True, material=None, components=None, trajectory_method="global",
                  trajectory_margin_cells=4.0, trajectory_margin_weight=0.1, resample="splat",
                  idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None, map_result_back=None, **renamed):
+                 map_result=None, map_result_back=None, cancel=None, **renamed):
         """In-betweens from given maps.
 
         Parameters
@@ -217,6 +217,9 @@ class Inbetween:
             Newton iterations of the inverse lookup.
         interpolation : {"cubic", "linear"}
             How Phi, Psi are read at off-grid points.
+        cancel : callable() -> bool, optional
+            Polled by the trajectory solves and the transports, here and in every
+            later `levelset` call; `progress.Cancelled` is raised once it returns True.
         """
         if not isinstance(grid, Grid):
             raise ValueError("grid must be a keyframe_implicit.core.Grid.")
@@ -236,11 +239,11 @@ class Inbetween:
         unknown = set(renamed) - set(_RENAMED.values())
         if unknown:
             raise TypeError(f"Inbetween.from_map got unexpected options {sorted(unknown)}.")
-        traj_opts = dict(method=trajectory_method,
+        traj_opts = dict(method=trajectory_method, cancel=cancel,
                          margin_cells=renamed.get("trajectory_margin_cells", trajectory_margin_cells),
                          margin_weight=renamed.get("trajectory_margin_weight",
                                                    trajectory_margin_weight))
-        lookup_opts = dict(interpolation=interpolation, newton_steps=newton_steps)
+        lookup_opts = dict(interpolation=interpolation, newton_steps=newton_steps, cancel=cancel)
         st = dict(stats or {})
         t0 = time.perf_counter()
         material = phi_a < 0 if material is None else material
@@ -250,7 +253,7 @@ class Inbetween:
 
         backward = None
         if transport == "two-sided" and mapped_back is not None:
-            with ThreadPoolExecutor(max_workers=1) as pool:  # two factorisations, two cores
+            with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
                 back = pool.submit(carried, phi_b, np.asarray(mapped_back, dtype=float),
                                    phi_b < 0)
                 forward = carried(phi_a, mapped, material, components)
@@ -465,7 +468,8 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     out = Inbetween.from_map(phi_a, phi_b, grid, res.mapped,
                              mapped_back=None if back is None else back.mapped,
                              material=res.material, components=res.components,
-                             stats=st, map_result=res, map_result_back=back, **mine)
+                             stats=st, map_result=res, map_result_back=back, cancel=cancel,
+                             **mine)
     rep(1.0, "in-betweens ready")
     return out
 

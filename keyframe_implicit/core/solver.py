@@ -262,8 +262,11 @@ class _Level:
         return self.term_weight.get(name, self.cell_weight)
 
     # -- energy ----------------------------------------------------------------
-    def evaluate(self, y, weights, chunk, hessian=True):
-        """Total energy, per-term energies, node gradient (n, d), stencil Hessian."""
+    def evaluate(self, y, weights, chunk, hessian=True, check=None):
+        """Total energy, per-term energies, node gradient (n, d), stencil Hessian.
+
+        ``check`` (optional) is called before every chunk of elements (cancellation).
+        """
         d, K = self.d, self.elem.shape[1]
         energies = {}
         grad = np.zeros((self.n, d))
@@ -272,6 +275,8 @@ class _Level:
         for t in TERMS:
             energies[t.name] = 0.0
         for s in range(0, len(self.elem), chunk):
+            if check is not None:
+                check()
             el = self.elem[s:s + chunk]
             Y = y[el]
             g_sum, h_sum = None, None
@@ -337,7 +342,7 @@ class _Level:
 def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     """Projected preconditioned CG for A x = b on the range of ``project``.
 
-    ``check`` (optional) is called every 25 iterations (cancellation).
+    ``check`` (optional) is called every iteration (cancellation).
     """
     x = np.zeros_like(b)
     r = project(b.copy())
@@ -349,7 +354,7 @@ def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     rz = r @ z
     it = 0
     for it in range(1, maxiter + 1):
-        if check is not None and it % 25 == 0:
+        if check is not None:
             check()
         Ap = project(apply_A(p))
         pAp = p @ Ap
@@ -372,7 +377,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     cons = level.cons
     chunk = int(opts["chunk_elements"])
     t0 = time.perf_counter()
-    E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
+    E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check)
     timing["assembly"] += time.perf_counter() - t0
     dets = level.det_stats(y, chunk)
     floor = _det_floor(dets, opts["min_det"])
@@ -409,7 +414,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         while alpha > 1e-4:
             rep.check()
             y_new = y + alpha * dy
-            E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False)
+            E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
+                                                        check=rep.check)
             if E_new <= E + 1e-4 * alpha * slope:
                 dets_new = level.det_stats(y_new, chunk)
                 if _det_floor(dets_new, opts["min_det"]) >= floor:
@@ -433,7 +439,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             reused += 1
             continue
         t0 = time.perf_counter()
-        E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True)
+        E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check)
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms

@@ -16,18 +16,13 @@ Levin (2000), the "stronger reading" of PAPER-NOTES section 5:
    rotation vector);
 3. node positions Y(s) minimise  sum_c w_c sum_{edges (i, j) of c} |Y_j - Y_i - F_c(s) (x_j - x_i)|^2,
    a Poisson problem whose matrix (a weighted graph Laplacian of the grid
-   edges) does not depend on s: it is factored ONCE (`scipy.sparse.linalg.splu`)
-   and every frame costs one back-substitution. Each connected component's
-   translation is fixed by putting the centroid of its material on the
-   straight path (1 - s) x_bar + s y_bar;
+   edges) does not depend on s: its multigrid preconditioner is built ONCE and
+   every frame is a few conjugate-gradient iterations started from the
+   previous frame's solution (`multigrid`), which any iteration can stop on
+   cancel. Each connected component's translation is fixed by putting the
+   centroid of its material on the straight path (1 - s) x_bar + s y_bar;
 4. the residual r = y - Y(1) is added linearly, x(s) = Y(s) + s r, so the path
    ends exactly at y (eq. 3.1's last term).
-
-Cells the map folds (det F_c <= 0) have no meaningful rotation and are
-blended linearly, F_c(s) = (1 - s) I + s F_c. Rotation vectors are taken per
-cell in [0, pi]: near half turns neighbouring cells may pick opposite axes
-(a known limit of per-element log maps; keyframes more than ~170 degrees apart
-need an inner keyframe).
 
 Cells the map folds (det F_c <= 0, e.g. where two parts are pressed into each
 other in a merge) keep the closest rotation (the smallest singular value takes
@@ -68,9 +63,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy import ndimage
 from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import splu
 
 from .grid import Grid
+from .multigrid import BlockMultigrid, block_pcg
+from .progress import Reporter
 from .sampling import cell_weights
 
 __all__ = ["Trajectories", "polar", "rotation_log", "rotation_exp"]
@@ -171,17 +167,23 @@ class Trajectories:
         material (global method). Must be >= 1.
     margin_weight : float
         Weight of margin cells (cells that do not touch the material), in (0, 1].
+    tolerance : float
+        Global method: CG stops when the residual of every coordinate is below
+        ``tolerance`` times its right-hand side's norm.
+    cancel : callable() -> bool, optional
+        Polled during the setup and every CG iteration; `progress.Cancelled`
+        is raised once it returns True.
 
     Attributes
     ----------
     stats : dict
-        ``active_nodes``, ``active_cells``, ``components``, ``factor_seconds``,
-        ``factor_nnz`` (global method: entries SuperLU stores for the factor, its
-        supernodes' padding included).
+        ``active_nodes``, ``active_cells``, ``components``, ``setup_seconds``;
+        global method: ``multigrid_levels`` (unknowns per level) and
+        ``cg_iterations`` (one entry per solve).
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
-                 margin_cells=4.0, margin_weight=0.1):
+                 margin_cells=4.0, margin_weight=0.1, tolerance=1e-9, cancel=None):
         import time
 
         if not isinstance(grid, Grid):
@@ -216,6 +218,8 @@ class Trajectories:
         self.method = method
         self.margin_cells = float(margin_cells)
         self.margin_weight = float(margin_weight)
+        self.tolerance = float(tolerance)
+        self._check = Reporter(None, cancel).check
         self.dim = d
         self._x = grid.points().reshape(-1, d)
         self._y = y.reshape(-1, d)
@@ -246,7 +250,7 @@ class Trajectories:
         else:
             t0 = time.perf_counter()
             self._init_global()
-            self.stats["factor_seconds"] = time.perf_counter() - t0
+            self.stats["setup_seconds"] = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
     @property
@@ -362,18 +366,17 @@ class Trajectories:
         self._B = (DtW @ E).tocsr()
 
         ncomp, comp = connected_components(L, directed=False)
-        pinned = np.zeros(n, dtype=bool)
-        pinned[np.unique(comp, return_index=True)[1]] = True
-        free = np.flatnonzero(~pinned)
-        self._free = free
-        Lr = L[free][:, free].tocsc()
-        # L is symmetric positive definite: symmetric mode (no pivoting) with a minimum
-        # degree ordering of L + L^T (the orderings measured: benchmarks/README.md)
-        self._lu = splu(Lr, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                        options=dict(SymmetricMode=True))
-        self.stats["factor_nnz"] = int(self._lu.nnz)
+        # L is singular (one translation per component) and the right-hand sides are
+        # consistent: CG on its range, the translation fixed afterwards (`_poisson`)
+        self._L = L
+        coords = np.stack(np.unravel_index(nodes, grid.shape), axis=1)
+        self._mg = BlockMultigrid(L, coords, check=self._check)
+        self._warm = None
+        self.stats["multigrid_levels"] = self._mg.sizes
+        self.stats["cg_iterations"] = []
 
         # per-cell F (mean of parallel edge differences) and its polar decomposition
+        self._check()
         yc = self._y[cnodes]  # (nc, 2^d, d)
         F = np.empty((nc, d, d))
         for a in range(d):
@@ -382,6 +385,7 @@ class Trajectories:
                                             axis=1))[0]) for k in lo]
             F[:, :, a] = (yc[:, hi] - yc[:, lo]).mean(axis=1) / h
         R, S = polar(F)
+        self._check()
         folded = np.linalg.det(F) <= 0
         self._cell_rv = rotation_log(R)
         self._cell_S = S
@@ -410,6 +414,7 @@ class Trajectories:
         self.stats["active_components"] = int(ncomp)
 
         # residual so that x(1) = y exactly
+        self._check()
         Y1 = self._poisson(1.0)
         self._resid = ya - Y1
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
@@ -419,15 +424,21 @@ class Trajectories:
         self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
         self._init_body()
 
+    def _cell_targets(self, s):
+        """Target gradients F_c(s) = R_c^s ((1 - s) I + s S_c) of the active cells, (nc, d, d)."""
+        d = self.dim
+        return rotation_exp(s * self._cell_rv, d) @ ((1.0 - s) * np.eye(d) + s * self._cell_S)
+
     def _poisson(self, s):
         """Poisson positions Y(s) of the active nodes (before the residual)."""
         d = self.dim
-        Rs = rotation_exp(s * self._cell_rv, d)
-        Fs = Rs @ ((1.0 - s) * np.eye(d) + s * self._cell_S)
+        Fs = self._cell_targets(s)
         T = self.grid.spacing * np.swapaxes(Fs, 1, 2).reshape(-1, d)  # row (cell, a) = h F[:, a]
         rhs = self._B @ T
-        Y = np.zeros((self._nodes.size, d))
-        Y[self._free] = self._lu.solve(np.ascontiguousarray(rhs[self._free]))
+        Y, its = block_pcg(self._L, rhs, self._mg, self._warm, tol=self.tolerance,
+                           check=self._check)
+        self._warm = Y
+        self.stats["cg_iterations"].append(its)
         # fix each component's translation: material centroid on the straight path
         target = (1.0 - s) * self._xbar + s * self._ybar
         cw = self._cw

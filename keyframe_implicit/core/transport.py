@@ -30,6 +30,7 @@ import numpy as np
 from scipy import ndimage
 
 from .grid import Grid
+from .progress import Reporter
 from .sampling import sample
 
 __all__ = ["Transport", "inverse_lookup"]
@@ -40,7 +41,7 @@ def _corners(d):
 
 
 def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
-                   max_candidates=2_000_000):
+                   max_candidates=500_000, check=None):
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
     Every cell listed in ``cells`` is moved (its corners to
@@ -65,6 +66,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         for near-rigid cells; converged candidates drop out).
     max_candidates : int
         Cells are processed in chunks of at most this many candidate nodes.
+    check : callable, optional
+        Called before every chunk (cancellation).
 
     Returns
     -------
@@ -93,6 +96,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
     targets, sources = [], []
     for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over a few chunks
+        if check is not None:
+            check()
         sel = np.arange(c0, c1)
         t, u = _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps)
         targets.append(t)
@@ -244,6 +249,9 @@ class Transport:
     truncation : float, optional
         Largest value carried (world units); by default the field's smallest
         value on the region's border (`border_value`).
+    cancel : callable() -> bool, optional
+        Polled between chunks of the inverse lookup; `progress.Cancelled` is
+        raised once it returns True.
 
     Attributes
     ----------
@@ -253,7 +261,7 @@ class Transport:
     """
 
     def __init__(self, field, trajectories, *, interpolation="cubic", newton_steps=6,
-                 truncation=None):
+                 truncation=None, cancel=None):
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
         grid = trajectories.grid
@@ -262,6 +270,7 @@ class Transport:
         self.trajectories = trajectories
         self.interpolation = interpolation
         self.newton_steps = int(newton_steps)
+        self._check = Reporter(None, cancel).check
         self._coef = (ndimage.spline_filter(self.field, order=3, mode="nearest")
                       if interpolation == "cubic" else None)
         self._cells, self._corner_nodes, self._cnodes_local, border = _region_cells(
@@ -289,7 +298,7 @@ class Transport:
         """Inverse lookup at time t: (target node, source point in index coordinates) pairs."""
         pos = self.trajectories.node_positions(t, self._corner_nodes)
         return inverse_lookup(self.grid, pos[self._cnodes_local], self._cells,
-                              newton_steps=self.newton_steps)
+                              newton_steps=self.newton_steps, check=self._check)
 
     def value_at(self, points):
         """The keyframe's own field at world points (P, d)."""

@@ -1,0 +1,152 @@
+"""How a whole bake scales with the grid: seconds per stage, peak memory, cost growth (issue 14).
+
+Every (case, size) runs `core.animate` end to end in a fresh subprocess: the
+keyframes are meshes (marching cubes of the case's fields on a fixed 97^3
+grid, so the input is the same at every size), 24 frames between them.
+Cases: the single-segment cases of `compare.py` and the sphere -> ellipsoid
+of `bench_solver.py`.
+
+    python benchmarks/bench_scale.py                  # 64 128
+    python benchmarks/bench_scale.py --sizes 64 128 192 256
+    python benchmarks/bench_scale.py --cases rigid squash --sizes 128
+
+Columns: seconds of each stage (distance grids, the two maps, the trajectory
+setup, the frame loop with its level sets, surfaces and quality figures, and
+the rest: grid choice, keyframe measures and output), the total, the
+subprocess's peak resident set (VmHWM, read by the child at its end; it
+includes the interpreter and numpy), the solver's active nodes on the
+finest level, and ``estimate_memory``'s prediction. The last line is the
+slope of log(total seconds) against log(active nodes), pooled over the cases
+(one intercept per case, one common slope).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path[:0] = [ROOT, HERE]
+
+CASES = ("rigid", "merge", "split", "bend", "squash", "morph", "ellipsoid")
+MESH_NODES = 97
+STAGES = (("sdf", "distance"), ("maps", "maps"), ("trajectories", "trajectories"),
+          ("frames", "frames"), ("rest", "rest"))
+
+
+def keyframes(name):
+    """(keyframes, features) of a case: meshes of its fields, frames 1 and 25."""
+    from keyframe_implicit.core import Keyframe
+    from keyframe_implicit.core.surface import extract_surface
+
+    if name == "ellipsoid":
+        from bench_solver import sphere_case
+
+        grid, phi_a, phi_b, fa, fb = sphere_case(MESH_NODES)
+        fields, features = [phi_a, phi_b], [(fa, fb)]
+    else:
+        import cases
+
+        case = cases.make_case(name, MESH_NODES)
+        grid, fields, features = case.grid, case.fields, case.features
+    meshes = [extract_surface(f, grid) for f in fields]
+    return [Keyframe(v, t, 1 + 24 * k) for k, (v, t) in enumerate(meshes)], features
+
+
+def peak_rss_mb():
+    """This process's peak resident set (VmHWM), MiB."""
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    raise RuntimeError("VmHWM not found in /proc/self/status")
+
+
+def run_one(name, n):
+    """Bake one case at ``n`` cells; figures as a dict (runs in the child)."""
+    from keyframe_implicit.core import animate
+    from keyframe_implicit.core.gridfit import estimate_memory
+    from keyframe_implicit.core.pipeline import _material_fraction
+
+    kfs, features = keyframes(name)
+    t0 = time.perf_counter()
+    anim = animate(kfs, features, resolution=n)
+    total = time.perf_counter() - t0
+    st = anim.stats
+    seg = st["segments"][0]
+    sec = dict(sdf=st["sdf_seconds"], maps=seg["map_seconds"],
+               trajectories=seg["trajectory_setup_seconds"], frames=seg["template_seconds"])
+    sec["rest"] = total - sum(sec.values())
+    frac = max(_material_fraction(kf, anim.grid) for kf in kfs)
+    est = estimate_memory(anim.grid, n_keyframes=len(kfs), material_fraction=frac)["peak"]
+    return dict(case=name, n=n, shape=list(anim.grid.shape), seconds=sec, total=total,
+                rss_mb=peak_rss_mb(), active=seg["map"]["active_nodes"],
+                estimate_mb=est / 2 ** 20)
+
+
+def run_child(name, n):
+    """Run `run_one` in a fresh interpreter; its result dict (or the error it printed)."""
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n)]
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        return dict(case=name, n=n, error=out.stderr.strip().splitlines()[-1:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def pooled_slope(rows):
+    """Common slope of log(total) on log(active), one intercept per case (least squares)."""
+    rows = [r for r in rows if "error" not in r]
+    names = sorted({r["case"] for r in rows})
+    if len({r["n"] for r in rows}) < 2:
+        return float("nan")
+    x = np.log([r["active"] for r in rows])
+    y = np.log([r["total"] for r in rows])
+    dummies = np.array([[r["case"] == c for c in names] for r in rows], dtype=float)
+    A = np.column_stack([x, dummies])
+    return float(np.linalg.lstsq(A, y, rcond=None)[0][0])
+
+
+def print_table(rows):
+    head = " ".join(f"{label:>12}" for _, label in STAGES)
+    print(f"{'case':>9} {'n':>4} {head} {'total s':>8} {'RSS MiB':>8} {'est MiB':>8} "
+          f"{'active':>9}")
+    for r in rows:
+        if "error" in r:
+            print(f"{r['case']:>9} {r['n']:>4} failed: {r['error']}")
+            continue
+        stages = " ".join(f"{r['seconds'][key]:>12.2f}" for key, _ in STAGES)
+        print(f"{r['case']:>9} {r['n']:>4} {stages} {r['total']:>8.2f} {r['rss_mb']:>8.0f} "
+              f"{r['estimate_mb']:>8.0f} {r['active']:>9}")
+    print(f"pooled log-log slope of seconds against active nodes: {pooled_slope(rows):.2f}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
+    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=CASES)
+    ap.add_argument("--json", help="also write the rows to this file")
+    ap.add_argument("--child", nargs=2, metavar=("CASE", "N"), help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        print(json.dumps(run_one(args.child[0], int(args.child[1]))))
+        return
+    rows = []
+    for n in args.sizes:
+        for name in args.cases:
+            rows.append(run_child(name, n))
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    print_table(rows)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,162 @@
+"""Conjugate gradients preconditioned by multigrid on blocks of grid nodes.
+
+The trajectory solve (`trajectory.Trajectories`, the Poisson problem of
+thesis section 3.1 in its global form) is a weighted graph Laplacian L of the
+grid edges inside a band around the material. A direct factorisation fills in
+faster than the band grows and cannot be interrupted; conjugate gradients cost
+one sparse product per iteration and stop between any two.
+
+The preconditioner is one V-cycle of smoothed-aggregation multigrid whose
+aggregates are the 2 x 2 x 2 blocks of grid nodes (2 x 2 in 2D), level after
+level: the grid's own coarse levels, with the band's ragged edge handled
+algebraically (Vanek, Mandel and Brezina, 1996). The tentative prolongation
+P0 copies a coarse value onto its block; one damped Jacobi step smooths it,
+P = (I - w D^-1 L) P0, and the coarse operator is P^T L P (Galerkin). Jacobi
+sweeps smooth on every level; the coarsest is solved with a dense
+pseudo-inverse.
+
+L is singular: its null space holds one constant per connected component
+(a translation). Both P0 and its smoothing keep constants, so every level
+shares that null space; right-hand sides of the form B T (edge differences)
+are consistent, and CG converges on the range of L. The caller fixes each
+component's translation afterwards (`Trajectories` puts its centroid on the
+straight path).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["BlockMultigrid", "block_pcg"]
+
+
+def _no_check():
+    return None
+
+
+def _largest_eigenvalue(A, dinv, iterations=12, seed=0):
+    """Estimate of the largest eigenvalue of D^-1 A by power iteration (a safe upper guess)."""
+    v = np.random.default_rng(seed).standard_normal(A.shape[0])
+    lam = 1.0
+    for _ in range(iterations):
+        w = dinv * (A @ v)
+        lam = float(np.linalg.norm(w) / max(np.linalg.norm(v), 1e-300))
+        v = w / max(np.linalg.norm(w), 1e-300)
+    return 1.1 * lam
+
+
+def _aggregate(coords):
+    """Block of 2^d nodes each node falls in: (aggregate index per node, coarse coordinates)."""
+    block = coords // 2
+    span = block.max(axis=0) + 1
+    key = np.ravel_multi_index(tuple(block.T), tuple(span))
+    keys, agg = np.unique(key, return_inverse=True)
+    coarse = np.stack(np.unravel_index(keys, tuple(span)), axis=1)
+    return agg.reshape(-1), coarse
+
+
+class BlockMultigrid:
+    """Smoothed-aggregation V-cycle for a grid Laplacian, aggregates = 2^d blocks of nodes.
+
+    Parameters
+    ----------
+    A : sparse matrix (n, n)
+        Symmetric positive semi-definite, constants in its null space per
+        connected component, positive diagonal (e.g. a weighted graph Laplacian).
+    coords : int ndarray (n, d)
+        Grid index of every unknown; nodes in one 2^d block form one aggregate.
+    coarse_size : int
+        Levels are added until at most this many unknowns remain.
+    sweeps : int
+        Damped Jacobi sweeps before and after each coarse correction.
+    check : callable, optional
+        Called between levels of the setup (cancellation).
+    """
+
+    def __init__(self, A, coords, *, coarse_size=800, sweeps=2, check=None):
+        check = check or _no_check
+        self.sweeps = int(sweeps)
+        self.levels = []  # (A, damped inverse diagonal, P) per fine level
+        A = sp.csr_matrix(A)
+        coords = np.asarray(coords, dtype=np.int64)
+        while A.shape[0] > coarse_size:
+            check()
+            dinv = 1.0 / A.diagonal()
+            omega = 4.0 / (3.0 * _largest_eigenvalue(A, dinv))
+            agg, coarse = _aggregate(coords)
+            if coarse.shape[0] > 0.9 * A.shape[0]:  # blocks no longer shrink the problem
+                break
+            n, nc = A.shape[0], coarse.shape[0]
+            P0 = sp.csr_matrix((np.ones(n), (np.arange(n), agg)), shape=(n, nc))
+            P = (P0 - sp.diags(omega * dinv) @ (A @ P0)).tocsr()
+            self.levels.append((A, omega * dinv, P))
+            A = (P.T @ (A @ P)).tocsr()
+            coords = coarse
+        check()
+        # the constants are an exact null vector: cut them (and roundoff) from the inverse
+        # the constants are an exact null vector: cut them (and roundoff) from the inverse
+        self.coarse = np.linalg.pinv(A.toarray(), rcond=1e-10, hermitian=True)
+        self.sizes = [lv[0].shape[0] for lv in self.levels] + [A.shape[0]]
+
+    def __call__(self, r):
+        """Apply one V-cycle to the residual r ((n,) or (n, k)): an approximation of A^+ r."""
+        return self._cycle(0, r)
+
+    def _cycle(self, k, r):
+        if k == len(self.levels):
+            return self.coarse @ r
+        A, wd, P = self.levels[k]
+        wd = wd if r.ndim == 1 else wd[:, None]
+        x = wd * r
+        for _ in range(self.sweeps - 1):
+            x += wd * (r - A @ x)
+        x += P @ self._cycle(k + 1, P.T @ (r - A @ x))
+        for _ in range(self.sweeps):
+            x += wd * (r - A @ x)
+        return x
+
+
+def block_pcg(A, b, precond, x0=None, *, tol=1e-9, maxiter=500, check=None):
+    """Preconditioned CG on every column of b at once (independent systems, one matrix).
+
+    Parameters
+    ----------
+    A : sparse matrix (n, n), symmetric positive semi-definite; b in its range.
+    b : ndarray (n, k)
+    precond : callable (n, k) -> (n, k), symmetric positive (semi-)definite.
+    x0 : ndarray (n, k), optional
+        Start (e.g. the previous frame's solution); zeros by default.
+    tol : float
+        Stop when every column's residual is below ``tol`` times its right-hand side's norm.
+    maxiter : int
+    check : callable, optional
+        Called once per iteration (cancellation).
+
+    Returns
+    -------
+    x : ndarray (n, k)
+    iterations : int
+    """
+    check = check or _no_check
+    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=float)
+    r = b - A @ x
+    goal = tol * np.maximum(np.linalg.norm(b, axis=0), 1e-300)
+    z = precond(r)
+    p = z.copy()
+    rz = np.einsum("ij,ij->j", r, z)
+    it = 0
+    while it < maxiter and np.any(np.linalg.norm(r, axis=0) > goal):
+        check()
+        it += 1
+        Ap = A @ p
+        pAp = np.einsum("ij,ij->j", p, Ap)
+        alpha = np.divide(rz, pAp, out=np.zeros_like(rz), where=pAp > 0)
+        x += alpha * p
+        r -= alpha * Ap
+        z = precond(r)
+        rz_new = np.einsum("ij,ij->j", r, z)
+        beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
+        p = z + beta * p
+        rz = rz_new
+    return x, it

@@ -1,0 +1,71 @@
+"""Cancel takes effect within a second in the middle of every long stage of `animate`.
+
+The bake runs in a thread; once a stage's progress message has been seen, the test
+waits a little (so the stage is under way and its own progress report is past),
+then flips cancel and measures the wall time until `Cancelled` arrives. The stage
+must still be the one running when the bake stops: no later stage reported progress.
+"""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core import Cancelled, Keyframe, animate
+
+from test_pipeline import _sphere_features, rotation, uv_sphere
+
+LATENCY = 1.0  # seconds, issue 14's bound
+
+
+def _bake_and_cancel(stage, later, delay):
+    """Bake a turning, squashed sphere; cancel ``delay`` s after ``stage`` is reported.
+
+    Returns the seconds from the flip to `Cancelled` and the messages reported after it.
+    """
+    r = 0.3
+    rot = rotation((1.0, 2.0, 0.5), 0.8)
+    va, fa = uv_sphere(np.zeros(3), r, n=24)
+    vb = va @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
+    pa, pb = _sphere_features(np.zeros(3), r)
+    pb = pa @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
+    seen, flipped = threading.Event(), threading.Event()
+    after, outcome = [], {}
+
+    def progress(fraction, message):
+        if flipped.is_set():
+            after.append(message)
+        if stage in message:
+            seen.set()
+
+    def bake():
+        try:
+            animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 13)], [(pa, pb)], resolution=36,
+                    progress=progress, cancel=flipped.is_set, template="grid")
+            outcome["finished"] = True
+        except Cancelled:
+            outcome["cancelled"] = time.perf_counter()
+
+    worker = threading.Thread(target=bake, daemon=True)
+    worker.start()
+    assert seen.wait(600), f"the bake never reported {stage!r}"
+    time.sleep(delay)
+    t_flip = time.perf_counter()
+    flipped.set()
+    worker.join(60)
+    assert not worker.is_alive(), "the bake ignored cancel for a minute"
+    assert "cancelled" in outcome, "the bake finished although cancel was set"
+    stopped_later = [m for m in after if any(word in m for word in later)]
+    assert not stopped_later, f"cancelled only at a later stage: {stopped_later}"
+    return outcome["cancelled"] - t_flip
+
+
+@pytest.mark.parametrize("stage, later, delay", [
+    ("Gauss-Newton iteration", ("trajectories", "frame"), 0.3),
+    ("trajectories", ("in-betweens ready", "frame"), 0.05),
+    ("frame 2 ", ("frame 4 ", "Measuring"), 0.2),
+])
+def test_cancel_in_the_middle_of_a_stage_within_a_second(stage, later, delay):
+    latency = _bake_and_cancel(stage, later, delay)
+    assert latency < LATENCY, f"cancel took {latency:.2f} s during {stage!r}"
