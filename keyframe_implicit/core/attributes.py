@@ -176,14 +176,17 @@ def transfer(attributes, vertices, sources, faces):
     """
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     src = np.asarray(sources, dtype=float).reshape(-1, 3)
+    out = _uniform(attributes, f)
+    if out is not None:
+        return out
     tri_loops, tri_poly = attributes.triangle_loops()
     lv = np.asarray(attributes.loop_vertices, dtype=np.int64)
     tris = lv[tri_loops]
     v = np.asarray(vertices, dtype=float)
     corner_src = src[f.reshape(-1)]
-    _, t_corner, b_corner = closest_points(corner_src, v, tris)
+    _, t_vertex, b_vertex = closest_points(src, v, tris)  # once per vertex, not per corner
     _, t_centre, _ = closest_points(src[f].mean(axis=1), v, tris)
-    t_corner, b_corner = t_corner.reshape(-1, 3), b_corner.reshape(-1, 3, 3)
+    t_corner, b_corner = t_vertex[f], b_vertex[f]
     poly_centre = tri_poly[t_centre]
     if attributes.uv_maps:
         uv = np.concatenate([np.asarray(m, dtype=float) for m in attributes.uv_maps.values()], 1)
@@ -212,6 +215,26 @@ def transfer(attributes, vertices, sources, faces):
     out.material_names = list(attributes.material_names)
     if attributes.smooth is not None:
         out.smooth = np.asarray(attributes.smooth)[poly_centre]
+    return out
+
+
+def _uniform(attributes, faces):
+    """The attributes of new triangles ``faces`` when the keyframe mesh has nothing that
+    varies over its surface (no UVs or colours, one material, one shading): then no source
+    point needs to be found. None otherwise."""
+    if attributes.uv_maps or attributes.colors:
+        return None
+    per_face = {}
+    for name in ("material_index", "smooth"):
+        values = getattr(attributes, name)
+        if values is not None and len(values):
+            if np.any(np.asarray(values) != np.asarray(values)[0]):
+                return None
+            per_face[name] = np.full(len(faces), np.asarray(values)[0])
+    out = MeshAttributes.from_triangles(faces)
+    out.material_names = list(attributes.material_names)
+    for name, values in per_face.items():
+        setattr(out, name, values)
     return out
 
 

@@ -81,6 +81,20 @@ def test_transfer_reads_uvs_and_materials_at_the_source_points():
     np.testing.assert_array_equal(out.material_index[clear], (centre_x[clear] > 0).astype(int))
 
 
+def test_transfer_of_a_mesh_with_nothing_varying_needs_no_source_points():
+    v, polys, attrs = uv_sphere(12)
+    coarse_v, _, coarse = uv_sphere(5)
+    attrs.uv_maps.clear()
+    attrs.material_index = np.ones(attrs.n_polygons, np.int64)  # one material: slot 1
+    nowhere = np.full_like(coarse_v, np.nan)  # would fail any closest-point search
+    out = transfer(attrs, v, nowhere, coarse.triangles())
+    assert out.n_polygons == len(coarse.triangles()) and not out.uv_maps
+    assert np.all(out.material_index == 1) and out.material_names == ["Red", "Blue"]
+    attrs.material_index[0] = 0  # two materials: read at the source points again
+    out = transfer(attrs, v, coarse_v, coarse.triangles())
+    assert set(np.unique(out.material_index)) <= {0, 1}
+
+
 def test_concatenate_offsets_polygons_and_fills_what_a_part_lacks():
     v_a, polys_a, a = uv_sphere(4)
     a.colors["Col"] = ("POINT", "FLOAT_COLOR", np.full((len(v_a), 4), 0.5, np.float32))
