@@ -28,7 +28,7 @@ def openvdb_module():
         import openvdb
     except ImportError:
         return None, (f"Blender {bpy.app.version_string} ships no OpenVDB Python module "
-                      "(it comes with Blender 4.4 and later): the volume export is skipped.")
+                      "(it comes with Blender 4.4 and later)")
     return openvdb, ""
 
 
@@ -54,7 +54,7 @@ def write_sequence(directory, name, frames, levelsets, grid):
     """Write every frame's level set; returns the paths (raises RuntimeError without openvdb)."""
     vdb, reason = openvdb_module()
     if vdb is None:
-        raise RuntimeError(reason)
+        raise RuntimeError(f"{reason}: the volume export cannot run.")
     os.makedirs(directory, exist_ok=True)
     background = max(float(np.max(ls)) for ls in levelsets)
     paths = []
@@ -94,9 +94,9 @@ def problem(settings):
     OpenVDB module, or a folder relative to a .blend that was never saved."""
     if not settings.volume_export:
         return ""
-    if openvdb_module()[0] is None:
-        return openvdb_module()[1].replace("the volume export is skipped", "turn OpenVDB "
-                                           "Volume off")
+    vdb, reason = openvdb_module()
+    if vdb is None:
+        return f"{reason}: turn OpenVDB Volume off."
     if settings.volume_directory.startswith("//") and not bpy.data.filepath:
         return (f"The OpenVDB folder '{settings.volume_directory}' is relative to the .blend, "
                 "which is not saved yet: save the file or pick an absolute folder.")
