@@ -420,7 +420,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
             _keyframes_are_reference(stats["quality"]["mesh_sequence"], chain.frames,
                                      [kf.frame for kf in keyframes])
         rep(0.98, "Measuring the keyframe frames")
-        _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing)
+        measured = ["shape_keys"] if artist is not None else ["shape_keys", "mesh_sequence"]
+        _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing, measured)
         stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
@@ -481,10 +482,11 @@ def _relative_to_keyframes(per_frame, frames, key_frames):
 def _keyframes_are_reference(per_frame, frames, key_frames):
     """On a keyframe's frame the mesh sequence shows the keyframe mesh itself: the reference
     `_relative_to_keyframes` measures the shape keys against, so its relative figures there
-    are neutral (area ratio 1, coverage 1, no inverted area beyond the keyframe's own). What
-    is checked on those frames is the two-way distance to the keyframe (`_measure_keyframes`)."""
+    are neutral (area ratio 1, coverage 1, no inverted area beyond the keyframe's own), and
+    its two-way distance to the keyframe is 0 without measuring a mesh against itself."""
     for f in key_frames:
-        per_frame[int(f - frames[0])].update(area_ratio=1.0, coverage=1.0, inverted_fraction=0.0)
+        per_frame[int(f - frames[0])].update(area_ratio=1.0, coverage=1.0, inverted_fraction=0.0,
+                                             keyframe_mean=0.0, keyframe_max=0.0)
 
 
 def _keyframe_attributes(keyframes, surfaces, first):
@@ -505,8 +507,9 @@ def _keyframe_attributes(keyframes, surfaces, first):
     return out
 
 
-def _measure_keyframes(quality, keyframes, chain, spacing):
-    """Add the two-way distance to the keyframe mesh the artist gave on every keyframe frame."""
+def _measure_keyframes(quality, keyframes, chain, spacing, outputs):
+    """Add, for each of ``outputs``, the two-way distance to the keyframe mesh the artist
+    gave on every keyframe frame."""
     from .quality import keyframe_distance
     from .sdf import triangulate
 
@@ -514,6 +517,7 @@ def _measure_keyframes(quality, keyframes, chain, spacing):
         i = int(kf.frame - chain.frames[0])
         kv = np.asarray(kf.vertices, dtype=float).reshape(-1, 3)
         kt = triangulate(kf.faces, len(kv))
-        quality["shape_keys"][i].update(keyframe_distance(chain.vertices[i], chain.faces, kv, kt,
-                                                          spacing))
-        quality["mesh_sequence"][i].update(keyframe_distance(*chain.surfaces[i], kv, kt, spacing))
+        meshes = {"shape_keys": (chain.vertices[i], chain.faces),
+                  "mesh_sequence": chain.surfaces[i]}
+        for name in outputs:
+            quality[name][i].update(keyframe_distance(*meshes[name], kv, kt, spacing))
