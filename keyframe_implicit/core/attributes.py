@@ -171,7 +171,7 @@ def transfer(attributes, vertices, sources, faces):
     MeshAttributes of the new mesh (one polygon per triangle): every corner takes the
     barycentric UVs / colours at its source's closest point on the keyframe mesh. A
     triangle whose corners land in different UV islands (across a seam) reads all three
-    corners from the island under its centroid (`uv_islands`), so its UVs never span a
+    corners from the source triangle under its centroid (`_spans_seam`), so its UVs never span a
     seam. Material and smooth flag come from the source polygon of the centroid.
     """
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
