@@ -186,7 +186,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                 stats["quality"]["mesh_sequence"].append(frame_quality(ls, grid, *own, surf))
                 frame_rep.check()
                 meshes.append((own[0].astype(np.float32), own[1].astype(np.int32)))
-                velocities.append((inb.velocity(own[0], s) / float(f1 - f0)).astype(np.float32))
+                step = 1.0 / float(f1 - f0)  # the neighbouring frames' paths are kept
+                velocities.append((inb.velocity(own[0], s, ds=step) * step).astype(np.float32))
             frame_rep((i + 1) / local.size, f"frame {f} ({i + 1}/{local.size})")
         verts = out[local[-1] - frames[0]]
         stats["segments"].append(dict(inb.stats, template_seconds=time.perf_counter() - t_seg))

@@ -365,8 +365,8 @@ class Inbetween:
 
         The surface at time s is made of the material each transport carries:
         the nodes near each keyframe's own surface, moved along their paths,
-        with velocities from finite differences of the paths (eq. 3.1
-        differentiated in s; B's nodes run backward, so their velocity is
+        with velocities from second-order finite differences of the paths
+        (eq. 3.1 differentiated in s; B's nodes run backward, so their velocity is
         -dx_B/dt at t = 1 - s). Each point gets the value at it of a weighted
         least-squares affine fit of the velocities of its ``neighbours``
         nearest moved nodes (moving least squares, exact for any rigid or
@@ -378,7 +378,8 @@ class Inbetween:
         points : (P, d) array, world units (e.g. the vertices of ``levelset(s)``'s surface).
         s : float in [0, 1]
         ds : float
-            Step of the finite difference.
+            Step of the finite difference; one frame (1 / frames of the segment) reuses
+            the paths of the neighbouring frames.
         near_cells : float
             Nodes within this many cells of their keyframe's surface take part.
         neighbours : int

@@ -17,9 +17,9 @@ Levin (2000), the "stronger reading" of PAPER-NOTES section 5:
 3. node positions Y(s) minimise  sum_c w_c sum_{edges (i, j) of c} |Y_j - Y_i - F_c(s) (x_j - x_i)|^2,
    a Poisson problem whose matrix (a weighted graph Laplacian of the grid
    edges) does not depend on s: its multigrid preconditioner is built ONCE and
-   every frame is a few conjugate-gradient iterations started from the
-   previous frame's solution (`multigrid`), which any iteration can stop on
-   cancel. Each connected component's translation is fixed by putting the
+   every frame is a few conjugate-gradient iterations started from the line
+   through the previous two frames' solutions (`multigrid`), which any
+   iteration can stop on cancel. Each connected component's translation is fixed by putting the
    centroid of its material on the straight path (1 - s) x_bar + s y_bar;
 4. the residual r = y - Y(1) is added linearly, x(s) = Y(s) + s r, so the path
    ends exactly at y (eq. 3.1's last term).
@@ -140,6 +140,9 @@ def _rigid_fit(x, y):
     return xb, yb, R[0]
 
 
+_CACHED = 3  # times whose active-node positions `Trajectories` keeps
+
+
 def _smoothstep(t):
     t = np.clip(t, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
@@ -169,7 +172,8 @@ class Trajectories:
         Weight of margin cells (cells that do not touch the material), in (0, 1].
     tolerance : float
         Global method: CG stops when the residual of every coordinate is below
-        ``tolerance`` times its right-hand side's norm.
+        ``tolerance`` times its right-hand side's norm (the default moves positions
+        by about 1e-6 cells from the exact solve; benchmarks/README.md, "Scale").
     cancel : callable() -> bool, optional
         Polled during the setup and every CG iteration; `progress.Cancelled`
         is raised once it returns True.
@@ -183,7 +187,7 @@ class Trajectories:
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
-                 margin_cells=4.0, margin_weight=0.1, tolerance=1e-9, cancel=None):
+                 margin_cells=4.0, margin_weight=0.1, tolerance=1e-6, cancel=None):
         import time
 
         if not isinstance(grid, Grid):
@@ -225,7 +229,7 @@ class Trajectories:
         self._y = y.reshape(-1, d)
         self.material = mat
         self.stats = {"method": method}
-        self._cache = (None, None)
+        self._cache = {}  # positions of the active nodes at the last few times s
         self._local_index = np.full(grid.size, -1, dtype=np.int64)
 
         # distance (cells) to the material, and the nearest material node of every node
@@ -371,7 +375,7 @@ class Trajectories:
         self._L = L
         coords = np.stack(np.unravel_index(nodes, grid.shape), axis=1)
         self._mg = BlockMultigrid(L, coords, check=self._check)
-        self._warm = None
+        self._solved = []  # the last two (s, Y) solved: the next solve starts from their line
         self.stats["multigrid_levels"] = self._mg.sizes
         self.stats["cg_iterations"] = []
 
@@ -435,9 +439,9 @@ class Trajectories:
         Fs = self._cell_targets(s)
         T = self.grid.spacing * np.swapaxes(Fs, 1, 2).reshape(-1, d)  # row (cell, a) = h F[:, a]
         rhs = self._B @ T
-        Y, its = block_pcg(self._L, rhs, self._mg, self._warm, tol=self.tolerance,
+        Y, its = block_pcg(self._L, rhs, self._mg, self._start(s), tol=self.tolerance,
                            check=self._check)
-        self._warm = Y
+        self._solved = self._solved[-1:] + [(s, Y.copy())]
         self.stats["cg_iterations"].append(its)
         # fix each component's translation: material centroid on the straight path
         target = (1.0 - s) * self._xbar + s * self._ybar
@@ -448,6 +452,17 @@ class Trajectories:
             cen = (wsel[:, None] * Y[m]).sum(0) / wsel.sum()
             Y[m] += target[c] - cen
         return Y
+
+    def _start(self, s):
+        """CG's start at time s: the line through the last two solutions (frames are
+        evenly spaced, so its error is second order in the step), or the last one."""
+        if not self._solved:
+            return None
+        s1, Y1 = self._solved[-1]
+        if len(self._solved) < 2 or self._solved[0][0] == s1:
+            return Y1
+        s0, Y0 = self._solved[0]
+        return Y1 + ((s - s1) / (s1 - s0)) * (Y1 - Y0)
 
     def _formula(self, s, x, y, xb, yb, R, rv):
         d = self.dim
@@ -464,13 +479,19 @@ class Trajectories:
         return s
 
     def _active_positions(self, s):
-        """Blended paths of the active nodes at time s (global method), cached per s."""
-        if self._cache[0] != s:
+        """Blended paths of the active nodes at time s (global method).
+
+        The last ``_CACHED`` times are kept: a frame's velocity is a central difference
+        over its neighbouring frames, which the frame loop asks for anyway.
+        """
+        key = round(s, 12)  # i/n + 1/n and (i + 1)/n may differ in the last bit
+        if key not in self._cache:
             Y = self._poisson(s) + s * self._resid
             w = self._wblend[:, None]
-            Y = w * Y + (1.0 - w) * self._body_path(s, self._nodes)
-            self._cache = (s, Y)
-        return self._cache[1]
+            self._cache[key] = w * Y + (1.0 - w) * self._body_path(s, self._nodes)
+            if len(self._cache) > _CACHED:
+                self._cache.pop(next(iter(self._cache)))
+        return self._cache[key]
 
     def node_positions(self, s, nodes):
         """Positions x(s) of the grid nodes with the given flat indices, (len(nodes), d)."""

@@ -36,6 +36,9 @@ from .sampling import sample
 __all__ = ["Transport", "inverse_lookup"]
 
 
+_CONVERGED = 1e-7  # cells: a source point this close reads the field to ~1e-7 h
+
+
 def _corners(d):
     return np.array(list(itertools.product((0, 1), repeat=d)))
 
@@ -87,7 +90,7 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     ext = np.maximum(hi - lo + 1, 0)
     cnt = np.prod(ext, axis=1)
     half = np.full((cells.size, d), 0.5)
-    T0, J0 = _poly_eval(coef, half, subsets)
+    T0, J0 = _poly_eval(coef, half)
     Jinv = _inverse_small(J0)
     # cells in chunks of at most ``max_candidates`` bounding-box nodes (bounded memory
     # even where a bad map stretches cells over many nodes)
@@ -99,7 +102,7 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         if check is not None:
             check()
         sel = np.arange(c0, c1)
-        t, u = _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps)
+        t, u = _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, newton_steps)
         targets.append(t)
         sources.append(u)
     cc_all = np.concatenate([t[0] for t in targets]) if targets else np.zeros(0, np.int64)
@@ -110,7 +113,7 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     return target, base + u_all
 
 
-def _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps):
+def _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, newton_steps):
     """Inverse lookup for the cells ``sel``: ((cell, node index), local coordinates) found."""
     d = lo.shape[1]
     n = cnt[sel]
@@ -127,19 +130,18 @@ def _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, subsets, newton_steps):
     u = 0.5 + np.einsum("mab,mb->ma", Jinv[cc], z - T0[cc])
     keep = np.all((u > -0.35) & (u < 1.35), axis=1)
     cc, z, u = cc[keep], z[keep], u[keep]
-    a_c = coef[cc]
     todo = np.arange(cc.size)  # Newton only on candidates not yet converged
     res = np.full(cc.size, np.inf)
     for it in range(newton_steps + 1):
-        T, J = _poly_eval(a_c[todo], u[todo], subsets, jacobian=it < newton_steps)
+        a = coef[cc[todo]]
+        T, _ = _poly_eval(a, u[todo], jacobian=False)
         r = T - z[todo]
         res[todo] = np.einsum("md,md->m", r, r)
-        if it == newton_steps:
+        live = res[todo] > _CONVERGED ** 2
+        todo, r = todo[live], r[live]
+        if it == newton_steps or todo.size == 0:
             break
-        live = res[todo] > 1e-20
-        todo, J, r = todo[live], J[live], r[live]
-        if todo.size == 0:
-            break
+        _, J = _poly_eval(a[live], u[todo])
         u[todo] = np.clip(u[todo] - _solve_small(J, r), -0.5, 1.5)
     inside = np.all((u >= -1e-4) & (u <= 1 + 1e-4), axis=1) & (res < 1e-8)
     return (cc[inside], z[inside].astype(np.int64)), u[inside]
@@ -161,39 +163,23 @@ def _moebius(P, subsets):
     return coef
 
 
-def _poly_eval(coef, u, subsets, jacobian=True):
-    """T(u) (M, d) and its Jacobian dT/du (M, d, d) from monomial coefficients (M, 2^d, d)."""
-    m, d = u.shape
-    index = {tuple(S): i for i, S in enumerate(subsets)}
-    mono = [None] * len(subsets)
-    for i, S in enumerate(subsets):  # monomials prod_{a in S} u_a, built from smaller ones
-        on = np.flatnonzero(S)
-        if on.size == 0:
-            mono[i] = None  # the constant 1
-        elif on.size == 1:
-            mono[i] = u[:, on[0]]
-        else:
-            smaller = S.copy()
-            smaller[on[-1]] = 0
-            mono[i] = mono[index[tuple(smaller)]] * u[:, on[-1]]
-    T = coef[:, 0].copy()
-    for i in range(1, len(subsets)):
-        T += coef[:, i] * mono[i][:, None]
+def _poly_eval(coef, u, jacobian=True):
+    """T(u) (M, d) and its Jacobian dT/du (M, d, d) from monomial coefficients (M, 2^d, d).
+
+    By recursion on the axes: T(u) = T_0(u') + u_0 T_1(u'), u' = u[:, 1:], where T_0 and
+    T_1 are the multilinear maps of the halves of the coefficients without and with
+    axis 0 (the corner order of `_corners`), so dT/du_0 = T_1.
+    """
+    if u.shape[1] == 0:
+        return coef[:, 0], np.empty(coef.shape[:1] + coef.shape[2:] + (0,))
+    half = coef.shape[1] // 2
+    T0, J0 = _poly_eval(coef[:, :half], u[:, 1:], jacobian)
+    T1, J1 = _poly_eval(coef[:, half:], u[:, 1:], jacobian)
+    u0 = u[:, :1]
+    T = T0 + u0 * T1
     if not jacobian:
         return T, None
-    J = np.empty((m, d, d))
-    for b in range(d):  # d T / d u_b = sum_{S containing b} a_S prod_{S - b} u
-        col = None
-        for i, S in enumerate(subsets):
-            if not S[b]:
-                continue
-            rest = S.copy()
-            rest[b] = 0
-            k = index[tuple(rest)]
-            term = coef[:, i] if k == 0 else coef[:, i] * mono[k][:, None]
-            col = term.copy() if col is None else col + term
-        J[:, :, b] = col
-    return T, J
+    return T, np.concatenate([T1[:, :, None], J0 + u0[:, :, None] * J1], axis=2)
 
 
 def _inverse_small(J):
@@ -336,12 +322,24 @@ class Transport:
 
     def surface_motion(self, t, near, dt=1e-3):
         """The nodes within ``near`` (world units) of the keyframe's surface at time t:
-        their positions (M, d) and velocities dx/dt (M, d), by a finite difference."""
+        their positions (M, d) and velocities dx/dt (M, d).
+
+        Second-order finite differences with step ``dt``: central, or one-sided over
+        three times where t is within ``dt`` of an end. With ``dt`` one frame, the
+        times are the neighbouring frames' (which the trajectories keep).
+        """
         nodes = self._corner_nodes[np.abs(self.field.reshape(-1)[self._corner_nodes]) <= near]
         paths = self.trajectories
         pos = paths.node_positions(t, nodes)
-        t1 = t + dt if t + dt <= 1.0 else t - dt
-        return pos, (paths.node_positions(t1, nodes) - pos) / (t1 - t)
+        dt = min(float(dt), 0.25)  # so that one of the one-sided triples fits in [0, 1]
+
+        def at(time):  # the ends exactly (i/n - 1/n is not always 0 in floating point)
+            return paths.node_positions(min(max(round(time, 12), 0.0), 1.0), nodes)
+        if t - dt >= 0.0 and t + dt <= 1.0:
+            return pos, (at(t + dt) - at(t - dt)) / (2.0 * dt)
+        step = dt if t + 2.0 * dt <= 1.0 else -dt  # (-3 x0 + 4 x1 - x2) / (2 step)
+        one, two = at(t + step), at(t + 2.0 * step)
+        return pos, (4.0 * one - 3.0 * pos - two) / (2.0 * step)
 
 
 def _region_cells(grid, region):

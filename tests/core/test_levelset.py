@@ -220,3 +220,26 @@ def test_velocity_is_the_rate_of_the_trajectories_and_rigid_for_a_rigid_motion(r
         assert resid.mean() <= 0.01, (s, resid.mean())
     with pytest.raises(ValueError):
         ib.velocity(V0, 1.5)
+
+
+def test_velocity_over_a_frame_step_reuses_the_neighbouring_frames_and_matches_the_derivative():
+    """With ds one frame, a frame's velocity is a central difference over its neighbouring
+    frames: along a frame loop each frame solves its trajectories once more per transport
+    (the next frame's), not twice; and it is the small-step derivative to 0.5 %."""
+    grid, phi_a, phi_b, mapped, _ = rigid_case(n=36)
+    ib = Inbetween.from_map(phi_a, phi_b, grid, mapped)
+    V0, _ = extract_surface(phi_a, grid)
+    fw, bw = (t.trajectories.stats["cg_iterations"] for t in (ib.forward, ib.backward))
+    step = 1.0 / 12
+    before = len(fw) + len(bw)
+    v = {}
+    for i in range(1, 12):
+        s = i * step
+        ib.levelset(s)
+        v[i] = ib.velocity(ib.trajectory(V0, s), s, ds=step)
+    assert len(fw) + len(bw) - before == 2 * 11  # one time per frame and transport; 0 and 1 are free
+    for i in (1, 6, 11):
+        s = i * step
+        fine = ib.velocity(ib.trajectory(V0, s), s, ds=1e-4)
+        err = np.linalg.norm(v[i] - fine, axis=1) / np.linalg.norm(fine, axis=1).mean()
+        assert err.max() <= 5e-3, (i, err.max())
