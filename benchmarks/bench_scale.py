@@ -12,9 +12,10 @@ of `bench_solver.py`.
 
 Columns: seconds of each stage (distance grids, the two maps, the trajectory
 setup, the frame loop with its level sets, surfaces and quality figures, and
-the rest: grid choice, keyframe measures and output), the total, the
-subprocess's peak resident set (VmHWM, read by the child at its end; it
-includes the interpreter and numpy), the solver's active nodes on the
+the rest: grid choice, keyframe measures and output), the total, the peak
+resident set (VmHWM, read by the child at its end, plus its helper process's
+peak when ``--processes`` is 2: an upper bound of the two together; both
+include an interpreter and numpy), the solver's active nodes on the
 finest level, and ``estimate_memory``'s prediction. The last line is the
 slope of log(total seconds) against log(active nodes), pooled over the cases
 (one intercept per case, one common slope).
@@ -69,7 +70,7 @@ def peak_rss_mb():
     raise RuntimeError("VmHWM not found in /proc/self/status")
 
 
-def run_one(name, n):
+def run_one(name, n, processes):
     """Bake one case at ``n`` cells; figures as a dict (runs in the child)."""
     from keyframe_implicit.core import animate
     from keyframe_implicit.core.gridfit import estimate_memory
@@ -77,7 +78,7 @@ def run_one(name, n):
 
     kfs, features = keyframes(name)
     t0 = time.perf_counter()
-    anim = animate(kfs, features, resolution=n)
+    anim = animate(kfs, features, resolution=n, processes=processes)
     total = time.perf_counter() - t0
     st = anim.stats
     seg = st["segments"][0]
@@ -86,14 +87,16 @@ def run_one(name, n):
     sec["rest"] = total - sum(sec.values())
     frac = max(_material_fraction(kf, anim.grid) for kf in kfs)
     est = estimate_memory(anim.grid, n_keyframes=len(kfs), material_fraction=frac)["peak"]
+    helper_mb = (st.get("helper_peak_rss_kib") or 0) / 1024.0
     return dict(case=name, n=n, shape=list(anim.grid.shape), seconds=sec, total=total,
-                rss_mb=peak_rss_mb(), active=seg["map"]["active_nodes"],
+                rss_mb=peak_rss_mb() + helper_mb, helper_rss_mb=helper_mb,
+                active=seg["map"]["active_nodes"],
                 estimate_mb=est / 2 ** 20)
 
 
-def run_child(name, n):
+def run_child(name, n, processes):
     """Run `run_one` in a fresh interpreter; its result dict (or the error it printed)."""
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n)]
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n), str(processes)]
     out = subprocess.run(cmd, capture_output=True, text=True)
     if out.returncode != 0:
         return dict(case=name, n=n, error=out.stderr.strip().splitlines()[-1:])
@@ -132,15 +135,18 @@ def main():
     ap.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=CASES)
     ap.add_argument("--json", help="also write the rows to this file")
-    ap.add_argument("--child", nargs=2, metavar=("CASE", "N"), help=argparse.SUPPRESS)
+    ap.add_argument("--processes", type=int, default=2,
+                    help="animate's processes (2: the worker and its helper, as a bake in "
+                         "Blender on two cores or more)")
+    ap.add_argument("--child", nargs=3, metavar=("CASE", "N", "P"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(run_one(args.child[0], int(args.child[1]))))
+        print(json.dumps(run_one(args.child[0], int(args.child[1]), int(args.child[2]))))
         return
     rows = []
     for n in args.sizes:
         for name in args.cases:
-            rows.append(run_child(name, n))
+            rows.append(run_child(name, n, args.processes))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     print_table(rows)
     if args.json:

@@ -4,7 +4,9 @@ Why a process and not a thread of Blender's: the core's long numpy/scipy calls h
 GIL, so a thread stalls Blender's main loop for as long as each call lasts, and a crash or
 an out-of-memory kill in the core would take the artist's session with it. With the work in
 another process the main loop only polls, a crash is an exit code, and cancel always ends
-the work at once (the process is killed; it holds nothing the scene depends on).
+the work at once (the process is killed; it holds nothing the scene depends on). The
+worker starts one helper process of its own for the second core (`core.parallel`), which
+ends with it.
 
 The worker is the same Python (``sys.executable``: Blender's bundled Python, or the Python
 that has the bpy module) running ``python -m <package>.worker`` on this package's own files;
@@ -44,6 +46,9 @@ ROOT = __package__
 WORKER_ROOT = os.path.basename(os.path.dirname(os.path.abspath(__file__)))
 #: The distributions the core imports, found by the worker where the parent found them.
 _NEEDS = ("numpy", "scipy", "skimage")
+#: Processes the bake uses (`chain.animate_chain`'s ``processes``): the worker and, on a
+#: machine with two cores or more, one helper it starts for the second core.
+_PROCESSES = 2 if (os.cpu_count() or 1) >= 2 else 1
 
 
 class WorkerError(RuntimeError):
@@ -200,7 +205,7 @@ def main():
     from .core import pipeline
 
     try:
-        result = pipeline.animate(**arguments,
+        result = pipeline.animate(**arguments, processes=_PROCESSES,
                                   progress=lambda f, m: send(answers, ("progress", f, m)))
     except Exception as exc:  # every failure is the parent's to report
         if not isinstance(exc, ValueError):

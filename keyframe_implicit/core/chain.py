@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .grid import Grid
+from .parallel import Helper
 from .progress import Reporter
 from .quality import frame_quality
 from .surface import extract_surface
@@ -60,8 +61,8 @@ class ChainResult:
 
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
-                  levelsets=False, template=None, keyframe_meshes=None, progress=None,
-                  cancel=None, **options):
+                  levelsets=False, template=None, keyframe_meshes=None, processes=1,
+                  progress=None, cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -96,6 +97,11 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         and ends each segment on the next keyframe's mesh itself (`template.DetailTrack`),
         instead of on its grid's zero set; and each keyframe's frame in ``surfaces`` is
         that keyframe's own mesh, not its grid surface.
+    processes : int
+        1: everything in this process (the two maps, and the two transports of each
+        frame, in two threads). 2 or more: one helper process (`parallel.Helper`)
+        solves each segment's map B -> A and the later half of its frames, for a
+        machine with two free cores and a caller that may start processes.
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
@@ -143,59 +149,109 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     if per_frame:
         stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
     meshes, velocities, fields = [], [], []
-    for k in range(nk - 1):  # loop over segments (keyframe pairs)
-        seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
-        if maps is not None:
-            inb = Inbetween.from_map(phis[k], phis[k + 1], grid, maps[k], cancel=cancel, **options)
-        else:
-            fa, fb = features[k]
-            inb = inbetween(phis[k], phis[k + 1], grid, fa, fb, progress=seg.sub(0.0, 0.5),
-                            cancel=cancel, **options)
-        f0, f1 = frames[k], frames[k + 1]
-        local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
-        frame_rep = seg.sub(0.5, 1.0)
-        t_seg = time.perf_counter()
-        detail = None if keyframe_meshes is None else DetailTrack(inb, verts,
-                                                                  keyframe_meshes[k + 1])
-        # loop over the segment's frames; each step of a frame is followed by a cancel check
-        for i, f in enumerate(local):
-            s = (f - f0) / float(f1 - f0)
-            if detail is None:
-                tr = track_template(inb, [s], template=(verts, faces), coverage=False)
-                p, err = tr.vertices[0], tr.stats["max_abs_phi"][0]
+    what = dict(coverage=coverage, per_frame=per_frame, levelsets=levelsets,
+                keyframe_meshes=keyframe_meshes)
+    helper = Helper() if processes > 1 and nk > 1 else None
+    try:
+        for k in range(nk - 1):  # loop over segments (keyframe pairs)
+            seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
+            if maps is not None:
+                inb = Inbetween.from_map(phis[k], phis[k + 1], grid, maps[k], cancel=cancel,
+                                         **options)
             else:
-                p, err = detail(s)
-                err = float(err.max()) if err.size else 0.0
-            out[f - frames[0]] = p
-            stats["max_abs_phi"].append(err)
-            frame_rep.check()
-            if levelsets:
-                fields.append(inb.levelset(s).astype(np.float32))
-            if coverage or per_frame:
-                ls = inb.levelset(s)
-                surf = extract_surface(ls, grid)
-                frame_rep.check()
-            if coverage:
-                unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
-                stats["uncovered_area"].append(unc)
-                stats["uncovered_fraction"].append(unc / tot if tot > 0 else 0.0)
-                frame_rep.check()
-            if per_frame:
-                own = _frame_mesh(surf, keyframe_meshes, k, s)
-                stats["quality"]["shape_keys"].append(frame_quality(ls, grid, p, faces, surf))
-                stats["quality"]["mesh_sequence"].append(frame_quality(ls, grid, *own, surf))
-                frame_rep.check()
-                meshes.append((own[0].astype(np.float32), own[1].astype(np.int32)))
-                step = 1.0 / float(f1 - f0)  # the neighbouring frames' paths are kept
-                velocities.append((inb.velocity(own[0], s, ds=step) * step).astype(np.float32))
-            frame_rep((i + 1) / local.size, f"frame {f} ({i + 1}/{local.size})")
-        verts = out[local[-1] - frames[0]]
-        stats["segments"].append(dict(inb.stats, template_seconds=time.perf_counter() - t_seg))
-        del inb
+                fa, fb = features[k]
+                inb = inbetween(phis[k], phis[k + 1], grid, fa, fb, progress=seg.sub(0.0, 0.5),
+                                cancel=cancel, helper=helper, **options)
+            f0, f1 = frames[k], frames[k + 1]
+            local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
+            t_seg = time.perf_counter()
+            records = _segment_frames(inb, local, (f0, f1), k, (verts, faces), what,
+                                      seg.sub(0.5, 1.0), helper)
+            for f, rec in zip(local, records):
+                out[f - frames[0]] = rec["vertices"]
+                stats["max_abs_phi"].append(rec["max_abs_phi"])
+                if levelsets:
+                    fields.append(rec["levelset"])
+                if coverage:
+                    stats["uncovered_area"].append(rec["uncovered"][0])
+                    stats["uncovered_fraction"].append(rec["uncovered"][1])
+                if per_frame:
+                    for name in ("shape_keys", "mesh_sequence"):
+                        stats["quality"][name].append(rec[name])
+                    meshes.append(rec["mesh"])
+                    velocities.append(rec["velocity"])
+            verts = out[local[-1] - frames[0]]
+            stats["segments"].append(dict(inb.stats,
+                                          template_seconds=time.perf_counter() - t_seg))
+            del inb
+    finally:
+        if helper is not None:
+            stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
+            helper.close()
     stats["seconds"] = time.perf_counter() - t0
     stats["vertices"] = int(len(verts))
     stats["faces"] = int(len(faces))
     return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)
+
+
+def _segment_frames(inb, frames, ends, k, template, what, rep, helper=None):
+    """One record (`_frames`) per timeline frame of segment ``k``; with a ``helper``
+    process, it takes the later half of the frames while this process does the first."""
+    if helper is None or len(frames) < 4:
+        return _frames(inb, frames, ends, k, template, what, rep)
+    half = len(frames) // 2
+    helper.submit(_frames, inb, frames[half:], ends, k, template, what)
+    first = _frames(inb, frames[:half], ends, k, template, what,
+                    rep.sub(0.0, half / len(frames)))
+    rest = helper.result(check=rep.check)
+    rep(1.0, f"frames {frames[half]}-{frames[-1]} (second process)")
+    return first + rest
+
+
+def _frames(inb, frames, ends, k, template, what, rep=None):
+    """Each timeline frame of segment ``k`` (keyframes on frames ``ends``) as a dict: the
+    template's ``vertices`` and ``max_abs_phi``; as ``what`` asks, the ``levelset``
+    (float32), the ``uncovered`` area and fraction, and the frame's own ``mesh`` with its
+    ``velocity`` (world units per frame) and both outputs' quality (``shape_keys``,
+    ``mesh_sequence``)."""
+    rep = rep or Reporter()
+    f0, f1 = ends
+    verts, faces = template
+    grid = inb.grid
+    kf_meshes = what["keyframe_meshes"]
+    detail = None if kf_meshes is None else DetailTrack(inb, verts, kf_meshes[k + 1])
+    step = 1.0 / float(f1 - f0)  # the neighbouring frames' paths are kept for the velocity
+    records = []
+    for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
+        s = (f - f0) / float(f1 - f0)
+        if detail is None:
+            tr = track_template(inb, [s], template=(verts, faces), coverage=False)
+            rec = dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0])
+        else:
+            p, err = detail(s)
+            rec = dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0)
+        rep.check()
+        p = rec["vertices"]
+        if what["levelsets"]:
+            rec["levelset"] = inb.levelset(s).astype(np.float32)
+        if what["coverage"] or what["per_frame"]:
+            ls = inb.levelset(s)
+            surf = extract_surface(ls, grid)
+            rep.check()
+        if what["coverage"]:
+            unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
+            rec["uncovered"] = (unc, unc / tot if tot > 0 else 0.0)
+            rep.check()
+        if what["per_frame"]:
+            own = _frame_mesh(surf, kf_meshes, k, s)
+            rec["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
+            rec["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
+            rep.check()
+            rec["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
+            rec["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
+        records.append(rec)
+        rep((i + 1) / len(frames), f"frame {f} ({i + 1}/{len(frames)})")
+    return records
 
 
 def _frame_mesh(surface, keyframe_meshes, k, s):

@@ -267,9 +267,24 @@ class Inbetween:
             w = min(forward.border_value, backward.border_value)
             forward.truncation = backward.truncation = w
         st["trajectory_setup_seconds"] = time.perf_counter() - t0
-        return cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume, resample=resample,
-                   idw_radius=idw_radius, stats=st, map_result=map_result,
-                   map_result_back=map_result_back)
+        out = cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume,
+                  resample=resample, idw_radius=idw_radius, stats=st, map_result=map_result,
+                  map_result_back=map_result_back)
+        out._recipe = ((phi_a, phi_b, grid, mapped), dict(
+            mapped_back=mapped_back, transport=transport, keep_volume=keep_volume,
+            material=material, components=components, trajectory_method=trajectory_method,
+            trajectory_margin_cells=traj_opts["margin_cells"],
+            trajectory_margin_weight=traj_opts["margin_weight"], resample=resample,
+            idw_radius=idw_radius, newton_steps=newton_steps, interpolation=interpolation))
+        return out
+
+    def __reduce__(self):
+        """Pickled as the inputs of `from_map` (maps, fields, options), which rebuilds it
+        in the other process (`parallel.Helper`): trajectories and transports are not sent."""
+        if not hasattr(self, "_recipe"):
+            raise TypeError("only an Inbetween made by Inbetween.from_map can be pickled")
+        args, kwargs = self._recipe
+        return _from_recipe, (args, kwargs)
 
     # ------------------------------------------------------------------
     def levelset(self, s):
@@ -415,6 +430,10 @@ class Inbetween:
         return _affine_fit_at(p, pos[idx], vel[idx], w, h)
 
 
+def _from_recipe(args, kwargs):
+    return Inbetween.from_map(*args, **kwargs)
+
+
 def map_agreement(grid, mapped, mapped_back, material):
     """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max)."""
     from .sampling import sample
@@ -447,8 +466,9 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         ``transport``, ``keep_volume``, ``trajectory_method``,
         ``trajectory_margin_cells``, ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
         ``newton_steps``, ``interpolation`` go to `Inbetween.from_map`;
-        ``parallel`` (True: solve the two maps at once when two cores are
-        free); all others are passed to `solve_map`.
+        ``parallel`` (True: solve the two maps at once, in two threads, when two
+        cores are free) or ``helper`` (a `parallel.Helper`: the map B -> A is
+        solved in that process instead); all others are passed to `solve_map`.
 
     Returns
     -------
@@ -458,10 +478,19 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     take_renamed(options, _RENAMED, "inbetween")
     mine = {k: options.pop(k) for k in list(options) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
     parallel = options.pop("parallel", True)
+    helper = options.pop("helper", None)
     two_sided = mine.get("transport", "two-sided") == "two-sided"
     t0 = time.perf_counter()
-    res, back = _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided,
-                            parallel, rep.sub(0.0, 0.8), cancel, options)
+    if helper is not None and two_sided:
+        from .solver import solve_map
+
+        helper.submit(solve_map, phi_b, phi_a, grid, features_b, features_a, **options)
+        res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.8),
+                        cancel=cancel, **options)
+        back = helper.result(check=rep.check)
+    else:
+        res, back = _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided,
+                                parallel, rep.sub(0.0, 0.8), cancel, options)
     st = {"map_seconds": time.perf_counter() - t0, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats

@@ -1,0 +1,124 @@
+"""The helper process: its answers, its failures, and that it never outlives the bake."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core import Cancelled, Keyframe, animate
+from keyframe_implicit.core.parallel import Helper, HelperError
+
+from test_pipeline import _sphere_features, rotation, uv_sphere
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/status") as fh:  # a zombie has ended too
+        return "zombie" not in fh.read()
+
+
+def test_helper_answers_calls_in_turn_and_raises_their_errors():
+    with Helper(preload=()) as helper:
+        helper.submit(np.linalg.norm, np.array([3.0, 4.0]))
+        assert helper.result() == 5.0
+        helper.submit(int, "not a number")
+        with pytest.raises(ValueError, match="not a number"):
+            helper.result()
+        helper.submit(sum, [1, 2, 3])  # still serving after a failure
+        assert helper.result() == 6
+
+
+def test_a_killed_helper_is_an_error_that_names_the_signal():
+    with Helper(preload=()) as helper:
+        helper.submit(time.sleep, 30)
+        os.kill(helper._proc.pid, signal.SIGKILL)
+        t0 = time.perf_counter()
+        with pytest.raises(HelperError, match="signal 9"):
+            helper.result()
+        assert time.perf_counter() - t0 < 5
+
+
+def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
+    code = textwrap.dedent("""
+        import time
+        from keyframe_implicit.core.parallel import Helper
+        if __name__ == "__main__":
+            helper = Helper(preload=())
+            helper.submit(time.sleep, 60)
+            print(helper._proc.pid, flush=True)
+            time.sleep(60)
+    """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
+                              env=env)
+    pid = int(parent.stdout.readline())
+    assert _alive(pid)
+    parent.kill()  # as a cancelled bake's worker is killed
+    parent.wait()
+    deadline = time.time() + 5
+    while _alive(pid) and time.time() < deadline:
+        time.sleep(0.05)
+    assert not _alive(pid), "the helper outlived its killed parent"
+
+
+def _turning_sphere():
+    r = 0.3
+    rot = rotation((1.0, 2.0, 0.5), 0.8)
+    va, fa = uv_sphere(np.zeros(3), r, n=16)
+    vb = va @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
+    pa, pb = _sphere_features(np.zeros(3), r)
+    pb = pa @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
+    return [Keyframe(va, fa, 1), Keyframe(vb, fa, 11)], [(pa, pb)]
+
+
+def test_a_bake_with_a_helper_process_is_the_bake_without_one():
+    """The helper solves the map B -> A and the later half of the frames: the same maps
+    and frames as one process, up to the CG tolerance of the trajectories."""
+    kfs, feats = _turning_sphere()
+    one = animate(kfs, feats, resolution=20, processes=1)
+    two = animate(kfs, feats, resolution=20, processes=2)
+    h = one.grid.spacing
+    assert two.stats["helper_peak_rss_kib"] > 0  # a second process did take part
+    assert np.abs(one.vertices - two.vertices).max() <= 1e-4 * h
+    for a, b in zip(one.surfaces, two.surfaces):
+        assert a[0].shape == b[0].shape and np.abs(a[0] - b[0]).max() <= 1e-4 * h
+    for name in ("shape_keys", "mesh_sequence"):
+        for qa, qb in zip(one.stats["quality"][name], two.stats["quality"][name]):
+            assert qa["coverage"] == pytest.approx(qb["coverage"], abs=1e-4)
+
+
+def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
+    import multiprocessing
+    import threading
+
+    kfs, feats = _turning_sphere()
+    seen, flipped, outcome = threading.Event(), threading.Event(), {}
+
+    def progress(fraction, message):
+        if "frame 3 " in message:
+            seen.set()
+
+    def bake():
+        try:
+            animate(kfs, feats, resolution=24, processes=2, progress=progress,
+                    cancel=flipped.is_set)
+        except Cancelled:
+            outcome["cancelled"] = time.perf_counter()
+
+    worker = threading.Thread(target=bake, daemon=True)
+    worker.start()
+    assert seen.wait(300), "the bake never reached frame 3"
+    t_flip = time.perf_counter()
+    flipped.set()
+    worker.join(30)
+    assert "cancelled" in outcome
+    assert outcome["cancelled"] - t_flip < 1.0
+    assert not multiprocessing.active_children(), "the helper outlived the cancelled bake"
