@@ -278,6 +278,7 @@ def menu_func(self, context):
 
 
 _running = []  # the BakeJob of the modal bake in progress (at most one)
+TIMER_STEP = 0.1  # seconds between the modal bake's polls of its job
 
 
 class KFI_OT_bake(bpy.types.Operator):
@@ -340,11 +341,11 @@ class KFI_OT_bake(bpy.types.Operator):
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self._job = bake.BakeJob(inputs)
+        self._job = bake.BakeJob(inputs, poll_step=TIMER_STEP)
         _running.append(self._job)
         self._job.start()
         wm = context.window_manager
-        self._timer = wm.event_timer_add(0.1, window=context.window)
+        self._timer = wm.event_timer_add(TIMER_STEP, window=context.window)
         wm.progress_begin(0, 100)
         wm.modal_handler_add(self)
         self._status(context, "Baking: starting (ESC to cancel)")
