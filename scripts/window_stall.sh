@@ -19,19 +19,14 @@ OUT=""
 if [ "${1:-}" = -o ]; then OUT="$2"; shift 2; fi
 OUT="$(mkdir -p "${OUT:=$(mktemp -d /tmp/window_stall.XXXXXX)}" && cd "$OUT" && pwd)"
 [ $# -gt 0 ] || set -- 0 64
-PACKAGES="blender python3-numpy libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 libglx-mesa0 xvfb xauth x11-apps"
 [ "$(id -u)" = 0 ] || { echo "[window_stall] needs root (chroot)" >&2; exit 2; }
 
 source "$ROOT/scripts/trixie_chroot.sh"
-ensure_chroot $PACKAGES
+ensure_chroot $WINDOW_PACKAGES
 make_run_dir
 install_zip "$ROOT"
-cp "$ROOT/assets/merge.blend" "$ROOT/scripts/blender_window.py" "$ROOT/scripts/window_stall.py" "$run/"
+cp "$ROOT/assets/merge.blend" "$run/"
 mkdir -p "$run/out"
-# A real window: 1280x800 on a 24-bit virtual display, Mesa's llvmpipe for OpenGL; the
-# helper module is found through PYTHONPATH, which Blender reads with --python-use-system-env.
-in_chroot PYTHONPATH="$inside" xvfb-run -a -s "-screen 0 1280x800x24" \
-  blender --window-geometry 0 0 1280 800 --no-window-focus --python-use-system-env \
-  --python-exit-code 1 --python "$inside/window_stall.py" -- "$inside/merge.blend" "$inside/out" "$@"
+windowed_blender "$ROOT" window_stall.py "$inside/merge.blend" "$inside/out" "$@"
 cp "$run"/out/*.png "$OUT/"
 echo "[window_stall] screenshots in $OUT" >&2
