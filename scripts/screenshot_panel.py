@@ -13,67 +13,22 @@ Blender when done, with exit code 1 on any error.
 """
 
 import os
-import subprocess
 import sys
-import traceback
 
 import bpy
 import numpy as np
+from blender_window import addon_module, decode_xwd, open_scene, run, save_png, view3d, xwd
 
 SCENE, OUT = sys.argv[sys.argv.index("--") + 1:][:2]
-CATEGORY = "Keyframe Implicit"
-ADDON = "bl_ext.user_default.keyframe_implicit"
 WINDOWS = ("after", "compare")  # the steps whose whole window is kept too
 STABLE_GRABS = 3  # identical sidebar grabs in a row (half a second apart) count as settled
 MAX_GRABS = 40
 
 
-def view3d():
-    """(window, 3D view area, its sidebar region, its main region)."""
-    win = bpy.context.window_manager.windows[0]
-    area = max((a for a in win.screen.areas if a.type == "VIEW_3D"), key=lambda a: a.width * a.height)
-    regions = {r.type: r for r in area.regions}
-    return win, area, regions["UI"], regions["WINDOW"]
-
-
-def grab_screen():
-    """The X display as an (H, W, 4) float RGBA array, bottom row first (as Blender's images).
-
-    screen.screenshot reads back black under Xvfb with Mesa's software GL, so the
-    display's own pixels are taken with ``xwd -root`` and decoded here (XWD: a
-    big-endian header of 25 uint32, the window name, the colour map, then rows).
-    """
-    raw = subprocess.run(["xwd", "-root", "-silent"], check=True, capture_output=True).stdout
-    head = np.frombuffer(raw[:100], ">u4")
-    header_size, width, height = int(head[0]), int(head[4]), int(head[5])
-    byte_order, bits, row_bytes, ncolors = int(head[7]), int(head[11]), int(head[12]), int(head[19])
-    masks = [int(m) for m in head[14:17]]
-    if bits != 32:
-        raise RuntimeError(f"xwd gave {bits} bits per pixel; run the display at depth 24")
-    start = header_size + 12 * ncolors
-    words = np.frombuffer(raw[start:start + row_bytes * height], "<u4" if byte_order == 0 else ">u4")
-    words = words.reshape(height, row_bytes // 4)[:, :width]
-    rgba = np.ones((height, width, 4), np.float32)
-    for k, mask in enumerate(masks):
-        shift = (mask & -mask).bit_length() - 1
-        rgba[..., k] = ((words & mask) >> shift) / float(mask >> shift)
-    return rgba[::-1]
-
-
-def save_png(pixels, path):
-    h, w = pixels.shape[:2]
-    img = bpy.data.images.new(os.path.basename(path), w, h, alpha=True)
-    img.pixels.foreach_set(np.ascontiguousarray(pixels, np.float32).ravel())
-    img.filepath_raw = path
-    img.file_format = "PNG"
-    img.save()
-    bpy.data.images.remove(img)
-
-
 def sidebar_pixels():
     """(the window's pixels, the sidebar cut out of them)."""
     win, area, sidebar, _ = view3d()
-    screen = grab_screen()[:win.height, :win.width]  # the window sits at the display's corner
+    screen = decode_xwd(xwd())[:win.height, :win.width]  # the window sits at the display's corner
     x, y, w, h = sidebar.x, sidebar.y, sidebar.width, sidebar.height  # window pixels, y up
     return screen, screen[y:y + h, x:x + w]
 
@@ -116,32 +71,10 @@ def save(step, screen, pixels):
 
 def steps():
     """The run, as a generator of pauses (seconds) between UI updates."""
-    assert ADDON in bpy.context.preferences.addons, "the extension is not enabled"
-    win, _, _, _ = view3d()
-    with bpy.context.temp_override(window=win):
-        bpy.ops.wm.open_mainfile(filepath=SCENE, load_ui=False)  # the default UI, like a new user
-    yield 1.0
+    yield from open_scene(SCENE)
     win, area, sidebar, main = view3d()
-    area.spaces.active.show_region_ui = True
-    yield 0.5
-    for _ in range(20):  # the tabs exist once the sidebar has been drawn
-        win, area, sidebar, main = view3d()
-        if sidebar.active_panel_category == CATEGORY:
-            break
-        try:
-            sidebar.active_panel_category = CATEGORY
-        except TypeError:
-            pass
-        sidebar.tag_redraw()
-        yield 0.5
-    assert sidebar.active_panel_category == CATEGORY, sidebar.active_panel_category
-    keyframes = [kf.object for kf in bpy.context.scene.keyframe_implicit.keyframes]
-    for obj in bpy.context.scene.objects:
-        obj.select_set(obj in keyframes)
-    with bpy.context.temp_override(window=win, area=area, region=main):
-        bpy.ops.view3d.view_selected()
     yield from settled("before")
-    ops = sys.modules[f"{ADDON}.blender.ops"]
+    ops = addon_module("blender.ops")
     with bpy.context.temp_override(window=win, area=area, region=main):
         assert bpy.ops.keyframe_implicit.bake("INVOKE_DEFAULT") == {"RUNNING_MODAL"}
     while ops._running and ops._running[0].status()[0] < 0.3:
@@ -168,21 +101,4 @@ def steps():
     yield from settled("problems")
 
 
-def main():
-    run = steps()
-
-    def tick():
-        try:
-            return next(run)
-        except StopIteration:
-            bpy.ops.wm.quit_blender()
-        except Exception:
-            traceback.print_exc()
-            sys.stdout.flush()
-            os._exit(1)
-        return None
-
-    bpy.app.timers.register(tick, first_interval=2.0, persistent=True)
-
-
-main()
+run(steps())

@@ -15,18 +15,14 @@
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 OUT="$(mkdir -p "${1:-$ROOT/docs/images}" && cd "${1:-$ROOT/docs/images}" && pwd)"
-PACKAGES="blender python3-numpy libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 libglx-mesa0 xvfb xauth x11-apps"
 [ "$(id -u)" = 0 ] || { echo "[screenshot_panel] needs root (chroot)" >&2; exit 2; }
 
 source "$ROOT/scripts/trixie_chroot.sh"
-ensure_chroot $PACKAGES
+ensure_chroot $WINDOW_PACKAGES
 make_run_dir
 install_zip "$ROOT"
-cp "$ROOT/assets/merge.blend" "$ROOT/scripts/screenshot_panel.py" "$run/"
+cp "$ROOT/assets/merge.blend" "$run/"
 mkdir -p "$run/out"
-# A real window: 1280x800 on a 24-bit virtual display, Mesa's llvmpipe for OpenGL.
-in_chroot xvfb-run -a -s "-screen 0 1280x800x24" \
-  blender --window-geometry 0 0 1280 800 --no-window-focus --python-exit-code 1 \
-  --python "$inside/screenshot_panel.py" -- "$inside/merge.blend" "$inside/out"
+windowed_blender "$ROOT" screenshot_panel.py "$inside/merge.blend" "$inside/out"
 cp "$run"/out/*.png "$OUT/"
 ls -l "$run"/out/*.png >&2

@@ -1,6 +1,7 @@
 # Sourced by the scripts that run Debian trixie's blender package in a chroot
-# (scripts/blender_chroot.sh for the tests, scripts/screenshot_panel.sh for the panel
-# screenshots). Defines CHROOT and `ensure_chroot PACKAGE...`. Needs root.
+# (scripts/blender_chroot.sh for the tests; scripts/screenshot_panel.sh and
+# scripts/window_stall.sh for a real window). Defines CHROOT, `ensure_chroot PACKAGE...` and
+# the helpers below. Needs root.
 #
 # The chroot lives outside the clone ($KFI_CHROOT, default /var/cache/keyframe_implicit/trixie):
 # debootstrap --variant=minbase trixie, then apt-get install --no-install-recommends of the
@@ -72,4 +73,20 @@ install_zip() {
   echo "[trixie_chroot] $(in_chroot blender --version 2>/dev/null | head -1), installing $zip_name" >&2
   KFI_HOME="$inside/home" in_chroot blender --command extension install-file -r user_default \
     -e "$inside/dist/$zip_name" >&2
+}
+
+# The packages of `windowed_blender`: Blender, Xvfb, xauth, xwd and Mesa's software GL.
+WINDOW_PACKAGES="blender python3-numpy libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 libglx-mesa0 xvfb xauth x11-apps"
+
+# Run the checkout $1's scripts/$2 in a real Blender window: 1280x800 on a 24-bit virtual
+# display, Mesa's llvmpipe for OpenGL. The script and scripts/blender_window.py are copied into
+# $run; the helper is found through PYTHONPATH, which Blender reads with --python-use-system-env.
+# Further arguments go to the script.
+windowed_blender() {
+  local root="$1" script="$2"
+  shift 2
+  cp "$root/scripts/blender_window.py" "$root/scripts/$script" "$run/"
+  in_chroot PYTHONPATH="$inside" xvfb-run -a -s "-screen 0 1280x800x24" \
+    blender --window-geometry 0 0 1280 800 --no-window-focus --python-use-system-env \
+    --python-exit-code 1 --python "$inside/$script" -- "$@"
 }

@@ -46,18 +46,22 @@ class BakeJob:
     inputs : scene_io.BakeInput
     on_progress : callable(job, fraction, message), optional
         Called after each progress report, from the thread that runs the job (`run`).
+    poll_step : float, optional
+        Seconds between the poller's turns when nothing holds it up (the modal operator's
+        timer step); 0 when nobody polls.
 
     Attributes
     ----------
     max_poll_gap : float
-        The longest time, in seconds, between two consecutive `poll` calls while the bake
-        ran: how long the polling main loop went without a turn (the modal operator's timer
-        step included).
+        The longest time, in seconds, between `start` or a `poll` call and the next `poll`
+        call while the bake ran: how long the polling main loop went without a turn (the
+        poller's own step included).
     """
 
-    def __init__(self, inputs, on_progress=None):
+    def __init__(self, inputs, on_progress=None, poll_step=0.0):
         self.inputs = inputs
         self.on_progress = on_progress
+        self.poll_step = poll_step
         self.state = READY
         self.fraction = 0.0
         self.message = "Waiting"
@@ -129,6 +133,7 @@ class BakeJob:
         """Run the job in a daemon thread (which mostly waits for the worker's messages)."""
         self._thread = threading.Thread(target=self.run, name="keyframe_implicit bake", daemon=True)
         self.state = RUNNING
+        self._last_poll = time.perf_counter()  # a stall right after the start counts too
         self._thread.start()
 
     @property
@@ -149,6 +154,12 @@ class BakeJob:
         self._last_poll = now
         return self.finished
 
+    @property
+    def stall(self):
+        """The longest time, in seconds, the polling main loop was held up while the bake
+        ran: `max_poll_gap` beyond the poller's own step (``poll_step``)."""
+        return max(0.0, self.max_poll_gap - self.poll_step)
+
     def status(self):
         """(fraction, message) of the last progress report, safe from any thread."""
         with self._lock:
@@ -166,6 +177,8 @@ class BakeJob:
         self.notes = list(stats.pop("notes", []))
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
+        if self.poll_step:  # polled by a main loop (a blocking bake is not)
+            stats["main_loop_stall"] = self.stall
         settings = scene.keyframe_implicit
         paths = volumes.write_result(settings, self.result) if self.inputs.levelsets else []
         obj = output.write_animation(scene, settings, self.result,

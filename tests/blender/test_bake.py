@@ -209,11 +209,11 @@ def _modal_operator(job, scene):
     from keyframe_implicit.blender import ops
 
     reports = []
-    me = types.SimpleNamespace(_job=job, _timer=None)
+    me = types.SimpleNamespace(_job=job, _timer=None, _shown=None)
     me.report = lambda kind, msg: reports.append((next(iter(kind)), msg))
     for name in ("_status", "_finish", "_hints", "_done"):
         setattr(me, name, getattr(ops.KFI_OT_bake, name).__get__(me))
-    ctx = types.SimpleNamespace(window_manager=_Recorder(), workspace=_Recorder(), area=None,
+    ctx = types.SimpleNamespace(window_manager=_Recorder(), workspace=_Recorder(), screen=None,
                                 scene=scene, view_layer=bpy.context.view_layer)
     ops._running.append(job)
     return me, ctx, reports
@@ -284,6 +284,40 @@ def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
     assert any(name == "progress_update" for name, _ in ctx.window_manager.calls)
     assert reports[-1][0] == "INFO" and "Baked" in reports[-1][1]
     assert not ops._running
+
+
+def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(scene, kfi):
+    import types
+
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    me, ctx, _ = _modal_operator(job, scene)  # the job is not started: its text stays put
+    regions = {}
+    areas = []
+    for area, region in (("VIEW_3D", "UI"), ("VIEW_3D", "WINDOW"), ("PROPERTIES", "UI")):
+        regions[area, region] = _Recorder()
+        regions[area, region].type = region
+        areas.append(types.SimpleNamespace(type=area, regions=[regions[area, region]]))
+    ctx.screen = types.SimpleNamespace(areas=areas)
+
+    def redraws():
+        return {k: len(r.calls) for k, r in regions.items()}
+
+    try:
+        for _ in range(3):
+            assert ops.KFI_OT_bake.modal(me, ctx, _event("TIMER")) == {"RUNNING_MODAL"}
+        assert [c for c, _ in ctx.workspace.calls] == ["status_text_set"]
+        assert [c for c, _ in ctx.window_manager.calls] == ["progress_update"]
+        assert redraws() == {("VIEW_3D", "UI"): 1, ("VIEW_3D", "WINDOW"): 0, ("PROPERTIES", "UI"): 0}
+        job._progress(0.5, "trajectories")
+        for _ in range(3):
+            ops.KFI_OT_bake.modal(me, ctx, _event("TIMER"))
+        assert ctx.workspace.calls[-1] == ("status_text_set", ("Baking 50%: trajectories (ESC to cancel)",))
+        assert len(ctx.workspace.calls) == 2 and redraws()[("VIEW_3D", "UI")] == 2
+    finally:
+        ops._running.remove(job)
 
 
 def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):

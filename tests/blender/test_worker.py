@@ -121,6 +121,7 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     np.testing.assert_array_equal(job.result.faces, mine.faces)
     assert type(job.result) is pipeline.Animation  # mapped onto this process's classes
     out = job.apply(scene)
+    assert "kfi_main_loop_stall" not in out  # nothing polled this job: no main loop to speak of
     keys = out.data.shape_keys.key_blocks[1:]
     assert len(keys) == len(mine.frames)
     world = np.array(out.matrix_world)
@@ -166,3 +167,19 @@ def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypa
           ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in gaps.items()))
     assert gaps["_InThreadJob"] > 0.25  # the measurement sees a stalled main loop
     assert gaps["BakeJob"] < 0.1
+
+
+def test_main_loop_stall_is_the_longest_poll_gap_beyond_the_step(scene, kfi):
+    step, held = 0.1, 0.5
+    kfi.build_spheres(TWO)
+    job = _job(scene, kfi, poll_step=step)
+    job.start()
+    time.sleep(held)  # the main loop held up right after the start (reading the inputs, ...)
+    while not job.poll():
+        time.sleep(step)
+    assert job.state == bake.DONE, job.error_message()
+    out = job.apply(scene)
+    print(f"held {held * 1000:.0f} ms: longest gap {job.max_poll_gap * 1000:.0f} ms, "
+          f"stall kept on the output {out['kfi_main_loop_stall'] * 1000:.0f} ms")
+    assert out["kfi_main_loop_stall"] == pytest.approx(job.max_poll_gap - step)
+    assert held - step <= out["kfi_main_loop_stall"] < held + 0.05
