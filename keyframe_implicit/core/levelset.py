@@ -67,6 +67,7 @@ _RENAMED = {"trajectory_band": "trajectory_margin_cells",
             "trajectory_band_weight": "trajectory_margin_weight"}
 _LS_OPTIONS = ("transport", "keep_volume", "resample", "idw_radius", "newton_steps", "interpolation")
 TRANSPORTS = ("two-sided", "one-sided")
+_CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
 
 def idw_resample(grid: Grid, positions, values, *, fill, radius=1.5, eps=0.25):
@@ -314,7 +315,7 @@ class Inbetween:
             field = self._keep_volume(field, s)
         self.stats["levelset_seconds"] += time.perf_counter() - t0
         self.stats["levelset_calls"] += 1
-        if len(self._cache) > 4:
+        if len(self._cache) >= _CACHED_FIELDS:  # a frame asks for its field several times
             self._cache.pop(next(iter(self._cache)))
         self._cache[s] = field
         return field

@@ -225,27 +225,28 @@ class Trajectories:
         self.tolerance = float(tolerance)
         self._check = Reporter(None, cancel).check
         self.dim = d
-        self._x = grid.points().reshape(-1, d)
         self._y = y.reshape(-1, d)
         self.material = mat
         self.stats = {"method": method}
         self._cache = {}  # positions of the active nodes at the last few times s
-        self._local_index = np.full(grid.size, -1, dtype=np.int64)
 
-        # distance (cells) to the material, and the nearest material node of every node
+        # Per grid node only what every node needs (the map, the region, the body); the
+        # rest is kept for the active nodes, or computed for the nodes asked about.
+        # distance (cells) to the material, and the body (component) of the nearest material
         dist, inds = ndimage.distance_transform_edt(~mat, return_indices=True)
         nearest = np.ravel_multi_index(tuple(inds), grid.shape).reshape(-1)
-        self._dist = dist.reshape(-1)
-        self._nearest = nearest
-
-        # body (component) rigid motion: centroids and best rotation, per material component
+        del inds
+        self._region = (dist <= self.margin_cells).reshape(-1)
         labels = np.unique(components[mat])
         lab_flat = components.reshape(-1)
-        self._body_label = lab_flat[nearest]  # every node -> component of nearest material
+        self._body_label = lab_flat[nearest].astype(np.min_scalar_type(max(labels.max(), 1)))
+        del nearest
+
+        # body rigid motion: centroids and best rotation, per material component
         self._bodies = {}
         for lab in labels:
-            sel = lab_flat == lab
-            xb, yb, R = _rigid_fit(self._x[sel], self._y[sel])
+            sel = np.flatnonzero(lab_flat == lab)
+            xb, yb, R = _rigid_fit(self._points(sel), self._y[sel])
             self._bodies[int(lab)] = (xb, yb, R, rotation_log(R[None])[0])
         self.stats["components"] = len(labels)
 
@@ -253,7 +254,7 @@ class Trajectories:
             self._init_local()
         else:
             t0 = time.perf_counter()
-            self._init_global()
+            self._init_global(dist.reshape(-1))
             self.stats["setup_seconds"] = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
@@ -264,7 +265,18 @@ class Trajectories:
 
     def region_nodes(self):
         """Flat bool mask of the region's nodes: the material and its margin."""
-        return self._dist <= self.margin_cells
+        return self._region
+
+    def _points(self, nodes):
+        """Positions at time 0 (the grid points) of the given flat node indices, (len, d)."""
+        idx = np.stack(np.unravel_index(nodes, self.grid.shape), axis=-1)
+        return self.grid.to_world(idx.astype(float))
+
+    def _local(self, nodes):
+        """Index of each node among the active nodes (global method), -1 where not active."""
+        loc = np.searchsorted(self._nodes, nodes)
+        loc = np.minimum(loc, self._nodes.size - 1)
+        return np.where(self._nodes[loc] == nodes, loc, -1)
 
     def _body_arrays(self, nodes):
         """x_bar, y_bar, R, rotation vector of the body of each node (arrays over nodes)."""
@@ -279,17 +291,10 @@ class Trajectories:
             xb[m], yb[m], R[m], rv[m] = x0, y0, R0, v0
         return xb, yb, R, rv
 
-    def _init_body(self):
-        """Per node: its body's label and the residual r of eq. 3.1 w.r.t. the body motion."""
-        self._body_nodes = {}
-        self._body_resid = np.empty_like(self._x)
-        for key, (xb, yb, R, _) in self._bodies.items():  # loop over components
-            m = np.flatnonzero(self._body_label == key)
-            self._body_nodes[key] = m
-            self._body_resid[m] = self._y[m] - yb - (self._x[m] - xb) @ R.T
-
     def _body_path(self, s, nodes):
-        """Eq. 3.1 with the rotation of the whole body, for the given flat node indices."""
+        """Eq. 3.1 with the rotation of the whole body, for the given flat node indices:
+        x(s) = x_bar + s (y_bar - x_bar) + R^s (x - x_bar) + s r, with the residual
+        r = y - y_bar - R (x - x_bar) of the node w.r.t. its body's motion."""
         out = np.empty((nodes.size, self.dim))
         lab = self._body_label[nodes]
         for key, (xb, yb, R, rv) in self._bodies.items():  # one R^s per body
@@ -298,7 +303,9 @@ class Trajectories:
                 continue
             sel = nodes[m]
             Rs = rotation_exp((s * rv)[None], self.dim)[0]
-            out[m] = xb + s * (yb - xb) + (self._x[sel] - xb) @ Rs.T + s * self._body_resid[sel]
+            rel = self._points(sel) - xb
+            resid = self._y[sel] - yb - rel @ R.T
+            out[m] = xb + s * (yb - xb) + rel @ Rs.T + s * resid
         return out
 
     def _init_local(self):
@@ -313,7 +320,7 @@ class Trajectories:
         nodes = np.arange(grid.size)
         self._ext = self._body_arrays(nodes)
 
-    def _init_global(self):
+    def _init_global(self, dist):
         grid, d, h = self.grid, self.dim, self.grid.spacing
         shape = np.asarray(grid.shape)
         corners = np.array(list(itertools.product((0, 1), repeat=d)))  # (2^d, d)
@@ -339,9 +346,7 @@ class Trajectories:
                              "use a finer grid.")
 
         nodes = np.unique(cnodes)
-        local = np.full(grid.size, -1, dtype=np.int64)
-        local[nodes] = np.arange(nodes.size)
-        lc = local[cnodes]
+        lc = np.searchsorted(nodes, cnodes)  # the cells' corners among the active nodes
         n = nodes.size
 
         # per-cell edges (i -> j along axis a); target of each edge is h * F_c[:, a]
@@ -399,7 +404,7 @@ class Trajectories:
         mat_local = self.material.reshape(-1)[nodes]
         self._comp = comp
         self._ncomp = ncomp
-        xa = self._x[nodes]
+        xa = self._points(nodes)
         ya = self._y[nodes]
         self._xbar = np.zeros((ncomp, d))
         self._ybar = np.zeros((ncomp, d))
@@ -411,7 +416,6 @@ class Trajectories:
             self._ybar[c] = (wsel[:, None] * ya[m]).sum(0) / wsel.sum()
         self._cw = cw
         self._nodes = nodes
-        self._local_index = local
         self._ncells = nc
         self.stats["active_nodes"] = int(n)
         self.stats["active_cells"] = int(nc)
@@ -424,9 +428,8 @@ class Trajectories:
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
 
         # blend of the Poisson paths with the body formula over the outer half of the margin
-        dl = self._dist[nodes]
+        dl = dist[nodes]
         self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
-        self._init_body()
 
     def _cell_targets(self, s):
         """Target gradients F_c(s) = R_c^s ((1 - s) I + s S_c) of the active cells, (nc, d, d)."""
@@ -498,15 +501,15 @@ class Trajectories:
         s = self._check_s(s)
         nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
         if s == 0.0:
-            return self._x[nodes].copy()
+            return self._points(nodes)
         if s == 1.0:
             return self._y[nodes].copy()
         if self.method == "local":
             xb, yb, R, rv = (a[nodes] for a in self._ext)
-            return self._formula(s, self._x[nodes], self._y[nodes], xb, yb,
+            return self._formula(s, self._points(nodes), self._y[nodes], xb, yb,
                                  self._local_R[nodes], self._local_rv[nodes])
         out = np.empty((nodes.size, self.dim))
-        loc = self._local_index[nodes]
+        loc = self._local(nodes)
         act = loc >= 0
         out[act] = self._active_positions(s)[loc[act]]
         if not act.all():
@@ -533,5 +536,5 @@ class Trajectories:
             return p.copy()
         flat, w = cell_weights(self.grid, p)
         nodes, inv = np.unique(flat, return_inverse=True)
-        disp = self.node_positions(s, nodes) - self._x[nodes]
+        disp = self.node_positions(s, nodes) - self._points(nodes)
         return p + np.einsum("pk,pkd->pd", w, disp[inv.reshape(flat.shape)])

@@ -101,3 +101,15 @@ def test_bad_input_is_refused_with_a_message():
     traj = Trajectories(grid, good, mat)
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         traj.positions(1.5)
+
+
+def test_per_grid_node_only_the_map_the_region_and_the_body_are_kept():
+    """Band-only storage: of the arrays as large as the grid, a Trajectories keeps the map
+    (d floats a node) and two bytes a node (region, body); everything else is per active
+    node, or computed for the nodes asked about."""
+    grid, phi_a, _, mapped, _ = bend_case(d=3, n=24)
+    traj = Trajectories(grid, mapped, phi_a < 0)
+    per_node = sum(v.nbytes for v in vars(traj).values()
+                   if isinstance(v, np.ndarray) and v.shape[:1] == (grid.size,))
+    assert per_node <= grid.size * (3 * 8 + 2 + 1)  # + the material mask given
+    np.testing.assert_allclose(traj.positions(0.0), grid.points(), atol=1e-12)
