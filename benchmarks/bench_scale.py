@@ -86,11 +86,13 @@ def run_one(name, n, processes):
                trajectories=seg["trajectory_setup_seconds"], frames=seg["template_seconds"])
     sec["rest"] = total - sum(sec.values())
     frac = max(_material_fraction(kf, anim.grid) for kf in kfs)
-    est = estimate_memory(anim.grid, n_keyframes=len(kfs), material_fraction=frac)["peak"]
+    model = estimate_memory(anim.grid, n_keyframes=len(kfs), material_fraction=frac)
+    est = model["peak"]
     helper_mb = (st.get("helper_peak_rss_kib") or 0) / 1024.0
     return dict(case=name, n=n, shape=list(anim.grid.shape), seconds=sec, total=total,
                 rss_mb=peak_rss_mb() + helper_mb, helper_rss_mb=helper_mb,
-                active=seg["map"]["active_nodes"],
+                active=seg["map"]["active_nodes"], nodes=int(anim.grid.size),
+                material_fraction=frac, model_active=model["active_nodes"],
                 estimate_mb=est / 2 ** 20)
 
 

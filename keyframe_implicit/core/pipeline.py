@@ -224,6 +224,35 @@ def _check_feature_reach(features, lo, hi, feature_names):
                     f"{i + side + 1}, or delete the pair.")
 
 
+def _rigid_sweep(points, features, steps=8, most=2048):
+    """Points along each segment's rigid part of the motion, for the grid to hold.
+
+    A body turning between two keyframes sweeps past both keyframes' boxes (a square's
+    corner half-way through a quarter turn lies 41 % of its half-width beyond them), and
+    a fixed padding in cells shrinks as the resolution grows. Where a segment has three
+    feature pairs or more, the best rigid motion between them (`trajectory.rigid_fit`)
+    carries keyframe A's points forward and B's backward through ``steps`` in-betweens
+    (at most ``most`` points of each); their positions are returned, one array per
+    segment.
+    """
+    from .trajectory import rigid_fit, rotation_exp, rotation_log
+
+    out = []
+    for k, (fa, fb) in enumerate(features):
+        fa, fb = np.asarray(fa, dtype=float), np.asarray(fb, dtype=float)
+        if len(fa) < 3 or np.linalg.matrix_rank(fa - fa.mean(axis=0)) < 2:
+            continue  # no rotation is known
+        xb, yb, R = rigid_fit(fa, fb)
+        rv = rotation_log(R[None])[0]
+        a = points[k][:: max(1, len(points[k]) // most)]
+        b = points[k + 1][:: max(1, len(points[k + 1]) // most)]
+        for s in np.arange(1, steps) / steps:
+            centre = xb + s * (yb - xb)
+            out.append(centre + (a - xb) @ rotation_exp(s * rv, 3).T)
+            out.append(centre + (b - yb) @ rotation_exp((s - 1.0) * rv, 3).T)
+    return out
+
+
 def _check_feature_spacing(features, h, feature_names):
     """Refuse two feature points closer than one grid cell whose partners are farther apart.
 
@@ -364,7 +393,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     lo = np.min([p.min(axis=0) for p in pts], axis=0)
     hi = np.max([p.max(axis=0) for p in pts], axis=0)
     _check_feature_reach(features, lo, hi, feature_names)
-    extra = np.concatenate([np.concatenate(pair) for pair in features]) if features else None
+    extra = [np.concatenate(pair) for pair in features] + _rigid_sweep(pts, features)
+    extra = np.concatenate(extra) if extra else None
     grid = fit_grid(pts, resolution, padding_cells=padding_cells, extra_points=extra)
     _check_feature_spacing(features, grid.spacing, feature_names)
     if max_bytes is not None:

@@ -69,7 +69,7 @@ from .multigrid import BlockMultigrid, block_pcg
 from .progress import Reporter
 from .sampling import cell_weights
 
-__all__ = ["Trajectories", "polar", "rotation_log", "rotation_exp"]
+__all__ = ["Trajectories", "polar", "rigid_fit", "rotation_log", "rotation_exp"]
 
 
 # ----------------------------------------------------------------------------
@@ -131,7 +131,7 @@ def rotation_exp(v, d):
     return Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
 
 
-def _rigid_fit(x, y):
+def rigid_fit(x, y):
     """Centroids and best rotation (Kabsch / Horn, appendix A) mapping points x onto y."""
     xb = x.mean(axis=0)
     yb = y.mean(axis=0)
@@ -246,7 +246,7 @@ class Trajectories:
         self._bodies = {}
         for lab in labels:
             sel = np.flatnonzero(lab_flat == lab)
-            xb, yb, R = _rigid_fit(self._points(sel), self._y[sel])
+            xb, yb, R = rigid_fit(self._points(sel), self._y[sel])
             self._bodies[int(lab)] = (xb, yb, R, rotation_log(R[None])[0])
         self.stats["components"] = len(labels)
 

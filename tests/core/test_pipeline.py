@@ -120,3 +120,25 @@ def test_too_large_a_grid_is_refused_before_any_work():
     assert 4 <= best < 400
     animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=best,
             max_bytes=200 * 2**20)  # the resolution the message names does fit
+
+
+def _cube(half=0.5):
+    v = np.array([[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)])
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    return v, f
+
+
+def test_the_grid_holds_a_turning_body_half_way_not_only_its_keyframes():
+    """A cube turned a quarter turn has the same box on both keyframes; half-way its
+    corners reach 41 % of its half-width past it. The grid holds that, whatever the
+    padding (it is in cells, and shrinks with the resolution)."""
+    v, f = _cube()
+    rot = rotation((0.0, 0.0, 1.0), np.pi / 2)
+    corners = v[[0, 3, 5, 6]]
+    anim = animate([Keyframe(v, f, 1), Keyframe(v @ rot.T, f, 9)], [(corners, corners @ rot.T)],
+                   resolution=12, padding_cells=1, template="grid")
+    half_way = v @ rotation((0.0, 0.0, 1.0), np.pi / 4).T
+    assert np.all(anim.grid.contains(half_way))
+    lo, hi = anim.grid.origin, anim.grid.origin + anim.grid.spacing * (np.array(anim.grid.shape) - 1)
+    assert hi[0] - lo[0] >= 2 * 0.5 * np.sqrt(2)  # not only the keyframes' 1.0 + padding
