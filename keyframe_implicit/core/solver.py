@@ -208,7 +208,8 @@ class _Level:
         flat_nodes = np.ravel_multi_index(tuple(node_idx[..., a] for a in range(d)), grid.shape)
         active = np.unique(flat_nodes)
         self.active = active
-        self.elem = np.searchsorted(active, flat_nodes)  # (E, K)
+        # int32 indices: the index tables cost more than the Hessian's blocks otherwise
+        self.elem = np.searchsorted(active, flat_nodes).astype(np.int32)  # (E, K)
         self.n = len(active)
         self.gauss = elements.quadrature(d, h, "gauss")
         self.centre = elements.quadrature(d, h, "centre")
@@ -224,12 +225,11 @@ class _Level:
         lookup = np.full(grid.size, -1, dtype=np.int64)
         lookup[active] = np.arange(self.n)
         idx = np.stack(np.unravel_index(active, grid.shape), axis=-1)
-        nbr = np.full((self.n, len(offs)), -1, dtype=np.int64)
+        nbr = np.full((self.n, len(offs)), -1, dtype=np.int32)
         for o, off in enumerate(offs):
             q = idx + off
             ok = np.all((q >= 0) & (q < np.asarray(grid.shape)), axis=1)
             nbr[ok, o] = lookup[np.ravel_multi_index(tuple(q[ok].T), grid.shape)]
-        self.nbr = nbr
         self.centre_off = int(np.flatnonzero(np.all(offs == 0, axis=1))[0])
         code = {tuple(o): i for i, o in enumerate(offs.tolist())}
         self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
@@ -238,19 +238,23 @@ class _Level:
         # mirror: H[p, -o] = H[p + o, o]^T
         self.upper_pairs = [np.flatnonzero(self.pair_off[c] >= self.centre_off) for c in range(K)]
         # flat (node, offset) target of every upper block of every element, per corner c
-        self.upper_flat = [self.elem[:, c][:, None] * len(offs) + self.pair_off[c, up][None, :]
+        self.upper_flat = [(self.elem[:, c][:, None] * len(offs)
+                            + self.pair_off[c, up][None, :]).astype(np.int32)
                            for c, up in enumerate(self.upper_pairs)]
         self.lower = np.arange(self.centre_off)
         self.mirror = len(offs) - 1 - self.lower  # index of -o for each lower offset o
-        rows, cols = np.nonzero(nbr[:, self.lower] >= 0)
-        self.mirror_dst = rows * len(offs) + self.lower[cols]  # flat (node, offset) targets
-        self.mirror_src = nbr[rows, self.lower[cols]] * len(offs) + self.mirror[cols]
+        # per lower offset o: the nodes that have that neighbour, and the flat (node, -o)
+        # block of the neighbour that holds the transpose
+        self.mirror_pairs = []
+        for o, m in zip(self.lower, self.mirror):
+            rows = np.flatnonzero(nbr[:, o] >= 0).astype(np.int32)
+            self.mirror_pairs.append((o, rows, nbr[rows, o] * len(offs) + m))
         self.transpose_dd = np.arange(d * d).reshape(d, d).T.reshape(-1)
         # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
         # its block stays zero, so the stencil array is the BSR data without a copy
-        own = np.broadcast_to(np.arange(self.n)[:, None], nbr.shape)
+        own = np.broadcast_to(np.arange(self.n, dtype=np.int32)[:, None], nbr.shape)
         self.bsr_indices = np.where(nbr >= 0, nbr, own).reshape(-1)
-        self.bsr_indptr = np.arange(self.n + 1) * len(offs)
+        self.bsr_indptr = (np.arange(self.n + 1) * len(offs)).astype(np.int32)
         self.cons = FeatureConstraints(grid, active, xa, yb, radius)
         self.x = grid.to_world(idx)
         # cells inside one feature patch: their F is the patch's affine A_i (see `patch_rigidity`)
@@ -303,9 +307,10 @@ class _Level:
                 grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
                 if hessian:  # so are the (node, offset) targets of one corner's blocks
                     flat[self.upper_flat[c][s:s + chunk]] += h_sum[:, c, self.upper_pairs[c]]
-        if hessian:
+        if hessian:  # one lower offset at a time: no temporary as large as the Hessian
             flat = Hs.reshape(-1, d * d)
-            flat[self.mirror_dst] = flat[self.mirror_src][:, self.transpose_dd]
+            for o, rows, src in self.mirror_pairs:
+                Hs[rows, o] = flat[src][:, self.transpose_dd].reshape(-1, d, d)
         for t in TERMS:
             if t.kind != "node" or weights[t.name] == 0:
                 continue
@@ -439,6 +444,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             reused += 1
             continue
         t0 = time.perf_counter()
+        H = Hs = precond = None  # the old Hessian goes before the new one is assembled
         E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check)
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
