@@ -6,10 +6,9 @@ every feature point and the room the motion needs, with some padding so that the
 signed distance fields have a margin of positive values around the material.
 
 `fit_grid` builds that grid from a resolution (cells along the longest side of the
-box). `estimate_memory` predicts the peak memory of the whole bake on a grid from
-array sizes (the model is spelled out in its docstring; its constants were fitted
-to tracemalloc peaks of `mesh_to_sdf`, `solve_map` and `animate`, and the tests
-check the solver and whole-bake figures at two sizes), and `check_memory` /
+box). `estimate_memory` predicts the peak resident memory of the whole bake on a
+grid (the model is spelled out in its docstring; its constants are fitted to the
+peaks `benchmarks/bench_scale.py` measured), and `check_memory` /
 ``fit_grid(..., max_bytes=...)`` refuse a request that would not fit BEFORE any
 work starts, naming the largest resolution that would.
 """
@@ -163,83 +162,53 @@ def _refusal(grid, resolution, need, limit, fits):
 # ---------------------------------------------------------------------------
 # memory model
 # ---------------------------------------------------------------------------
-# Signed distance stage (mesh_to_sdf): per grid node the unsigned and signed
-# float64 fields, EDT distances and nearest-node indices, labels, masks; plus the
-# chunked exact-distance work (candidate tables of sdf._CHUNK nodes, winding-number pair
-# lists), bounded independently of the grid. Measured with tracemalloc on a
-# 5120-triangle sphere: 64 / 89 / 115 / 145 MB at 41^3 / 57^3 / 73^3 / 105^3 nodes;
-# this model gives 70 / 76 / 86 / 123 MB.
-_SDF_BYTES_PER_NODE = {2: 40, 3: 48}
-_SDF_FIXED = 64 * 2 ** 20
-# Solver (solve_map, default options): fixed + per grid node (per dimension) + per
-# active node (material of A plus its margin: the 3**d-block stencil Hessian, the
-# neighbour tables, gradient and CG vectors over all levels). Fitted to tracemalloc
-# peaks of solve_map on a sphere -> ellipsoid case (tests/core/test_gridfit.py):
-# measured 99 / 141 / 203 / 437 MB at 33^3 / 41^3 / 49^3 / 65^3 nodes, this model
-# (with the measured material fraction) 93 / 141 / 212 / 434 MB. 2D: the same
-# per-node cost, per-active scaled by the stencil size (9 vs 27 blocks of d x d),
-# not measured.
-_SOLVER_BYTES_PER_NODE_PER_DIM = 45
-_SOLVER_BYTES_PER_ACTIVE = {2: 1000, 3: 4600}
-_SOLVER_FIXED = 43_400_000
-# In-between stage (levelset.Inbetween.from_map: trajectories over A's material
-# plus a 4-cell margin, whose Laplacian is factored once with scipy's splu, then the
-# level sets and the template): per node plus a fill-in term c * M_t ** p, M_t the
-# trajectory nodes. p = 4/3 is the fill growth of a sparse 3D factorisation with a
-# good ordering; c fitted to tracemalloc peaks of the whole `animate` (two UV
-# spheres, tests/core/test_pipeline.py case, 5 frames) at resolution 32 / 48 / 64 / 80
-# (45,920 / 117,648 / 240,462 / 428,802 nodes): measured 91 / 346 / 808 / 1,662 MB,
-# this model 95 / 330 / 808 / 1,662 MB. 2D: linear guess, not measured.
-_INBETWEEN_BYTES_PER_NODE = {2: 64, 3: 44}
-_INBETWEEN_FILL = {2: (2000.0, 1.0), 3: (330.0, 4.0 / 3.0)}  # bytes * M_t ** power
-_TRAJECTORY_MARGIN_CELLS = 4.0
-# The two-sided in-betweens solve two maps at once (on two cores) and hold two
-# transports, each with its trajectories' factor. Refitted to the tracemalloc peaks of the
-# same `animate` case (two-sided transport, one surface per frame) at resolution 32 / 48 /
-# 64: measured 137 / 261 / 541 MB, this model 142 / 271 / 539 MB. The two solves do not
-# peak together (1.5 times one solve), and the factors' fill is 0.62 of the one-sided fit.
-_CONCURRENT_SOLVES = 1.5
-_TRANSPORT_FILL = 0.62
+# Peak resident set of a bake (VmHWM of the process running `animate`, plus its helper
+# process's with processes=2), per process: an interpreter with numpy, scipy and
+# scikit-image; per grid node the keyframes' distance grids, their spline coefficients,
+# the maps, the in-between fields and the level-set transients; per active solver node
+# the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables, and the
+# trajectories' multigrid. Fitted by least squares on the relative error
+# (benchmarks/fit_memory.py) to the peaks benchmarks/bench_scale.py measured on its
+# seven cases at 64 and 128 cells (and three at 192); tables in benchmarks/README.md.
+# 2D: not measured; per active node scaled by the stencil (9 blocks of 2 x 2 against 27
+# of 3 x 3).
+_COPIES = 2
+_PROCESS_BYTES = 188 * 2 ** 20
+_NODE_BYTES = {2: 253.0, 3: 253.0}
+_ACTIVE_BYTES = {2: 5950.0 * 36 / 243, 3: 5950.0}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
                     **renamed):
-    """Estimated peak bytes of a bake on ``grid``, per stage, from array sizes.
+    """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
-    Model (N = grid nodes, d = dimension, M = active solver nodes):
-
-    - ``keyframes``: the distance grids kept for the whole bake, ``n_keyframes * N * 8``;
-    - ``sdf``: transient arrays of one `mesh_to_sdf` call, ``N * c_sdf(d) + c_chunk``;
-    - ``solver``: one map, ``N * d * c_node + M * c_active(d)``, M =
-      ``material_fraction * N`` plus the map's margin of ``margin_cells`` around the
-      material (surface ~ N^((d-1)/d));
-    - ``inbetween``: ``N * c_node(d) + 0.62 c_fill * M_t ** p``, M_t the trajectory
-      nodes of one keyframe (material plus a 4-cell margin), p = 4/3 in 3D (sparse LU
-      fill-in); one factor per keyframe.
-
-    The constants (module source) were fitted to tracemalloc peaks; the solver part
-    is checked to stay within 30 % of `solve_map`'s measured peak by the tests.
-
-    Stages run one after another while the keyframe grids stay, so
-    ``peak = keyframes + max(sdf, 1.5 solver, inbetween)`` (two maps solved at once).
+    Model (N grid nodes, M active solver nodes):
+    ``peak = 2 (c_process + c_node N + c_active M)``, with M = the material
+    (``material_fraction * N``) plus the map's margin of ``margin_cells`` around it
+    (a compact blob's surface ~ N^((d-1)/d)). Two of everything: the Blender bake runs
+    in a worker and its helper process, each solving one of a segment's two maps and
+    holding a copy of its in-betweens (`chain.animate_chain` with ``processes=2``); in
+    one process the two maps are solved in two threads at once. The constants (module
+    source) are fitted to measured peaks; benchmarks/bench_scale.py prints the estimate
+    beside the measured peak.
 
     Parameters
     ----------
     grid : Grid
     material_fraction : float, optional
-        Fraction of the grid inside keyframe A (0..1), e.g. ``np.mean(phi_a < 0)``;
-        default 0.25 (a fitted grid around one compact object; `fit_grid` guesses
-        it from the keyframes' box).
+        Fraction of the grid inside the largest keyframe (0..1), e.g.
+        ``np.mean(phi < 0)``; default 0.25 (`fit_grid` guesses it from the box).
     n_keyframes : int
-        Distance grids held at once.
+        Distance grids held at once (the per-node part grows by 8 bytes per grid).
     margin_cells : float
         Width of the map's margin around the material the solver also works on.
 
     Returns
     -------
     dict
-        ``nodes``, ``active_nodes``, ``keyframes``, ``sdf``, ``solver``,
-        ``inbetween`` and ``peak``, in bytes (ints).
+        ``nodes``, ``active_nodes``, ``process`` (the fixed part), ``grid_nodes`` and
+        ``active`` (the parts per node and per active node, both copies together) and
+        ``peak``, in bytes (ints).
     """
     if not isinstance(grid, Grid):
         raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
@@ -251,22 +220,18 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
     if renamed:
         raise TypeError(f"estimate_memory got unexpected options {sorted(renamed)}.")
     N, d = grid.size, grid.dim
+    P = _COPIES
     # margin nodes around a compact blob holding f * N nodes: its surface ~ (f N)^((d-1)/d)
     surface = (f * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
     M = min(N, f * N + 2 * margin_cells * surface)
-    M_t = min(N, f * N + 2 * _TRAJECTORY_MARGIN_CELLS * surface)
-    fill, power = _INBETWEEN_FILL[d]
     out = {
         "nodes": int(N),
         "active_nodes": int(M),
-        "keyframes": int(n_keyframes * N * 8),
-        "sdf": int(N * _SDF_BYTES_PER_NODE[d] + _SDF_FIXED),
-        "solver": int(N * d * _SOLVER_BYTES_PER_NODE_PER_DIM + M * _SOLVER_BYTES_PER_ACTIVE[d]
-                      + _SOLVER_FIXED),
-        "inbetween": int(N * _INBETWEEN_BYTES_PER_NODE[d] + _TRANSPORT_FILL * fill * M_t ** power),
+        "process": int(P * _PROCESS_BYTES),
+        "grid_nodes": int(P * N * (_NODE_BYTES[d] + 8 * max(int(n_keyframes) - 2, 0))),
+        "active": int(P * M * _ACTIVE_BYTES[d]),
     }
-    out["peak"] = out["keyframes"] + int(max(out["sdf"], _CONCURRENT_SOLVES * out["solver"],
-                                             out["inbetween"]))
+    out["peak"] = out["process"] + out["grid_nodes"] + out["active"]
     return out
 
 

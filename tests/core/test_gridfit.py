@@ -58,17 +58,15 @@ def test_estimate_grows_with_the_grid_and_adds_up():
     small = estimate_memory(fit_grid(pts, 16))
     big = estimate_memory(fit_grid(pts, 32))
     for est in (small, big):
-        # two maps are solved at once: the solver stage counts 1.5 times (see the model)
-        assert est["peak"] == est["keyframes"] + int(max(est["sdf"], 1.5 * est["solver"],
-                                                         est["inbetween"]))
+        assert est["peak"] == est["process"] + est["grid_nodes"] + est["active"]
+        assert 0 < est["active_nodes"] < est["nodes"]
     ratio = big["nodes"] / small["nodes"]
-    assert big["peak"] > small["peak"]
-    for stage in ("keyframes", "solver"):  # array sizes: linear in the nodes at most
-        assert 0.5 * ratio < big[stage] / small[stage] <= ratio * 1.01
-    # the in-between stage's sparse factorisation grows faster than the grid
-    assert ratio < big["inbetween"] / small["inbetween"] <= ratio ** (5 / 3) * 1.01
+    assert big["peak"] > small["peak"] and big["process"] == small["process"]
+    for part in ("grid_nodes", "active"):  # linear in the nodes at most: no factorisation
+        assert 0.5 * ratio < big[part] / small[part] <= ratio * 1.01
     more = estimate_memory(fit_grid(pts, 32), material_fraction=0.8)
-    assert more["solver"] > big["solver"] and more["active_nodes"] > big["active_nodes"]
+    assert more["active"] > big["active"] and more["active_nodes"] > big["active_nodes"]
+    assert estimate_memory(fit_grid(pts, 32), n_keyframes=4)["peak"] > big["peak"]
     with pytest.raises(ValueError, match="material_fraction"):
         estimate_memory(fit_grid(pts, 16), material_fraction=1.5)
 
@@ -116,86 +114,50 @@ def test_check_memory_on_a_given_grid():
     assert info.value.max_resolution < 200
 
 
-_MEASURE = r"""
-import json, sys, tracemalloc
-import numpy as np
-from keyframe_implicit.core import estimate_memory, fit_grid, solve_map
-
-out = []
-for res in (24, 40):
-    c, R = np.array([0.5, 0.5, 0.5]), 0.3
-    ax = np.array([1.3, 1 / np.sqrt(1.3), 1 / np.sqrt(1.3)]) * R
-    g = fit_grid([np.array([c - 1.3 * R, c + 1.3 * R])], res, padding_cells=4)
-    P = g.points()
-    phi_a = np.linalg.norm(P - c, axis=-1) - R                    # sphere
-    k0 = np.linalg.norm((P - c) / ax, axis=-1)
-    k1 = np.linalg.norm((P - c) / ax ** 2, axis=-1)
-    phi_b = k0 * (k0 - 1) / np.maximum(k1, 1e-12)                 # equal-volume ellipsoid
-    dirs = np.vstack([np.eye(3), -np.eye(3)])
-    tracemalloc.start()
-    solve_map(phi_a, phi_b, g, c + R * dirs, c + ax * dirs)
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    est = estimate_memory(g, material_fraction=float(np.mean(phi_a < 0)))
-    out.append(dict(nodes=g.size, peak=peak, solver=est["solver"]))
-print(json.dumps(out))
-"""
-
-
-def test_solver_estimate_within_30_percent_of_measured_peak_at_two_sizes():
-    """The memory model predicts solve_map's peak (tracemalloc, fresh process) at 33^3 and 49^3."""
-    import json
-    import pathlib
-    import subprocess
-    import sys
-
-    root = pathlib.Path(__file__).resolve().parents[2]
-    run = subprocess.run([sys.executable, "-c", _MEASURE], cwd=root, capture_output=True, text=True,
-                         timeout=600)
-    assert run.returncode == 0, run.stderr
-    rows = json.loads(run.stdout.strip().splitlines()[-1])
-    assert [r["nodes"] for r in rows] == [33 ** 3, 49 ** 3]
-    for r in rows:
-        assert abs(r["solver"] - r["peak"]) <= 0.3 * r["peak"], r
-    assert rows[1]["peak"] > 1.5 * rows[0]["peak"]  # the two sizes really differ
-
-
 _MEASURE_BAKE = r"""
-import json, sys, tracemalloc
+import json, sys
 import numpy as np
 sys.path.insert(0, "tests/core")
 from test_pipeline import _sphere_features, rotation, uv_sphere
 from keyframe_implicit.core import Keyframe, animate, estimate_memory, mesh_to_sdf
 
-va, fa = uv_sphere(np.zeros(3), 0.3)
-off, R = np.array([0.4, 0.1, -0.2]), rotation([0.3, 1.0, 0.2], np.deg2rad(50))
-vb = va @ R.T + off
-pa, pb = _sphere_features(np.zeros(3), 0.3, R, off)
-out = []
-for res in (32, 48):
-    tracemalloc.start()
-    anim = animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 5)], [(pa, pb)], resolution=res)
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
+def main():
+    res = int(sys.argv[1])
+    va, fa = uv_sphere(np.zeros(3), 0.3)
+    off, R = np.array([0.4, 0.1, -0.2]), rotation([0.3, 1.0, 0.2], np.deg2rad(50))
+    vb = va @ R.T + off
+    pa, pb = _sphere_features(np.zeros(3), 0.3, R, off)
+    anim = animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 9)], [(pa, pb)], resolution=res,
+                   processes=2)
+    with open("/proc/self/status") as fh:
+        own = next(int(l.split()[1]) for l in fh if l.startswith("VmHWM")) * 1024
     frac = float(np.mean(mesh_to_sdf(va, fa, anim.grid) < 0))
-    out.append(dict(nodes=anim.grid.size, peak=peak,
-                    est=estimate_memory(anim.grid, material_fraction=frac)["peak"]))
-print(json.dumps(out))
+    print(json.dumps(dict(nodes=anim.grid.size,
+                          peak=own + anim.stats["helper_peak_rss_kib"] * 1024,
+                          est=estimate_memory(anim.grid, material_fraction=frac)["peak"])))
+
+if __name__ == "__main__":
+    main()
 """
 
 
-def test_whole_bake_estimate_within_30_percent_of_measured_animate_peak():
-    """Two keyframes through `animate` (distance grids, map, in-betweens, template) at two sizes."""
+def test_whole_bake_estimate_within_15_percent_of_the_measured_peak_rss():
+    """A turning sphere through `animate` with its helper process, in a fresh interpreter:
+    the peak resident sets of both processes against the model, at two sizes (the
+    benchmark's cases: benchmarks/README.md, "Memory model"). Below about 50 cells the
+    interpreters dominate and the model is high by up to a third."""
     import json
     import pathlib
     import subprocess
     import sys
 
     root = pathlib.Path(__file__).resolve().parents[2]
-    run = subprocess.run([sys.executable, "-c", _MEASURE_BAKE], cwd=root, capture_output=True,
-                         text=True, timeout=600)
-    assert run.returncode == 0, run.stderr
-    rows = json.loads(run.stdout.strip().splitlines()[-1])
+    rows = []
+    for res in (56, 72):
+        run = subprocess.run([sys.executable, "-c", _MEASURE_BAKE, str(res)], cwd=root,
+                             capture_output=True, text=True, timeout=900)
+        assert run.returncode == 0, run.stderr
+        rows.append(json.loads(run.stdout.strip().splitlines()[-1]))
     for r in rows:
-        assert abs(r["est"] - r["peak"]) <= 0.3 * r["peak"], r
-    assert rows[1]["nodes"] > 1.5 * rows[0]["nodes"]
+        assert abs(r["est"] - r["peak"]) <= 0.15 * r["peak"], r
+    assert rows[1]["nodes"] > 1.8 * rows[0]["nodes"]
