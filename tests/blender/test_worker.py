@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.blender import bake, scene_io
-from keyframe_implicit import worker
 from keyframe_implicit.core import pipeline
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
@@ -116,8 +115,10 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     job = _job(scene, kfi)
     job.run()
     assert job.state == bake.DONE, job.error_message()
-    mine = pipeline.animate(**job._arguments(), processes=worker._PROCESSES)
-    np.testing.assert_array_equal(job.result.vertices, mine.vertices)
+    # in this process without a helper (Blender's own process starts none): the worker's
+    # helper solves the map B -> A and half the frames, equal to the trajectories' CG tolerance
+    mine = pipeline.animate(**job._arguments())
+    np.testing.assert_allclose(job.result.vertices, mine.vertices, rtol=0, atol=1e-5)
     np.testing.assert_array_equal(job.result.faces, mine.faces)
     assert type(job.result) is pipeline.Animation  # mapped onto this process's classes
     out = job.apply(scene)
