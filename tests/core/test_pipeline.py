@@ -114,12 +114,12 @@ def test_too_large_a_grid_is_refused_before_any_work():
     stages = []
     with pytest.raises(MemoryLimitError, match=r"lower the resolution to \d+") as err:
         animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=400,
-                max_bytes=200 * 2**20, progress=lambda frac, msg: stages.append(msg))
+                max_bytes=450 * 2**20, progress=lambda frac, msg: stages.append(msg))
     assert not any("Distance grid" in m for m in stages)  # refused before the first distance grid
     best = err.value.max_resolution
     assert 4 <= best < 400
     animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=best,
-            max_bytes=200 * 2**20)  # the resolution the message names does fit
+            max_bytes=450 * 2**20)  # the resolution the message names does fit
 
 
 def _cube(half=0.5):
