@@ -9,12 +9,11 @@ must still be the one running when the bake stops: no later stage reported progr
 import threading
 import time
 
-import numpy as np
 import pytest
 
-from keyframe_implicit.core import Cancelled, Keyframe, animate
+from keyframe_implicit.core import Cancelled, animate
 
-from test_pipeline import _sphere_features, rotation, uv_sphere
+from test_pipeline import turning_sphere
 
 LATENCY = 1.0  # seconds, issue 14's bound
 
@@ -24,12 +23,7 @@ def _bake_and_cancel(stage, later, delay):
 
     Returns the seconds from the flip to `Cancelled` and the messages reported after it.
     """
-    r = 0.3
-    rot = rotation((1.0, 2.0, 0.5), 0.8)
-    va, fa = uv_sphere(np.zeros(3), r, n=24)
-    vb = va @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
-    pa, pb = _sphere_features(np.zeros(3), r)
-    pb = pa @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
+    keyframes, features = turning_sphere()
     seen, flipped = threading.Event(), threading.Event()
     after, outcome = [], {}
 
@@ -41,7 +35,7 @@ def _bake_and_cancel(stage, later, delay):
 
     def bake():
         try:
-            animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 13)], [(pa, pb)], resolution=36,
+            animate(keyframes, features, resolution=36,
                     progress=progress, cancel=flipped.is_set, template="grid")
             outcome["finished"] = True
         except Cancelled:

@@ -10,10 +10,10 @@ import time
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Cancelled, Keyframe, animate
+from keyframe_implicit.core import Cancelled, animate
 from keyframe_implicit.core.parallel import Helper, HelperError
 
-from test_pipeline import _sphere_features, rotation, uv_sphere
+from test_pipeline import turning_sphere
 
 
 def _alive(pid):
@@ -69,20 +69,10 @@ def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
     assert not _alive(pid), "the helper outlived its killed parent"
 
 
-def _turning_sphere():
-    r = 0.3
-    rot = rotation((1.0, 2.0, 0.5), 0.8)
-    va, fa = uv_sphere(np.zeros(3), r, n=16)
-    vb = va @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
-    pa, pb = _sphere_features(np.zeros(3), r)
-    pb = pa @ np.diag([1.2, 1.0, 1 / 1.2]) @ rot.T + [0.1, 0.0, 0.0]
-    return [Keyframe(va, fa, 1), Keyframe(vb, fa, 11)], [(pa, pb)]
-
-
 def test_a_bake_with_a_helper_process_is_the_bake_without_one():
     """The helper solves the map B -> A and the later half of the frames: the same maps
     and frames as one process, up to the CG tolerance of the trajectories."""
-    kfs, feats = _turning_sphere()
+    kfs, feats = turning_sphere(n=16, last=11)
     one = animate(kfs, feats, resolution=20, processes=1)
     two = animate(kfs, feats, resolution=20, processes=2)
     h = one.grid.spacing
@@ -99,7 +89,7 @@ def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
     import multiprocessing
     import threading
 
-    kfs, feats = _turning_sphere()
+    kfs, feats = turning_sphere(n=16, last=11)
     seen, flipped, outcome = threading.Event(), threading.Event(), {}
 
     def progress(fraction, message):

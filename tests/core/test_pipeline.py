@@ -40,6 +40,18 @@ def rotation(axis, angle):
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
+def turning_sphere(n=24, last=13):
+    """A sphere turning about (1, 2, 0.5) while it squashes and moves: keyframes on frames
+    1 and ``last``, six feature pairs."""
+    r = 0.3
+    rot = rotation((1.0, 2.0, 0.5), 0.8)
+    squash = np.diag([1.2, 1.0, 1 / 1.2])
+    va, fa = uv_sphere(np.zeros(3), r, n=n)
+    pa, _ = _sphere_features(np.zeros(3), r)
+    vb, pb = (x @ squash @ rot.T + [0.1, 0.0, 0.0] for x in (va, pa))
+    return [Keyframe(va, fa, 1), Keyframe(vb, fa, last)], [(pa, pb)]
+
+
 def test_translated_sphere_every_frame_on_its_surface_and_keyframes_matched():
     r = 0.3
     va, fa = uv_sphere(np.zeros(3), r)
