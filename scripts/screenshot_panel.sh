@@ -18,11 +18,6 @@ OUT="$(mkdir -p "${1:-$ROOT/docs/images}" && cd "${1:-$ROOT/docs/images}" && pwd
 [ "$(id -u)" = 0 ] || { echo "[screenshot_panel] needs root (chroot)" >&2; exit 2; }
 
 source "$ROOT/scripts/trixie_chroot.sh"
-ensure_chroot $WINDOW_PACKAGES
-make_run_dir
-install_zip "$ROOT"
-cp "$ROOT/assets/merge.blend" "$run/"
-mkdir -p "$run/out"
-windowed_blender "$ROOT" screenshot_panel.py "$inside/merge.blend" "$inside/out"
+windowed_merge "$ROOT" screenshot_panel.py
 cp "$run"/out/*.png "$OUT/"
 ls -l "$run"/out/*.png >&2

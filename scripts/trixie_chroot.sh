@@ -82,6 +82,20 @@ WINDOW_PACKAGES="blender python3-numpy libegl1 libegl-mesa0 libgl1-mesa-dri libg
 # display, Mesa's llvmpipe for OpenGL. The script and scripts/blender_window.py are copied into
 # $run; the helper is found through PYTHONPATH, which Blender reads with --python-use-system-env.
 # Further arguments go to the script.
+# A windowed Blender on assets/merge.blend, run as a user runs it: the chroot with the window
+# packages, a fresh run folder with the extension zip installed, merge.blend and an empty out/;
+# then windowed_blender with SCRIPT and the scene, out/ and ARGS. Its pictures are in "$run/out".
+windowed_merge() {
+  local root="$1" script="$2"
+  shift 2
+  ensure_chroot $WINDOW_PACKAGES
+  make_run_dir
+  install_zip "$root"
+  cp "$root/assets/merge.blend" "$run/"
+  mkdir -p "$run/out"
+  windowed_blender "$root" "$script" "$inside/merge.blend" "$inside/out" "$@"
+}
+
 windowed_blender() {
   local root="$1" script="$2"
   shift 2

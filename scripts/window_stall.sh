@@ -22,11 +22,6 @@ OUT="$(mkdir -p "${OUT:=$(mktemp -d /tmp/window_stall.XXXXXX)}" && cd "$OUT" && 
 [ "$(id -u)" = 0 ] || { echo "[window_stall] needs root (chroot)" >&2; exit 2; }
 
 source "$ROOT/scripts/trixie_chroot.sh"
-ensure_chroot $WINDOW_PACKAGES
-make_run_dir
-install_zip "$ROOT"
-cp "$ROOT/assets/merge.blend" "$run/"
-mkdir -p "$run/out"
-windowed_blender "$ROOT" window_stall.py "$inside/merge.blend" "$inside/out" "$@"
+windowed_merge "$ROOT" window_stall.py "$@"
 cp "$run"/out/*.png "$OUT/"
 echo "[window_stall] screenshots in $OUT" >&2
