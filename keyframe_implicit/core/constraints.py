@@ -76,7 +76,7 @@ class FeatureConstraints:
         N = len(xa)
         lookup = np.full(grid.size, -1, dtype=np.int64)
         lookup[active] = np.arange(len(active))
-        self.x = grid.to_world(np.stack(np.unravel_index(active, grid.shape), axis=-1))
+        self.x = grid.node_points(active)
         flat, w = cell_weights(grid, xa) if N else (np.zeros((0, 2 ** d), int), np.zeros((0, 2 ** d)))
         cell_nodes = lookup[flat]
         if np.any(cell_nodes < 0):

@@ -99,6 +99,10 @@ class Grid:
         """World position of every node, array of shape ``shape + (d,)``."""
         return np.stack(np.meshgrid(*self.axes(), indexing="ij"), axis=-1)
 
+    def node_points(self, nodes) -> np.ndarray:
+        """World position of the nodes with the given flat indices, array (len(nodes), d)."""
+        return self.to_world(np.stack(np.unravel_index(nodes, self.shape), axis=-1))
+
     def to_index(self, points) -> np.ndarray:
         """Continuous (fractional) node index of world ``points`` (..., d)."""
         return (np.asarray(points, dtype=float) - self.origin) / self.spacing

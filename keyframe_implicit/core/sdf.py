@@ -630,7 +630,7 @@ def _nearest_sample_distance(out, nodes, grid, tree, tri, sample_tri, keep_min=F
     """out[nodes] = distance to the triangle of the nearest sample (an upper bound)."""
     for s in range(0, len(nodes), 8 * _CHUNK):
         o = nodes[s:s + 8 * _CHUNK]
-        x = grid.to_world(np.stack(np.unravel_index(o, grid.shape), axis=1))
+        x = grid.node_points(o)
         _, si = tree.query(x, workers=_WORKERS)
         d = tri.distance(x, sample_tri[si])
         out[o] = np.minimum(out[o], d) if keep_min else d
@@ -757,7 +757,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
     sub = rep.sub(0.1, 0.45)
     for s in range(0, len(cand), _CHUNK):
         c = cand[s:s + _CHUNK]
-        pts_c = grid.to_world(np.stack(np.unravel_index(c, grid.shape), axis=1))
+        pts_c = grid.node_points(c)
         kp, dist, near_t = _shell_distance(pts_c, tri, tree, sample_tri, tri_delta, shell_r)
         keep[s:s + _CHUNK] = kp
         dist_shell[s:s + _CHUNK][kp] = dist
@@ -766,7 +766,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
     cand, dist_shell, tri_shell = cand[keep], dist_shell[keep], tri_shell[keep]
     inshell = dist_shell <= shell_r
     cand, dist_shell, tri_shell = cand[inshell], dist_shell[inshell], tri_shell[inshell]
-    pts = grid.to_world(np.stack(np.unravel_index(cand, grid.shape), axis=1))
+    pts = grid.node_points(cand)
     st["shell_nodes"] = len(cand)
     t2 = time.perf_counter()
     st["seconds_exact"] = t2 - t1
@@ -795,7 +795,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
         for s in range(0, len(off), 8 * _CHUNK):
             o = off[s:s + 8 * _CHUNK]
             c = cp[np.searchsorted(need, nb[o])]
-            x = grid.to_world(np.stack(np.unravel_index(o, grid.shape), axis=1))
+            x = grid.node_points(o)
             unsigned[o] = np.sqrt(np.sum((x - c) ** 2, axis=1))
         del inds, nb
         if outside_parts:
@@ -859,7 +859,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
             else:
                 evaluate = in_mixed
             ev = np.flatnonzero(evaluate)
-            w = wt.sign(grid.to_world(np.stack(np.unravel_index(ev, grid.shape), axis=1)))
+            w = wt.sign(grid.node_points(ev))
             inside[ev] = np.abs(w) >= 0.5
             n_wind += len(ev)
             rest = np.flatnonzero(in_mixed & ~evaluate)

@@ -246,7 +246,7 @@ class Trajectories:
         self._bodies = {}
         for lab in labels:
             sel = np.flatnonzero(lab_flat == lab)
-            xb, yb, R = rigid_fit(self._points(sel), self._y[sel])
+            xb, yb, R = rigid_fit(self.grid.node_points(sel), self._y[sel])
             self._bodies[int(lab)] = (xb, yb, R, rotation_log(R[None])[0])
         self.stats["components"] = len(labels)
 
@@ -266,11 +266,6 @@ class Trajectories:
     def region_nodes(self):
         """Flat bool mask of the region's nodes: the material and its margin."""
         return self._region
-
-    def _points(self, nodes):
-        """Positions at time 0 (the grid points) of the given flat node indices, (len, d)."""
-        idx = np.stack(np.unravel_index(nodes, self.grid.shape), axis=-1)
-        return self.grid.to_world(idx.astype(float))
 
     def _local(self, nodes):
         """Index of each node among the active nodes (global method), -1 where not active."""
@@ -303,7 +298,7 @@ class Trajectories:
                 continue
             sel = nodes[m]
             Rs = rotation_exp((s * rv)[None], self.dim)[0]
-            rel = self._points(sel) - xb
+            rel = self.grid.node_points(sel) - xb
             resid = self._y[sel] - yb - rel @ R.T
             out[m] = xb + s * (yb - xb) + rel @ Rs.T + s * resid
         return out
@@ -404,7 +399,7 @@ class Trajectories:
         mat_local = self.material.reshape(-1)[nodes]
         self._comp = comp
         self._ncomp = ncomp
-        xa = self._points(nodes)
+        xa = self.grid.node_points(nodes)
         ya = self._y[nodes]
         self._xbar = np.zeros((ncomp, d))
         self._ybar = np.zeros((ncomp, d))
@@ -501,12 +496,12 @@ class Trajectories:
         s = self._check_s(s)
         nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
         if s == 0.0:
-            return self._points(nodes)
+            return self.grid.node_points(nodes)
         if s == 1.0:
             return self._y[nodes].copy()
         if self.method == "local":
             xb, yb, R, rv = (a[nodes] for a in self._ext)
-            return self._formula(s, self._points(nodes), self._y[nodes], xb, yb,
+            return self._formula(s, self.grid.node_points(nodes), self._y[nodes], xb, yb,
                                  self._local_R[nodes], self._local_rv[nodes])
         out = np.empty((nodes.size, self.dim))
         loc = self._local(nodes)
@@ -536,5 +531,5 @@ class Trajectories:
             return p.copy()
         flat, w = cell_weights(self.grid, p)
         nodes, inv = np.unique(flat, return_inverse=True)
-        disp = self.node_positions(s, nodes) - self._points(nodes)
+        disp = self.node_positions(s, nodes) - self.grid.node_points(nodes)
         return p + np.einsum("pk,pkd->pd", w, disp[inv.reshape(flat.shape)])
