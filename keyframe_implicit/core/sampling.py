@@ -29,18 +29,31 @@ def cell_weights(grid: Grid, points):
     Returns
     -------
     flat_index : ndarray of int, shape (P, 2**d)
-        Flat (C-order) node index of each corner of the point's cell.
+        Flat (C-order) node index of each corner of the point's cell, corners in
+        ``itertools.product((0, 1), repeat=d)`` order.
     weights : ndarray, shape (P, 2**d)
         Multilinear weights, non-negative, each row summing to 1.
     """
     idx, frac = _locate(grid, points)
-    corners = np.array(list(itertools.product((0, 1), repeat=grid.dim)))  # (2**d, d)
-    node = idx[:, None, :] + corners[None, :, :]
-    flat = np.ravel_multi_index(tuple(node[..., a] for a in range(grid.dim)), grid.shape)
-    w = np.ones(flat.shape)
-    for a in range(grid.dim):
-        w *= np.where(corners[None, :, a] == 1, frac[:, None, a], 1.0 - frac[:, None, a])
-    return flat, w
+    return _corner_nodes(grid, idx), _corner_products(1.0 - frac, frac)
+
+
+def _corner_nodes(grid, idx):
+    """Flat node index (P, 2**d) of every corner of the cells whose lowest corner is ``idx``."""
+    strides = np.cumprod((1,) + grid.shape[:0:-1])[::-1]  # C order, in nodes
+    corners = np.array(list(itertools.product((0, 1), repeat=grid.dim)))
+    return (idx @ strides)[:, None] + (corners @ strides)[None, :]
+
+
+def _corner_products(lo, hi):
+    """Per point, the product over the axes of ``lo`` or ``hi`` (P, d) picked by each corner
+    bit: (P, 2**d), corners in ``itertools.product((0, 1), repeat=d)`` order (first axis
+    slowest), built as an outer product one axis at a time."""
+    out = np.ones((lo.shape[0], 1))
+    for a in range(lo.shape[1]):
+        out = (out[:, :, None] * np.stack([lo[:, a], hi[:, a]], axis=1)[:, None, :]).reshape(
+            lo.shape[0], -1)
+    return out
 
 
 def _locate(grid: Grid, points):
@@ -93,16 +106,9 @@ def _sample(field, grid, points, outside, gradient):
     flat_field = field.reshape((grid.size,) + extra)
     p = pts.reshape(-1, grid.dim)
     idx, frac = _locate(grid, p)
-    corners = np.array(list(itertools.product((0, 1), repeat=grid.dim)))
-    node = idx[:, None, :] + corners[None, :, :]
-    flat = np.ravel_multi_index(tuple(node[..., a] for a in range(grid.dim)), grid.shape)
-    vals = flat_field[flat]  # (P, 2**d, *extra)
-    # per-axis linear factors and their derivatives
-    f1 = frac[:, None, :]
-    fac = np.where(corners[None] == 1, f1, 1.0 - f1)  # (P, 2**d, d)
-    w = np.prod(fac, axis=-1)
-    wshape = w.shape + (1,) * len(extra)
-    value = np.sum(vals * w.reshape(wshape), axis=1)
+    vals = flat_field[_corner_nodes(grid, idx)]  # (P, 2**d, *extra)
+    w = _corner_products(1.0 - frac, frac)
+    value = np.einsum("pk,pk...->p...", w, vals)
 
     if outside == "distance":
         if extra:
@@ -120,10 +126,11 @@ def _sample(field, grid, points, outside, gradient):
     if extra:
         raise ValueError("sample_with_gradient is for scalar fields only.")
     grad = np.empty((p.shape[0], grid.dim))
-    for a in range(grid.dim):
-        dfac = fac.copy()
-        dfac[:, :, a] = np.where(corners[None, :, a] == 1, 1.0, -1.0)
-        grad[:, a] = np.sum(vals * np.prod(dfac, axis=-1), axis=1) / grid.spacing
+    lo, hi = 1.0 - frac, frac.copy()
+    for a in range(grid.dim):  # d/du_a of the multilinear weights: the factor of axis a is -1 / +1
+        lo_a, hi_a = lo.copy(), hi.copy()
+        lo_a[:, a], hi_a[:, a] = -1.0, 1.0
+        grad[:, a] = np.einsum("pk,pk->p", _corner_products(lo_a, hi_a), vals) / grid.spacing
     if outside == "distance":
         # Along a clamped axis the interpolant is flat and the distance term supplies
         # the slope. Decide "clamped" from the index (not from dist > 0, which rounding
