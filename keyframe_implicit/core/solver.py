@@ -415,21 +415,12 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         if slope >= 0:
             break
         t0 = time.perf_counter()
-        alpha, accepted = 1.0, False
-        while alpha > 1e-4:
-            rep.check()
-            y_new = y + alpha * dy
-            E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
-                                                        check=rep.check)
-            if E_new <= E + 1e-4 * alpha * slope:
-                dets_new = level.det_stats(y_new, chunk)
-                if _det_floor(dets_new, opts["min_det"]) >= floor:
-                    accepted = True
-                    break
-            alpha *= 0.5
+        step = _line_search(level, y, dy, E, slope, floor, weights, chunk, opts["min_det"],
+                            rep.check)
         timing["line search"] += time.perf_counter() - t0
-        if not accepted:
+        if step is None:
             break
+        alpha, y_new, E_new, terms_new, g_new, dets_new = step
         rel = (E - E_new) / max(E, 1e-300)
         y, dets, terms = y_new, dets_new, terms_new
         floor = _det_floor(dets, opts["min_det"])
@@ -449,6 +440,28 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms
+
+
+def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check):
+    """Backtracking from the full step: the first of 1, 1/2, 1/4, ... (down to 1e-4) that
+    keeps det F of the material at or above ``floor`` (`_det_floor`) and lowers the
+    energy by the Armijo fraction 1e-4 of ``slope``. The det F test is tried first: it
+    costs a few per cent of an energy evaluation and refuses most steps near folding.
+
+    Returns (alpha, y, energy, terms, gradient, det stats) at the accepted step, or None.
+    """
+    alpha = 1.0
+    while alpha > 1e-4:
+        check()
+        y_new = y + alpha * dy
+        dets_new = level.det_stats(y_new, chunk)
+        if _det_floor(dets_new, min_det) >= floor:
+            E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
+                                                        check=check)
+            if E_new <= E + 1e-4 * alpha * slope:
+                return alpha, y_new, E_new, terms_new, g_new, dets_new
+        alpha *= 0.5
+    return None
 
 
 def _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius, patch_rigidity,
