@@ -166,14 +166,14 @@ def rigidity_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     hess = None
     if hessian:
         Kq = (G.swapaxes(1, 2) @ G).reshape(Q, nK * nK)  # G^T G per Gauss point
-        S = (w[:, :, None, None] * FFt).reshape(E, Q, d * d)
-        # sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
+        S = ((4.0 * w)[:, :, None, None] * FFt).reshape(E, Q, d * d)
+        # 4 sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
         hess = (Kq.T[None] @ S).reshape(E, nK, nK, d, d)
-        # sum_q w B[j', c] B[j, c']: Gram matrix over q of V[(c, j')] = sqrt(w) B[j', c]
-        V = (np.sqrt(w)[:, :, None, None] * B).transpose(0, 3, 2, 1).reshape(E, nK * d, Q)
-        t2 = (V @ V.transpose(0, 2, 1)).reshape(E, nK, d, nK, d)  # (e, c, j', c', j)
-        hess += t2.transpose(0, 1, 3, 4, 2)
-        hess *= 4.0
+        # 4 sum_q w B[j', c] B[j, c']: Gram matrix over q of V[q, (j, c)] = 2 sqrt(w) B[j, c]
+        # (B's own layout, no copy), t2[e, j, c', j', c] = 4 sum_q w B[j, c'] B[j', c]
+        V = ((2.0 * np.sqrt(w))[:, :, None, None] * B).reshape(E, Q, d * nK)
+        t2 = (V.transpose(0, 2, 1) @ V).reshape(E, d, nK, d, nK)
+        hess += t2.transpose(0, 4, 2, 1, 3)
     return TermValue(energy, grad, hess)
 
 
