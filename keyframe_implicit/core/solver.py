@@ -86,7 +86,7 @@ DEFAULTS = dict(
     cg_tolerance=3e-2,
     cg_max_iterations=300,
     damping=1e-6,
-    chunk_elements=2000,
+    chunk_elements=512,
     extension_passes=8,
     initial=None,
     reuse_hessian=True,
@@ -619,7 +619,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         the module docstring); ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
         ``cg_tolerance`` (3e-2), ``cg_max_iterations`` (300), ``damping``
-        (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
+        (1e-6), ``chunk_elements`` (512, memory vs. speed of assembly),
         ``extension_passes`` (8), ``reuse_hessian`` (True: after a full
         accepted step, the next step reuses the Gauss-Newton matrix with the
         new exact gradient), ``initial`` (an array grid.shape + (d,) to
