@@ -308,15 +308,16 @@ class _Level:
         Block [c, c'] of element e goes to stencil block (el[e, c], pair_off[c, c']); up to 2**d
         blocks of a chunk share a target. One sparse product (a column per block, a row per
         stencil block) sums them in C, into the slice of ``Hs`` between the chunk's first and
-        last target. All K*K blocks are added, the lower ones too: the element blocks are
-        symmetric ([c', c] = [c, c']^T), so this is the mirror of the upper ones without a
-        pass over the whole Hessian.
+        last target (about one grid slab of nodes: the temporary is a small part of ``Hs``).
+        All K*K blocks are added, the lower ones too: the element blocks are symmetric
+        ([c', c] = [c, c']^T), so this is the mirror of the upper ones without a pass over the
+        whole Hessian.
         """
         dd = self.d * self.d
         rows = (el[:, :, None] * np.int32(len(self.offsets)) + self.pair_off).reshape(-1)
         lo, hi = rows.min(), rows.max() + 1
-        cols = np.arange(len(rows) + 1, dtype=np.int32)
-        scatter = sp.csc_matrix((np.ones(len(rows)), rows - lo, cols), shape=(hi - lo, len(rows)))
+        indptr = np.arange(len(rows) + 1, dtype=np.int32)  # one entry per column
+        scatter = sp.csc_matrix((np.ones(len(rows)), rows - lo, indptr), shape=(hi - lo, len(rows)))
         Hs.reshape(-1, dd)[lo:hi] += scatter @ hess.reshape(-1, dd)
 
     def det_stats(self, y, chunk):
