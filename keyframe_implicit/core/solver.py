@@ -86,7 +86,7 @@ DEFAULTS = dict(
     cg_tolerance=3e-2,
     cg_max_iterations=300,
     damping=1e-6,
-    chunk_elements=2000,
+    chunk_elements=512,
     extension_passes=8,
     initial=None,
     reuse_hessian=True,
@@ -232,24 +232,10 @@ class _Level:
             nbr[ok, o] = lookup[np.ravel_multi_index(tuple(q[ok].T), grid.shape)]
         self.centre_off = int(np.flatnonzero(np.all(offs == 0, axis=1))[0])
         code = {tuple(o): i for i, o in enumerate(offs.tolist())}
+        # offset of corner c' seen from corner c: block [c, c'] of an element is stencil block
+        # (node of c, pair_off[c, c'])
         self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
-                                  for c1 in range(K)])
-        # the Hessian is symmetric: scatter only blocks with offset >= 0 (lexicographic), then
-        # mirror: H[p, -o] = H[p + o, o]^T
-        self.upper_pairs = [np.flatnonzero(self.pair_off[c] >= self.centre_off) for c in range(K)]
-        # flat (node, offset) target of every upper block of every element, per corner c
-        self.upper_flat = [(self.elem[:, c][:, None] * len(offs)
-                            + self.pair_off[c, up][None, :]).astype(np.int32)
-                           for c, up in enumerate(self.upper_pairs)]
-        self.lower = np.arange(self.centre_off)
-        self.mirror = len(offs) - 1 - self.lower  # index of -o for each lower offset o
-        # per lower offset o: the nodes that have that neighbour, and the flat (node, -o)
-        # block of the neighbour that holds the transpose
-        self.mirror_pairs = []
-        for o, m in zip(self.lower, self.mirror):
-            rows = np.flatnonzero(nbr[:, o] >= 0).astype(np.int32)
-            self.mirror_pairs.append((o, rows, nbr[rows, o] * len(offs) + m))
-        self.transpose_dd = np.arange(d * d).reshape(d, d).T.reshape(-1)
+                                  for c1 in range(K)], dtype=np.int32)
         # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
         # its block stays zero, so the stencil array is the BSR data without a copy
         own = np.broadcast_to(np.arange(self.n, dtype=np.int32)[:, None], nbr.shape)
@@ -300,17 +286,10 @@ class _Level:
                         h_sum += tv.hess
             if g_sum is None:
                 continue
-            if hessian:
-                flat = Hs.reshape(-1, d * d)
-                h_sum = h_sum.reshape(len(el), K, K, d * d)
             for c in range(K):
                 grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
-                if hessian:  # so are the (node, offset) targets of one corner's blocks
-                    flat[self.upper_flat[c][s:s + chunk]] += h_sum[:, c, self.upper_pairs[c]]
-        if hessian:  # one lower offset at a time: no temporary as large as the Hessian
-            flat = Hs.reshape(-1, d * d)
-            for o, rows, src in self.mirror_pairs:
-                Hs[rows, o] = flat[src][:, self.transpose_dd].reshape(-1, d, d)
+            if hessian:
+                self._add_blocks(Hs, el, h_sum)
         for t in TERMS:
             if t.kind != "node" or weights[t.name] == 0:
                 continue
@@ -322,6 +301,24 @@ class _Level:
             if hessian:
                 Hs[:, self.centre_off] += w * tv.hess
         return sum(energies.values()), energies, grad, Hs
+
+    def _add_blocks(self, Hs, el, hess):
+        """Add the element Hessian blocks ``hess`` (E, K, K, d, d) of elements ``el`` into ``Hs``.
+
+        Block [c, c'] of element e goes to stencil block (el[e, c], pair_off[c, c']); up to 2**d
+        blocks of a chunk share a target. One sparse product (a column per block, a row per
+        stencil block) sums them in C, into the slice of ``Hs`` between the chunk's first and
+        last target (about one grid slab of nodes: the temporary is a small part of ``Hs``).
+        All K*K blocks are added, the lower ones too: the element blocks are symmetric
+        ([c', c] = [c, c']^T), so this is the mirror of the upper ones without a pass over the
+        whole Hessian.
+        """
+        dd = self.d * self.d
+        rows = (el[:, :, None] * np.int32(len(self.offsets)) + self.pair_off).reshape(-1)
+        lo, hi = rows.min(), rows.max() + 1
+        indptr = np.arange(len(rows) + 1, dtype=np.int32)  # one entry per column
+        scatter = sp.csc_matrix((np.ones(len(rows)), rows - lo, indptr), shape=(hi - lo, len(rows)))
+        Hs.reshape(-1, dd)[lo:hi] += scatter @ hess.reshape(-1, dd)
 
     def det_stats(self, y, chunk):
         """min det F over every quadrature point, and centre det F, of the material cells."""
@@ -623,7 +620,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         the module docstring); ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
         ``cg_tolerance`` (3e-2), ``cg_max_iterations`` (300), ``damping``
-        (1e-6), ``chunk_elements`` (2000, memory vs. speed of assembly),
+        (1e-6), ``chunk_elements`` (512, memory vs. speed of assembly),
         ``extension_passes`` (8), ``reuse_hessian`` (True: after a full
         accepted step, the next step reuses the Gauss-Newton matrix with the
         new exact gradient), ``initial`` (an array grid.shape + (d,) to

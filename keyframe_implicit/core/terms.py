@@ -134,12 +134,17 @@ def volume_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     r = determinant(F) - 1.0
     w = batch.weight * vol
     energy = float(np.sum(w * r * r))
-    J = (cofactor(F) @ G[0]).transpose(0, 2, 1)  # (E, K, d): dr / dY[c, j]
+    # (E, K, d): dr / dY[c, j], in C order so that the gradient and the Hessian blocks are too
+    J = np.ascontiguousarray((cofactor(F) @ G[0]).transpose(0, 2, 1))
     grad = (2.0 * w * r)[:, None, None] * J
     hess = None
     if hessian:
+        E, K, d = J.shape
         Js = np.sqrt(2.0 * w)[:, None, None] * J
-        hess = Js[:, :, None, :, None] * Js[:, None, :, None, :]  # (E, c, c', j, j')
+        # (E, c, c', j, j') = Js[c, j] Js[c', j'], multiplied as rows of d*d so that numpy's
+        # inner loop runs over (j, j') rather than over j' alone (twice as fast)
+        row, col = np.repeat(Js, d, axis=2), np.tile(Js, d)  # [c, (j, j')]: Js[c, j], Js[c, j']
+        hess = (row[:, :, None] * col[:, None]).reshape(E, K, K, d, d)
     return TermValue(energy, grad, hess)
 
 
@@ -166,14 +171,15 @@ def rigidity_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     hess = None
     if hessian:
         Kq = (G.swapaxes(1, 2) @ G).reshape(Q, nK * nK)  # G^T G per Gauss point
-        S = (w[:, :, None, None] * FFt).reshape(E, Q, d * d)
-        # sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
+        S = ((4.0 * w)[:, :, None, None] * FFt).reshape(E, Q, d * d)
+        # 4 sum_q w (G^T G)[c, c'] (F F^T)[j, j']  ->  (E, c, c', j, j')
         hess = (Kq.T[None] @ S).reshape(E, nK, nK, d, d)
-        # sum_q w B[j', c] B[j, c']: Gram matrix over q of V[(c, j')] = sqrt(w) B[j', c]
-        V = (np.sqrt(w)[:, :, None, None] * B).transpose(0, 3, 2, 1).reshape(E, nK * d, Q)
-        t2 = (V @ V.transpose(0, 2, 1)).reshape(E, nK, d, nK, d)  # (e, c, j', c', j)
-        hess += t2.transpose(0, 1, 3, 4, 2)
-        hess *= 4.0
+        # 4 sum_q w B[j', c] B[j, c']: Gram matrix over q of V[q, (j, c)] = 2 sqrt(w) B[j, c]
+        # (B's own layout), t2[e, j, c', j', c] = 4 sum_q w B[j, c'] B[j', c]; V^T @ V is
+        # faster with V^T copied to C order (small: 2**d d floats per Gauss point)
+        V = ((2.0 * np.sqrt(w))[:, :, None, None] * B).reshape(E, Q, d * nK)
+        t2 = (np.ascontiguousarray(V.transpose(0, 2, 1)) @ V).reshape(E, d, nK, d, nK)
+        hess += t2.transpose(0, 4, 2, 1, 3)
     return TermValue(energy, grad, hess)
 
 
