@@ -106,6 +106,7 @@ def test_asset_matches_its_script(name):
     assert saved_p == built_p
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", SCENES)
 def test_asset_bakes_at_low_resolution(name):
     """The Auto output of every example: one frame per timeline frame, a report naming

@@ -141,6 +141,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.heavy
 def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     """A turning sphere through `animate` with its helper process, in a fresh interpreter:
     the peak resident sets of both processes against the model, at two sizes. The model
