@@ -66,6 +66,11 @@ class Grid:
         return int(np.prod(self.shape))
 
     @property
+    def strides(self) -> np.ndarray:
+        """Flat-index step of one node along each axis (C order), int array (d,)."""
+        return np.cumprod((1,) + self.shape[:0:-1])[::-1]
+
+    @property
     def upper(self) -> np.ndarray:
         """World position of the last node (the far corner)."""
         return self.origin + self.spacing * (np.asarray(self.shape) - 1)

@@ -12,10 +12,9 @@ exact for fields that are linear in the cell, and the weights are the
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
+from .elements import corners
 from .grid import Grid
 
 __all__ = ["cell_weights", "sample", "sample_with_gradient"]
@@ -40,9 +39,7 @@ def cell_weights(grid: Grid, points):
 
 def _corner_nodes(grid, idx):
     """Flat node index (P, 2**d) of every corner of the cells whose lowest corner is ``idx``."""
-    strides = np.cumprod((1,) + grid.shape[:0:-1])[::-1]  # C order, in nodes
-    corners = np.array(list(itertools.product((0, 1), repeat=grid.dim)))
-    return (idx @ strides)[:, None] + (corners @ strides)[None, :]
+    return (idx @ grid.strides)[:, None] + (corners(grid.dim) @ grid.strides)[None, :]
 
 
 def _corner_products(lo, hi):

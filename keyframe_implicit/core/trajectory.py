@@ -57,13 +57,13 @@ joint half-way (see tests/core/test_trajectory.py).
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 import scipy.sparse as sp
 from scipy import ndimage
 from scipy.sparse.csgraph import connected_components
 
+from . import elements
 from .grid import Grid
 from .multigrid import BlockMultigrid, block_pcg
 from .progress import Reporter
@@ -318,9 +318,8 @@ class Trajectories:
     def _init_global(self, dist):
         grid, d, h = self.grid, self.dim, self.grid.spacing
         shape = np.asarray(grid.shape)
-        corners = np.array(list(itertools.product((0, 1), repeat=d)))  # (2^d, d)
-        strides = np.array([int(np.prod(shape[a + 1:])) for a in range(d)])
-        corner_off = corners @ strides
+        corners = elements.corners(d)  # (2^d, d)
+        corner_off = corners @ grid.strides
 
         active_node = self.region_nodes()
         an = active_node.reshape(grid.shape)

@@ -24,11 +24,10 @@ section 8); `Transport.carry` says how each treats material its map tears.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 from scipy import ndimage
 
+from . import elements
 from .grid import Grid
 from .progress import Reporter
 from .sampling import sample
@@ -37,10 +36,6 @@ __all__ = ["Transport", "inverse_lookup"]
 
 
 _CONVERGED = 1e-7  # cells: a source point this close reads the field to ~1e-7 h
-
-
-def _corners(d):
-    return np.array(list(itertools.product((0, 1), repeat=d)))
 
 
 def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
@@ -83,7 +78,7 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     shape = np.asarray(grid.shape)
     P = (np.asarray(corner_positions, dtype=float) - grid.origin) / grid.spacing
     # monomial coefficients of the multilinear map T(u) = sum_S a_S prod_{a in S} u_a
-    subsets = _corners(d)  # subset S <-> corner with bits S
+    subsets = elements.corners(d)  # subset S <-> corner with bits S
     coef = _moebius(P, subsets)  # (C, 2^d, d)
     lo = np.maximum(np.ceil(P.min(axis=1) - tol), 0).astype(np.int64)
     hi = np.minimum(np.floor(P.max(axis=1) + tol), shape - 1).astype(np.int64)
@@ -168,7 +163,7 @@ def _poly_eval(coef, u, jacobian=True):
 
     By recursion on the axes: T(u) = T_0(u') + u_0 T_1(u'), u' = u[:, 1:], where T_0 and
     T_1 are the multilinear maps of the halves of the coefficients without and with
-    axis 0 (the corner order of `_corners`), so dT/du_0 = T_1.
+    axis 0 (the corner order of `elements.corners`), so dT/du_0 = T_1.
     """
     if u.shape[1] == 0:
         return coef[:, 0], np.empty(coef.shape[:1] + coef.shape[2:] + (0,))
@@ -352,14 +347,13 @@ def _region_cells(grid, region):
     shape = np.asarray(grid.shape)
     d = grid.dim
     near = region.reshape(grid.shape)
-    corners = _corners(d)
+    corners = elements.corners(d)
     cell_ok = np.ones(tuple(shape - 1), dtype=bool)
     for c in corners:
         cell_ok &= near[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))]
     cells = np.ravel_multi_index(np.unravel_index(np.flatnonzero(cell_ok), tuple(shape - 1)),
                                  grid.shape)
-    strides = np.array([int(np.prod(shape[a + 1:])) for a in range(d)])
-    cnodes = cells[:, None] + (corners @ strides)[None, :]
+    cnodes = cells[:, None] + (corners @ grid.strides)[None, :]
     corner_nodes, inv = np.unique(cnodes, return_inverse=True)
     # a node is inside the union of region cells when all 2^d cells around it are region cells
     padded = np.pad(cell_ok, 1)
