@@ -36,6 +36,8 @@ __all__ = ["Transport", "inverse_lookup"]
 
 
 _CONVERGED = 1e-7  # cells: a source point this close reads the field to ~1e-7 h
+_GUESS_SLACK = 0.35  # cells: the widest a candidate's affine guess may stray outside its cell
+_ON_FACE = 1e-4  # cells: local coordinates this far outside the unit cell still count as in it
 
 
 def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
@@ -75,142 +77,155 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         Its source point x in continuous node-index coordinates.
     """
     d = grid.dim
-    shape = np.asarray(grid.shape)
-    P = (np.asarray(corner_positions, dtype=float) - grid.origin) / grid.spacing
-    # monomial coefficients of the multilinear map T(u) = sum_S a_S prod_{a in S} u_a
-    subsets = elements.corners(d)  # subset S <-> corner with bits S
-    coef = _moebius(P, subsets)  # (C, 2^d, d)
-    lo = np.maximum(np.ceil(P.min(axis=1) - tol), 0).astype(np.int64)
-    hi = np.minimum(np.floor(P.max(axis=1) + tol), shape - 1).astype(np.int64)
+    shape = np.asarray(grid.shape)[:, None]
+    # component-major layout, (2^d, d, C): the batch axis last, so the arithmetic runs along it
+    P = ((np.asarray(corner_positions, dtype=float) - grid.origin) / grid.spacing).transpose(1, 2, 0)
+    lo = np.maximum(np.ceil(P.min(axis=0) - tol), 0).astype(np.int64)
+    hi = np.minimum(np.floor(P.max(axis=0) + tol), shape - 1).astype(np.int64)
     ext = np.maximum(hi - lo + 1, 0)
-    cnt = np.prod(ext, axis=1)
-    half = np.full((cells.size, d), 0.5)
-    T0, J0 = _poly_eval(coef, half)
-    Jinv = _inverse_small(J0)
+    cnt = np.prod(ext, axis=0)
+    coef = _centred_coefficients(P)
+    Jinv = _inverse_small(coef[2 ** np.arange(d)[::-1]].swapaxes(0, 1))
+    margin = np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
     # cells in chunks of at most ``max_candidates`` bounding-box nodes (bounded memory
     # even where a bad map stretches cells over many nodes)
     bounds = np.searchsorted(np.cumsum(cnt), np.arange(1, int(cnt.sum()) // max_candidates + 1)
                              * max_candidates)
     edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
-    targets, sources = [], []
+    found, local = [], []
     for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over a few chunks
         if check is not None:
             check()
-        sel = np.arange(c0, c1)
-        t, u = _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, newton_steps)
-        targets.append(t)
-        sources.append(u)
-    cc_all = np.concatenate([t[0] for t in targets]) if targets else np.zeros(0, np.int64)
-    zi = np.concatenate([t[1] for t in targets]) if targets else np.zeros((0, d), np.int64)
-    u_all = np.concatenate(sources) if sources else np.zeros((0, d))
-    target = np.ravel_multi_index(tuple(zi[:, a] for a in range(d)), grid.shape)
+        cell_node, v = _lookup_chunk(np.arange(c0, c1), cnt, ext, lo, coef, Jinv, margin,
+                                     newton_steps)
+        found.append(cell_node)
+        local.append(v)
+    cc_all, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
+    target = np.ravel_multi_index(tuple(zi), grid.shape)
     base = np.stack(np.unravel_index(cells[cc_all], grid.shape), axis=-1)
-    return target, base + u_all
+    return target, base + 0.5 + np.concatenate(local, axis=1).T
 
 
-def _lookup_chunk(sel, cnt, ext, lo, coef, T0, Jinv, newton_steps):
-    """Inverse lookup for the cells ``sel``: ((cell, node index), local coordinates) found."""
-    d = lo.shape[1]
+def _lookup_chunk(sel, cnt, ext, lo, coef, Jinv, margin, newton_steps):
+    """Inverse lookup for the cells ``sel``: (cell, node index (d, M)) found and their
+    local coordinates (d, M).
+
+    Local coordinates v are about the cell's centre (the unit cell is |v_a| <= 1/2).
+    A candidate whose affine guess lies farther than its cell's ``margin`` outside
+    the unit cell cannot be in the cell (`_affine_margin`) and gets no Newton steps.
+    """
+    d = lo.shape[0]
     n = cnt[sel]
     # every grid node inside every moved cell's bounding box (variable-size boxes, vectorised)
     cc = np.repeat(sel, n)
     start = np.cumsum(n) - n
     rem = np.arange(int(n.sum())) - np.repeat(start, n)
-    z = np.empty((cc.size, d))
+    z = np.empty((d, cc.size))
     for a in reversed(range(d)):
-        e = ext[cc, a]
-        z[:, a] = lo[cc, a] + rem % e
+        e = ext[a, cc]
+        z[a] = lo[a, cc] + rem % e
         rem = rem // e
-    # affine guess from the cell centre; drop candidates clearly outside the cell
-    u = 0.5 + np.einsum("mab,mb->ma", Jinv[cc], z - T0[cc])
-    keep = np.all((u > -0.35) & (u < 1.35), axis=1)
-    cc, z, u = cc[keep], z[keep], u[keep]
+    # affine guess from the cell centre; drop candidates that cannot be in the cell
+    v = _apply_small(Jinv[..., cc], z - coef[0][:, cc])
+    keep = np.all(np.abs(v) < 0.5 + margin[:, cc], axis=0)
+    cc, z, v = cc[keep], z[:, keep], v[:, keep]
     todo = np.arange(cc.size)  # Newton only on candidates not yet converged
     res = np.full(cc.size, np.inf)
+    a = coef[..., cc]
     for it in range(newton_steps + 1):
-        a = coef[cc[todo]]
-        T, _ = _poly_eval(a, u[todo], jacobian=False)
-        r = T - z[todo]
-        res[todo] = np.einsum("md,md->m", r, r)
+        T, _ = _poly_eval(a, v[:, todo], jacobian=False)
+        r = T - z[:, todo]
+        res[todo] = np.einsum("dm,dm->m", r, r)
         live = res[todo] > _CONVERGED ** 2
-        todo, r = todo[live], r[live]
+        todo, r, a = todo[live], r[:, live], a[..., live]
         if it == newton_steps or todo.size == 0:
             break
-        _, J = _poly_eval(a[live], u[todo])
-        u[todo] = np.clip(u[todo] - _solve_small(J, r), -0.5, 1.5)
-    inside = np.all((u >= -1e-4) & (u <= 1 + 1e-4), axis=1) & (res < 1e-8)
-    return (cc[inside], z[inside].astype(np.int64)), u[inside]
+        _, J = _poly_eval(a, v[:, todo])  # a singular cell: no step
+        v[:, todo] = np.clip(v[:, todo] - _apply_small(_inverse_small(J, singular=0.0), r), -1.0, 1.0)
+    inside = np.all(np.abs(v) <= 0.5 + _ON_FACE, axis=0) & (res < 1e-8)
+    return (cc[inside], z[:, inside].astype(np.int64)), v[:, inside]
 
 
-def _moebius(P, subsets):
-    """Monomial coefficients a_S = sum_{T subset S} (-1)^{|S|-|T|} P_T of a multilinear cell.
+def _centred_coefficients(P):
+    """Monomial coefficients (2^d, d, C) of multilinear cells about their centres.
 
-    One difference pass per axis (the fast Moebius transform over subsets).
+    A cell's map is T(0.5 + v) = sum_S c_S prod_{a in S} v_a over the subsets S
+    of the axes (S <-> the corner with bits S, `elements.corners` order): c_{} is
+    the centre's image, c_{a} the Jacobian's column a there. From the corners
+    ``P`` (2^d, d, C), one pass per axis: along axis a, values p0, p1 at its two
+    ends give (p0 + p1) / 2 + v_a (p1 - p0).
     """
-    coef = np.array(P, dtype=float, copy=True)
-    index = {tuple(S): i for i, S in enumerate(subsets)}
-    for a in range(subsets.shape[1]):
-        for i, S in enumerate(subsets):
-            if S[a]:
-                T = S.copy()
-                T[a] = 0
-                coef[:, i] -= coef[:, index[tuple(T)]]
-    return coef
+    K, d = P.shape[:2]
+    c = P.reshape((2,) * d + P.shape[1:]).copy()
+    for a in range(d):
+        at = (slice(None),) * a
+        p0, p1 = c[at + (0,)].copy(), c[at + (1,)]
+        c[at + (0,)] = 0.5 * (p0 + p1)
+        c[at + (1,)] = p1 - p0
+    return c.reshape(P.shape)
 
 
-def _poly_eval(coef, u, jacobian=True):
-    """T(u) (M, d) and its Jacobian dT/du (M, d, d) from monomial coefficients (M, 2^d, d).
+def _poly_eval(coef, v, jacobian=True):
+    """T (d, M) and its Jacobian (d, d, M) at local points v (d, M) of multilinear maps
+    given by their monomial coefficients (2^d, d, M).
 
-    By recursion on the axes: T(u) = T_0(u') + u_0 T_1(u'), u' = u[:, 1:], where T_0 and
-    T_1 are the multilinear maps of the halves of the coefficients without and with
-    axis 0 (the corner order of `elements.corners`), so dT/du_0 = T_1.
+    The coefficients, seen as an array (2, ..., 2, d, M) with one binary axis per
+    coordinate (`elements.corners` order), are contracted one axis at a time, last
+    first: c0 + v_a c1 for T; for dT/dv_a the axis a contributes c1.
     """
-    if u.shape[1] == 0:
-        return coef[:, 0], np.empty(coef.shape[:1] + coef.shape[2:] + (0,))
-    half = coef.shape[1] // 2
-    T0, J0 = _poly_eval(coef[:, :half], u[:, 1:], jacobian)
-    T1, J1 = _poly_eval(coef[:, half:], u[:, 1:], jacobian)
-    u0 = u[:, :1]
-    T = T0 + u0 * T1
+    d = v.shape[0]
+    c = coef.reshape((2,) * d + coef.shape[1:])
+
+    def contract(deriv):
+        out = c
+        for a in reversed(range(d)):
+            at = (slice(None),) * a
+            out = out[at + (1,)] if a == deriv else out[at + (0,)] + v[a] * out[at + (1,)]
+        return out
+
+    T = contract(None)
     if not jacobian:
         return T, None
-    return T, np.concatenate([T1[:, :, None], J0 + u0[:, :, None] * J1], axis=2)
+    return T, np.stack([contract(a) for a in range(d)], axis=1)
 
 
-def _inverse_small(J):
-    """Inverse of a batch of 2x2 / 3x3 matrices by the adjugate (identity where singular)."""
-    d = J.shape[-1]
+def _affine_margin(coef, Jinv):
+    """How far, per local axis, a node's affine guess can lie from its exact local
+    coordinates in a multilinear cell, (d, C).
+
+    With centred coefficients (`_centred_coefficients`), T(0.5 + v) = c_{} + J0 v
+    + N(v), N the monomials of two or more axes (|v_a| <= 1/2 in the cell); for z =
+    T(0.5 + v) the affine guess J0^-1 (z - c_{}) is v + J0^-1 N(v), so it is off
+    by at most |J0^-1| max|N| per axis.
+    """
+    d = coef.shape[1]
+    degree = elements.corners(d).sum(axis=1)
+    high = degree >= 2
+    bound = np.einsum("kdc,k->dc", np.abs(coef[high]), 0.5 ** degree[high])
+    return _apply_small(np.abs(Jinv), bound)
+
+
+def _inverse_small(J, singular=1.0):
+    """Inverses (d, d, M) of a batch of 2x2 / 3x3 matrices (d, d, M), by the adjugate;
+    ``singular`` times the identity where a matrix is singular."""
+    d = J.shape[0]
     if d == 2:
-        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-        adj = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
-                        np.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], -2)
+        det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
+        adj = np.array([[J[1, 1], -J[0, 1]], [-J[1, 0], J[0, 0]]])
     else:
-        c0, c1, c2 = J[:, :, 0], J[:, :, 1], J[:, :, 2]
-        adj = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=1)
-        det = np.einsum("md,md->m", c0, adj[:, 0])
+        c0, c1, c2 = J[:, 0], J[:, 1], J[:, 2]  # columns; the adjugate's rows are their crosses
+        adj = np.stack([np.cross(c1, c2, axis=0), np.cross(c2, c0, axis=0),
+                        np.cross(c0, c1, axis=0)])
+        det = np.einsum("dm,dm->m", c0, adj[0])
     ok = np.abs(det) > 1e-12
-    out = adj / np.where(ok, det, 1.0)[:, None, None]
-    out[~ok] = np.eye(d)
+    out = adj / np.where(ok, det, 1.0)
+    out[:, :, ~ok] = singular * np.eye(d)[:, :, None]
     return out
 
 
-def _solve_small(J, r):
-    """Solve J x = r for a batch of 2x2 / 3x3 systems by Cramer's rule (x = 0 where singular)."""
-    d = r.shape[1]
-    if d == 2:
-        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-        x0 = r[:, 0] * J[:, 1, 1] - J[:, 0, 1] * r[:, 1]
-        x1 = J[:, 0, 0] * r[:, 1] - r[:, 0] * J[:, 1, 0]
-        x = np.stack([x0, x1], axis=1)
-    else:
-        c0, c1, c2 = J[:, :, 0], J[:, :, 1], J[:, :, 2]
-        x12 = np.cross(c1, c2)
-        det = np.einsum("md,md->m", c0, x12)
-        x = np.stack([np.einsum("md,md->m", r, x12),
-                      np.einsum("md,md->m", c0, np.cross(r, c2)),
-                      np.einsum("md,md->m", c0, np.cross(c1, r))], axis=1)
-    ok = np.abs(det) > 1e-12
-    return np.where(ok[:, None], x / np.where(ok, det, 1.0)[:, None], 0.0)
+def _apply_small(A, x):
+    """A x for a batch of small matrices (d, d, M) and vectors (d, M)."""
+    return np.einsum("ijm,jm->im", A, x)
 
 
 class Transport:

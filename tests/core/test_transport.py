@@ -1,0 +1,74 @@
+"""The semi-Lagrangian inverse lookup of `transport` on bent cells (PAPER-NOTES section 6)."""
+
+import numpy as np
+import pytest
+
+from keyframe_implicit.core import elements, transport
+from keyframe_implicit.core.grid import Grid
+from keyframe_implicit.core.sampling import sample
+
+
+def bent_cells(d, n=9, jitter=0.2, seed=3):
+    """Every cell of an n^d grid moved by a smooth bend plus random corner jitter
+    (cells far from parallelepipeds), as (grid, corner positions (C, 2^d, d), cells)."""
+    rng = np.random.default_rng(seed)
+    grid = Grid(np.zeros(d), 1.0, (n,) * d)
+    nodes = grid.points().reshape(-1, d)
+    bend = 0.6 * np.sin(nodes[:, ::-1] * 0.7)  # each axis moved by a wave along another
+    moved = nodes + bend + rng.uniform(-jitter, jitter, nodes.shape)
+    lower = np.ravel_multi_index(np.indices((n - 1,) * d).reshape(d, -1), grid.shape)
+    corners = lower[:, None] + elements.corners(d) @ grid.strides
+    return grid, moved[corners], lower, moved
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_affine_guess_stays_within_its_margin(d):
+    grid, P, cells, _ = bent_cells(d)
+    coef = transport._centred_coefficients(((P - grid.origin) / grid.spacing).transpose(1, 2, 0))
+    J0 = coef[2 ** np.arange(d)[::-1]].swapaxes(0, 1)
+    Jinv = transport._inverse_small(J0)
+    margin = transport._affine_margin(coef, Jinv)
+    rng = np.random.default_rng(0)
+    for _ in range(20):  # random points of every cell: their images, then the affine guess
+        v = rng.uniform(-0.5, 0.5, (d, cells.size))
+        z, _ = transport._poly_eval(coef, v, jacobian=False)
+        guess = transport._apply_small(Jinv, z - coef[0])
+        assert np.all(np.abs(guess - v) <= margin + 1e-12)
+    # the bound is not vacuous: bent cells need a margin, and it stays below the cap
+    assert 0.0 < np.median(margin) < transport._GUESS_SLACK
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_corners_and_their_map_agree(d):
+    grid, P, cells, _ = bent_cells(d)
+    coef = transport._centred_coefficients(P.transpose(1, 2, 0))
+    v = (elements.corners(d) - 0.5).T  # the corners in centred local coordinates
+    for k in range(2 ** d):
+        at = np.repeat(v[:, k:k + 1], cells.size, axis=1)
+        T, J = transport._poly_eval(coef, at)
+        np.testing.assert_allclose(T, P[:, k].T, atol=1e-12)
+        # the Jacobian's column a is the difference along axis a at that corner
+        for a in range(d):
+            step = np.zeros(d)
+            step[a] = 1e-6
+            T2, _ = transport._poly_eval(coef, at + step[:, None], jacobian=False)
+            np.testing.assert_allclose(J[:, a], (T2 - T) / 1e-6, atol=1e-5)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_inverse_lookup_finds_every_node_of_bent_cells(d, monkeypatch):
+    grid, P, cells, moved = bent_cells(d)
+    target, source = transport.inverse_lookup(grid, P, cells)
+    assert target.size > 0.5 * cells.size
+    # each source point is carried onto its node: the moved nodes, read multilinearly there
+    at = grid.to_world(source)
+    image = np.stack([sample(moved[:, a].reshape(grid.shape), grid, at) for a in range(d)], -1)
+    np.testing.assert_allclose(image, grid.points().reshape(-1, d)[target], atol=1e-6)
+    # the same nodes and sources as a lookup that gives every candidate Newton steps
+    monkeypatch.setattr(transport, "_affine_margin",
+                        lambda coef, Jinv: np.full((d, coef.shape[-1]), np.inf))
+    t_all, s_all = transport.inverse_lookup(grid, P, cells)
+    key = np.lexsort(np.vstack([source.T, target]))
+    key_all = np.lexsort(np.vstack([s_all.T, t_all]))
+    np.testing.assert_array_equal(target[key], t_all[key_all])
+    np.testing.assert_allclose(source[key], s_all[key_all], atol=1e-9)
