@@ -95,7 +95,6 @@ class BlockMultigrid:
             coords = coarse
         check()
         # the constants are an exact null vector: cut them (and roundoff) from the inverse
-        # the constants are an exact null vector: cut them (and roundoff) from the inverse
         self.coarse = np.linalg.pinv(A.toarray(), rcond=1e-10, hermitian=True)
         self.sizes = [lv[0].shape[0] for lv in self.levels] + [A.shape[0]]
 

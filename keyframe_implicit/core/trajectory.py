@@ -141,6 +141,7 @@ def rigid_fit(x, y):
 
 
 _CACHED = 3  # times whose active-node positions `Trajectories` keeps
+_EXTRAPOLATED = 3  # solutions a Poisson solve's start is extrapolated from
 
 
 def _smoothstep(t):
@@ -374,7 +375,7 @@ class Trajectories:
         self._L = L
         coords = np.stack(np.unravel_index(nodes, grid.shape), axis=1)
         self._mg = BlockMultigrid(L, coords, check=self._check)
-        self._solved = []  # the last two (s, Y) solved: the next solve starts from their line
+        self._solved = []  # the last (s, Y) solved, at distinct times: the next solve's start
         self.stats["multigrid_levels"] = self._mg.sizes
         self.stats["cg_iterations"] = []
 
@@ -438,7 +439,8 @@ class Trajectories:
         rhs = self._B @ T
         Y, its = block_pcg(self._L, rhs, self._mg, self._start(s), tol=self.tolerance,
                            check=self._check)
-        self._solved = self._solved[-1:] + [(s, Y.copy())]
+        kept = [(t, Yt) for t, Yt in self._solved if t != s]
+        self._solved = kept[1 - _EXTRAPOLATED:] + [(s, Y.copy())]
         self.stats["cg_iterations"].append(its)
         # fix each component's translation: material centroid on the straight path
         target = (1.0 - s) * self._xbar + s * self._ybar
@@ -451,15 +453,17 @@ class Trajectories:
         return Y
 
     def _start(self, s):
-        """CG's start at time s: the line through the last two solutions (frames are
-        evenly spaced, so its error is second order in the step), or the last one."""
+        """CG's start at time s: the parabola through the last three solutions at
+        distinct times (frames are evenly spaced, so its error is third order in the
+        step), or the line or point through fewer."""
         if not self._solved:
             return None
-        s1, Y1 = self._solved[-1]
-        if len(self._solved) < 2 or self._solved[0][0] == s1:
-            return Y1
-        s0, Y0 = self._solved[0]
-        return Y1 + ((s - s1) / (s1 - s0)) * (Y1 - Y0)
+        times = np.array([t for t, _ in self._solved])
+        start = np.zeros_like(self._solved[0][1])
+        for i, (ti, Yi) in enumerate(self._solved):  # Lagrange weights at s
+            others = np.delete(times, i)
+            start += np.prod((s - others) / (ti - others)) * Yi
+        return start
 
     def _formula(self, s, x, y, xb, yb, R, rv):
         d = self.dim

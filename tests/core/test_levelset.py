@@ -238,6 +238,8 @@ def test_velocity_over_a_frame_step_reuses_the_neighbouring_frames_and_matches_t
         ib.levelset(s)
         v[i] = ib.velocity(ib.trajectory(V0, s), s, ds=step)
     assert len(fw) + len(bw) - before == 2 * 11  # one time per frame and transport; 0 and 1 are free
+    for t in (ib.forward, ib.backward):  # the reference's solves: their error over 2e-4 is a slope
+        t.trajectories.tolerance = 1e-10
     for i in (1, 6, 11):
         s = i * step
         fine = ib.velocity(ib.trajectory(V0, s), s, ds=1e-4)

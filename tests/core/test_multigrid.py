@@ -39,7 +39,6 @@ def test_trajectories_agree_with_the_direct_solve_to_a_ten_thousandth_of_a_cell(
     assert len(tr.stats["multigrid_levels"]) >= 3
     for s in (0.25, 0.5, 0.9):
         got = tr._poisson(s)
-        tr._warm = None  # the reference below is the same solve without iterations
         rhs = tr._B @ (grid.spacing * np.swapaxes(
             tr._cell_targets(s), 1, 2).reshape(-1, 3))
         want = _direct(tr._L, rhs, tr._comp)
@@ -67,6 +66,34 @@ def test_warm_start_from_the_answer_takes_no_iteration():
     assert it > 3
     _, again = block_pcg(tr._L, rhs, tr._mg, x, tol=1e-9)
     assert again == 0
+
+
+def _rhs(tr, grid, s):
+    return tr._B @ (grid.spacing * np.swapaxes(tr._cell_targets(s), 1, 2).reshape(-1, 3))
+
+
+def _off_by(tr, got, want):
+    """Largest difference of two solutions up to each component's translation."""
+    diff = got - want
+    for c in range(tr._ncomp):
+        m = tr._comp == c
+        diff[m] -= diff[m].mean(axis=0)
+    return np.abs(diff).max()
+
+
+def test_next_solve_starts_from_the_parabola_through_the_last_three():
+    grid, y, mat = _two_balls_bending(24)
+    tr = Trajectories(grid, y, mat)
+    for s in (0.2, 0.3, 0.4):
+        tr._poisson(s)
+    assert [t for t, _ in tr._solved] == [0.2, 0.3, 0.4]
+    want, _ = block_pcg(tr._L, _rhs(tr, grid, 0.5), tr._mg, tol=1e-12)
+    (_, Y3), (_, Y4) = tr._solved[-2:]
+    line = 2.0 * Y4 - Y3
+    assert _off_by(tr, tr._start(0.5), want) < 0.5 * _off_by(tr, line, want)
+    tr._poisson(0.5)  # a time solved again is kept once
+    tr._poisson(0.5)
+    assert [t for t, _ in tr._solved] == [0.3, 0.4, 0.5]
 
 
 def test_cg_polls_cancel_every_iteration():
