@@ -49,6 +49,12 @@ _NEEDS = ("numpy", "scipy", "skimage")
 #: Processes the bake uses (`chain.animate_chain`'s ``processes``): the worker and, on a
 #: machine with two cores or more, one helper it starts for the second core.
 _PROCESSES = 2 if (os.cpu_count() or 1) >= 2 else 1
+#: How far below Blender's own the worker's scheduling priority is (a POSIX nice increment;
+#: on Windows the worker starts in the below-normal class): when the bake and Blender's main
+#: loop want the same cores, the main loop and its drawing go first. The worker's helper
+#: process inherits it.
+_NICENESS = 10
+_BELOW_NORMAL = getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0)  # 0: not Windows
 
 
 class WorkerError(RuntimeError):
@@ -111,7 +117,7 @@ class Worker:
         # -P: no working directory on the worker's sys.path (it could shadow any module)
         self.process = subprocess.Popen(
             [sys.executable, "-P", "-m", f"{WORKER_ROOT}.worker"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, creationflags=_BELOW_NORMAL,
             env=dict(os.environ, PYTHONPATH=_python_path()))
 
     def cancel(self):
@@ -196,6 +202,8 @@ def _signal_name(number):
 
 def main():
     """The worker: read the inputs from stdin, run `animate`, answer on stdout."""
+    if hasattr(os, "nice"):
+        os.nice(_NICENESS)
     answers = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # prints (Python's or a library's) go to stderr, never into the answers
     sys.stdout = sys.stderr

@@ -2,6 +2,7 @@
 out-of-memory in the worker told clearly, the core's own errors kept, the same result as
 the core in this process, and a main loop that is never held up by the bake."""
 
+import os
 import time
 
 import bpy
@@ -184,3 +185,37 @@ def test_main_loop_stall_is_the_longest_poll_gap_beyond_the_step(scene, kfi):
           f"stall kept on the output {out['kfi_main_loop_stall'] * 1000:.0f} ms")
     assert out["kfi_main_loop_stall"] == pytest.approx(job.max_poll_gap - step)
     assert held - step <= out["kfi_main_loop_stall"] < held + 0.05
+
+
+def _descendants(pid):
+    """The process ids below ``pid`` (Linux's /proc children lists)."""
+    import glob
+
+    found = []
+    for path in glob.glob(f"/proc/{pid}/task/*/children"):
+        with open(path) as fh:
+            for child in map(int, fh.read().split()):
+                found += [child] + _descendants(child)
+    return found
+
+
+@pytest.mark.skipif(not hasattr(os, "getpriority") or not os.path.isdir("/proc/self/task"),
+                    reason="reads the processes' priorities from Linux's /proc")
+def test_worker_and_its_helper_yield_the_cores_to_blender(scene, kfi):
+    from keyframe_implicit import worker
+
+    kfi.build_spheres(TWO)
+    mine = os.getpriority(os.PRIO_PROCESS, 0)
+    seen = {}
+
+    def observer(job, fraction, message):
+        if "Gauss-Newton iteration 2" in message and not seen:  # both maps are being solved
+            pids = [job._worker.process.pid] + _descendants(job._worker.process.pid)
+            seen.update({pid: os.getpriority(os.PRIO_PROCESS, pid) for pid in pids})
+
+    job = _job(scene, kfi, on_progress=observer)
+    job.run()
+    assert job.state == bake.DONE, job.error_message()
+    # the worker, its helper on two cores (and multiprocessing's resource tracker)
+    assert len(seen) >= worker._PROCESSES, seen
+    assert all(nice == min(mine + worker._NICENESS, 19) for nice in seen.values()), (mine, seen)
