@@ -33,12 +33,19 @@ def test_suzanne_keeps_uvs_materials_and_exact_keyframes(scene):
     assert mesh_distance(last["co"], src_b["co"], src_b["tris"]).max() <= 0.05 * h
     # where B's mesh holds each loop's UV, the result is near it (a coarse grid: 16 cells)
     assert np.mean(sc.uv_agreement(last, src_b) <= 0.03) >= 0.9
-    mesh = obj.data
-    sharp = np.empty(len(mesh.edges), bool)
-    mesh.edges.foreach_get("use_edge_sharp", sharp)
-    src_sharp = np.empty(len(a.data.edges), bool)
-    a.data.edges.foreach_get("use_edge_sharp", src_sharp)
-    assert sharp.sum() == src_sharp.sum() > 0
+    # the artist's sharp edges and seams, edge by edge (the same vertices, edges made anew)
+    for prop in ("use_edge_sharp", "use_seam"):
+        got, want = _flagged_edges(obj.data, prop), _flagged_edges(a.data, prop)
+        assert got == want and len(want) > 0, prop
+
+
+def _flagged_edges(mesh, prop):
+    """The vertex pairs of ``mesh``'s edges whose flag ``prop`` is set."""
+    flags = np.empty(len(mesh.edges), bool)
+    mesh.edges.foreach_get(prop, flags)
+    ev = np.empty(2 * len(mesh.edges), np.int32)
+    mesh.edges.foreach_get("vertices", ev)
+    return {tuple(sorted(e)) for e in ev.reshape(-1, 2)[flags].tolist()}
 
 
 def test_render_on_the_first_keyframe_equals_the_original(scene):
