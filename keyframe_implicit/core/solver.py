@@ -21,8 +21,7 @@ Algorithm
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
   preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2),
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
-  unpinned rigid modes stay bounded. After a step the line search cut to
-  alpha, CG starts from the rest of that step, (1 - alpha) times its solution.
+  unpinned rigid modes stay bounded.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
   energy (Armijo) that also refuses any step taking det F of the material
   (any quadrature point) below ``min_det`` (0.2), or below its current
@@ -342,23 +341,17 @@ class _Level:
                              copy=False)
 
 
-def _pcg(apply_A, b, precond, project, tol, maxiter, check=None, x0=None):
-    """Projected preconditioned CG for A x = b on the range of ``project``, from ``x0``
-    (default 0); it stops at a residual of ``tol`` times |b| (projected), whatever the start.
+def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
+    """Projected preconditioned CG for A x = b on the range of ``project``, from 0; it
+    stops at a residual of ``tol`` times |b| (projected).
 
     ``check`` (optional) is called every iteration (cancellation).
     """
+    x = np.zeros_like(b)
     r = project(b.copy())
     bn = np.linalg.norm(r)
     if bn == 0:
-        return np.zeros_like(b), 0
-    if x0 is None:
-        x = np.zeros_like(b)
-    else:
-        x = project(x0.copy())
-        r = project(b - apply_A(x))
-        if np.linalg.norm(r) <= tol * bn:
-            return x, 0
+        return x, 0
     z = project(precond(r))
     p = z.copy()
     rz = r @ z
@@ -395,7 +388,6 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     it = 0
     cg_total = 0
     fresh = True  # Hs was assembled at the current y
-    alpha = 1.0  # the last accepted step
     for it in range(1, max_iterations + 1):
         rep((it - 1) / max_iterations, f"Gauss-Newton iteration {it}")
         t0 = time.perf_counter()
@@ -411,10 +403,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             return cons.reduce((H @ cons.expand(z).reshape(-1)).reshape(-1, d))
 
         b = -cons.reduce(g)
-        # after a step the line search cut to alpha, the rest of it, (1 - alpha) z, starts CG
-        x0 = None if alpha == 1.0 else (1.0 - alpha) * z
         z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]),
-                       rep.check, x0=x0)
+                       rep.check)
         cg_total += ncg
         dy = cons.expand(cons.project(z))
         timing["linear solve"] += time.perf_counter() - t0
