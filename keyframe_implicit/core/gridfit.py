@@ -169,13 +169,13 @@ def _refusal(grid, resolution, need, limit, fits):
 # the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables, and the
 # trajectories' multigrid. Fitted by least squares on the relative error
 # (benchmarks/fit_memory.py) to the peaks benchmarks/bench_scale.py measured on its
-# seven cases at 64 and 128 cells (and three at 192); tables in benchmarks/README.md.
+# seven cases at 64 and 128 cells; tables in benchmarks/README.md.
 # 2D: not measured; per active node scaled by the stencil (9 blocks of 2 x 2 against 27
 # of 3 x 3).
 _COPIES = 2
-_PROCESS_BYTES = 188 * 2 ** 20
-_NODE_BYTES = {2: 253.0, 3: 253.0}
-_ACTIVE_BYTES = {2: 5950.0 * 36 / 243, 3: 5950.0}
+_PROCESS_BYTES = 166 * 2 ** 20
+_NODE_BYTES = {2: 198.0, 3: 198.0}
+_ACTIVE_BYTES = {2: 5413.0 * 36 / 243, 3: 5413.0}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
