@@ -41,6 +41,7 @@ def _job(scene, kfi, **kwargs):
 
 
 # (frames 1-7: this process reports frames 1-3, its helper process bakes 4-7 meanwhile)
+@pytest.mark.processes
 @pytest.mark.parametrize("stage", ["Gauss-Newton iteration 2", "trajectories", "frame 2 "])
 def test_cancel_mid_bake_ends_within_a_second(scene, kfi, stage):
     kfi.build_spheres(TWO)
@@ -66,6 +67,7 @@ def test_cancel_mid_bake_ends_within_a_second(scene, kfi, stage):
     assert kfi.snapshot() == state
 
 
+@pytest.mark.processes
 @pytest.mark.parametrize("action, text", [
     ("os.kill(os.getpid(), signal.SIGKILL)",  # what the kernel's out-of-memory killer does
      "The bake's worker process ran out of memory (killed by the system) at '{stage}': lower "
@@ -147,6 +149,7 @@ class _InThreadJob(bake.BakeJob):
         return pipeline.animate(**self._arguments(), progress=self._progress)
 
 
+@pytest.mark.processes
 def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypatch):
     from test_bake import _drive, _modal_operator
 
@@ -171,6 +174,7 @@ def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypa
     assert gaps["BakeJob"] < 0.1
 
 
+@pytest.mark.processes
 def test_main_loop_stall_is_the_longest_poll_gap_beyond_the_step(scene, kfi):
     step, held = 0.1, 0.5
     kfi.build_spheres(TWO)
@@ -199,6 +203,7 @@ def _descendants(pid):
     return found
 
 
+@pytest.mark.processes
 @pytest.mark.skipif(not hasattr(os, "getpriority") or not os.path.isdir("/proc/self/task"),
                     reason="reads the processes' priorities from Linux's /proc")
 def test_worker_and_its_helper_yield_the_cores_to_blender(scene, kfi):
