@@ -146,7 +146,7 @@ def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     """A turning sphere through `animate` with its helper process, in a fresh interpreter:
     the peak resident sets of both processes against the model, at two sizes. The model
     is fitted on Python 3.11 / numpy 1.26 to the benchmark's cases (benchmarks/README.md,
-    "Memory model": 15 % on ten of twelve); here it meets other Python and numpy lines
+    "Memory model": 12.1 % at most on fourteen rows); here it meets other Python and numpy lines
     too (3.13 / numpy 2.5 peaked 10 % lower at 56 cells), and below about 50 cells the
     interpreters dominate and the model is high by up to a third."""
     import json
