@@ -77,6 +77,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         Its source point x in continuous node-index coordinates.
     """
     d = grid.dim
+    if len(cells) == 0:  # an empty region: nothing moves, nothing is found
+        return np.zeros(0, np.int64), np.zeros((0, d))
     shape = np.asarray(grid.shape)[:, None]
     # component-major layout, (2^d, d, C): the batch axis last, so the arithmetic runs along it
     P = ((np.asarray(corner_positions, dtype=float) - grid.origin) / grid.spacing).transpose(1, 2, 0)

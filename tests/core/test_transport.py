@@ -72,3 +72,9 @@ def test_inverse_lookup_finds_every_node_of_bent_cells(d, monkeypatch):
     key_all = np.lexsort(np.vstack([s_all.T, t_all]))
     np.testing.assert_array_equal(target[key], t_all[key_all])
     np.testing.assert_allclose(source[key], s_all[key_all], atol=1e-9)
+
+
+def test_inverse_lookup_of_no_cells_finds_nothing():
+    grid = Grid(np.zeros(3), 1.0, (4, 4, 4))
+    target, source = transport.inverse_lookup(grid, np.zeros((0, 8, 3)), np.zeros(0, np.int64))
+    assert target.shape == (0,) and source.shape == (0, 3)
