@@ -47,8 +47,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     Every cell listed in ``cells`` is moved (its corners to
     ``corner_positions``; its interior is the multilinear image of the unit
     cell). Each grid node z in the moved cell's bounding box is first placed
-    with the cell's affine part (candidates clearly outside are dropped), then
-    refined by Newton steps on the multilinear map; z is kept when its local
+    with the cell's affine part (candidates that cannot be in the cell are
+    dropped), then refined by Newton steps on the multilinear map; z is kept when its local
     coordinates fall inside the unit cell and the residual vanishes. Moved
     cells share faces, so every node of the moved region is found (no holes);
     a node inside several moved cells (overlap) is returned once per cell.
@@ -87,7 +87,7 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     ext = np.maximum(hi - lo + 1, 0)
     cnt = np.prod(ext, axis=0)
     coef = _centred_coefficients(P)
-    Jinv = _inverse_small(coef[2 ** np.arange(d)[::-1]].swapaxes(0, 1))
+    Jinv = _inverse_small(_centre_jacobian(coef))
     margin = np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
     # cells in chunks of at most ``max_candidates`` bounding-box nodes (bounded memory
     # even where a bad map stretches cells over many nodes)
@@ -157,7 +157,7 @@ def _centred_coefficients(P):
     ``P`` (2^d, d, C), one pass per axis: along axis a, values p0, p1 at its two
     ends give (p0 + p1) / 2 + v_a (p1 - p0).
     """
-    K, d = P.shape[:2]
+    d = P.shape[1]
     c = P.reshape((2,) * d + P.shape[1:]).copy()
     for a in range(d):
         at = (slice(None),) * a
@@ -165,6 +165,12 @@ def _centred_coefficients(P):
         c[at + (0,)] = 0.5 * (p0 + p1)
         c[at + (1,)] = p1 - p0
     return c.reshape(P.shape)
+
+
+def _centre_jacobian(coef):
+    """The Jacobians (d, d, C) at the cells' centres: column a is the coefficient of v_a."""
+    d = coef.shape[1]
+    return coef[2 ** np.arange(d)[::-1]].swapaxes(0, 1)  # the corner with only bit a set
 
 
 def _poly_eval(coef, v, jacobian=True):
