@@ -81,7 +81,9 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         return np.zeros(0, np.int64), np.zeros((0, d))
     shape = np.asarray(grid.shape)[:, None]
     # component-major layout, (2^d, d, C): the batch axis last, so the arithmetic runs along it
-    P = ((np.asarray(corner_positions, dtype=float) - grid.origin) / grid.spacing).transpose(1, 2, 0)
+    P = np.ascontiguousarray(np.asarray(corner_positions, dtype=float).transpose(1, 2, 0))
+    P -= np.asarray(grid.origin, dtype=float)[:, None]
+    P /= grid.spacing
     lo = np.maximum(np.ceil(P.min(axis=0) - tol), 0).astype(np.int64)
     hi = np.minimum(np.floor(P.max(axis=0) + tol), shape - 1).astype(np.int64)
     ext = np.maximum(hi - lo + 1, 0)
