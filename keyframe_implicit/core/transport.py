@@ -79,20 +79,12 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     d = grid.dim
     if len(cells) == 0:  # an empty region: nothing moves, nothing is found
         return np.zeros(0, np.int64), np.zeros((0, d))
-    shape = np.asarray(grid.shape)[:, None]
-    # component-major layout, (2^d, d, C): the batch axis last, so the arithmetic runs along it
-    P = np.ascontiguousarray(np.asarray(corner_positions, dtype=float).transpose(1, 2, 0))
-    P -= np.asarray(grid.origin, dtype=float)[:, None]
-    P /= grid.spacing
-    lo = np.maximum(np.ceil(P.min(axis=0) - tol), 0).astype(np.int64)
-    hi = np.minimum(np.floor(P.max(axis=0) + tol), shape - 1).astype(np.int64)
-    ext = np.maximum(hi - lo + 1, 0)
+    corner_positions = np.asarray(corner_positions, dtype=float)
+    lo, ext = _bounding_boxes(grid, corner_positions, tol)
     cnt = np.prod(ext, axis=0)
-    coef = _centred_coefficients(P)
-    Jinv = _inverse_small(_centre_jacobian(coef))
-    margin = np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
-    # cells in chunks of at most ``max_candidates`` bounding-box nodes (bounded memory
-    # even where a bad map stretches cells over many nodes)
+    # cells in chunks of at most ``max_candidates`` bounding-box nodes: every per-cell and
+    # per-candidate array lives for one chunk only (bounded memory, even where a bad map
+    # stretches cells over many nodes)
     bounds = np.searchsorted(np.cumsum(cnt), np.arange(1, int(cnt.sum()) // max_candidates + 1)
                              * max_candidates)
     edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
@@ -100,9 +92,18 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over a few chunks
         if check is not None:
             check()
-        cell_node, v = _lookup_chunk(np.arange(c0, c1), cnt, ext, lo, coef, Jinv, margin,
-                                     newton_steps)
-        found.append(cell_node)
+        # component-major layout, (2^d, d, C): the batch axis last, so the arithmetic runs
+        # along it (one contiguous copy; a transposed view would stride every operation)
+        P = np.ascontiguousarray(corner_positions[c0:c1].transpose(1, 2, 0))
+        P -= np.asarray(grid.origin, dtype=float)[:, None]
+        P /= grid.spacing
+        coef = _centred_coefficients(P)
+        del P
+        Jinv = _inverse_small(_centre_jacobian(coef))
+        margin = np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
+        cell, z, v = _lookup_chunk(cnt[c0:c1], ext[:, c0:c1], lo[:, c0:c1], coef, Jinv, margin,
+                                   newton_steps)
+        found.append((cell + c0, z))
         local.append(v)
     cc_all, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
     target = np.ravel_multi_index(tuple(zi), grid.shape)
@@ -110,20 +111,32 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     return target, base + 0.5 + np.concatenate(local, axis=1).T
 
 
-def _lookup_chunk(sel, cnt, ext, lo, coef, Jinv, margin, newton_steps):
-    """Inverse lookup for the cells ``sel``: (cell, node index (d, M)) found and their
-    local coordinates (d, M).
+def _bounding_boxes(grid, corner_positions, tol):
+    """The grid nodes' index box of every moved cell (corners (C, 2^d, d), world units):
+    its lowest node (d, C) and its extent in nodes (d, C), 0 where it holds none."""
+    shape = np.asarray(grid.shape)[:, None]
+    origin = np.asarray(grid.origin, dtype=float)[:, None]
+    low = (corner_positions.min(axis=1).T - origin) / grid.spacing
+    high = (corner_positions.max(axis=1).T - origin) / grid.spacing
+    lo = np.maximum(np.ceil(low - tol), 0).astype(np.int64)
+    hi = np.minimum(np.floor(high + tol), shape - 1).astype(np.int64)
+    return lo, np.maximum(hi - lo + 1, 0)
+
+
+def _lookup_chunk(cnt, ext, lo, coef, Jinv, margin, newton_steps):
+    """Inverse lookup for one chunk of cells (their candidate counts, bounding boxes,
+    coefficients, centre inverses and margins, batch axis last): the cell (index into
+    the chunk) and node index (d, M) found, and their local coordinates (d, M).
 
     Local coordinates v are about the cell's centre (the unit cell is |v_a| <= 1/2).
     A candidate whose affine guess lies farther than its cell's ``margin`` outside
     the unit cell cannot be in the cell (`_affine_margin`) and gets no Newton steps.
     """
     d = lo.shape[0]
-    n = cnt[sel]
     # every grid node inside every moved cell's bounding box (variable-size boxes, vectorised)
-    cc = np.repeat(sel, n)
-    start = np.cumsum(n) - n
-    rem = np.arange(int(n.sum())) - np.repeat(start, n)
+    cc = np.repeat(np.arange(cnt.size), cnt)
+    start = np.cumsum(cnt) - cnt
+    rem = np.arange(int(cnt.sum())) - np.repeat(start, cnt)
     z = np.empty((d, cc.size))
     for a in reversed(range(d)):
         e = ext[a, cc]
@@ -147,7 +160,7 @@ def _lookup_chunk(sel, cnt, ext, lo, coef, Jinv, margin, newton_steps):
         _, J = _poly_eval(a, v[:, todo])  # a singular cell: no step
         v[:, todo] = np.clip(v[:, todo] - _apply_small(_inverse_small(J, singular=0.0), r), -1.0, 1.0)
     inside = np.all(np.abs(v) <= 0.5 + _ON_FACE, axis=0) & (res < 1e-8)
-    return (cc[inside], z[:, inside].astype(np.int64)), v[:, inside]
+    return cc[inside], z[:, inside].astype(np.int64), v[:, inside]
 
 
 def _centred_coefficients(P):
