@@ -149,6 +149,75 @@ def _smoothstep(t):
     return t * t * (3.0 - 2.0 * t)
 
 
+def _edge_pairs(d):
+    """The d 2^(d-1) edges of a cell: (axis, lower corner, upper corner), corners in
+    `elements.corners` order."""
+    corners = elements.corners(d)
+    index = {tuple(c): k for k, c in enumerate(corners.tolist())}
+    return [(a, k, index[tuple(c + np.eye(d, dtype=int)[a])])
+            for a in range(d) for k, c in enumerate(corners.tolist()) if c[a] == 0]
+
+
+def _active_cells(grid, region, material):
+    """The cells whose corners all lie in ``region`` (flat bool): the active nodes (their
+    corners, flat grid indices, sorted), each cell's corners as indices into them
+    (nc, 2^d), and whether each cell touches ``material`` (a corner inside)."""
+    d = grid.dim
+    shape = np.asarray(grid.shape)
+    an = region.reshape(grid.shape)
+    cell_ok = np.ones(tuple(shape - 1), dtype=bool)
+    touch = np.zeros(tuple(shape - 1), dtype=bool)
+    corners = elements.corners(d)
+    for c in corners:
+        sl = tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))
+        cell_ok &= an[sl]
+        touch |= material[sl]
+    cell_idx = np.flatnonzero(cell_ok)
+    base = np.ravel_multi_index(np.unravel_index(cell_idx, tuple(shape - 1)), grid.shape)
+    cnodes = base[:, None] + (corners @ grid.strides)[None, :]
+    nodes, lc = np.unique(cnodes, return_inverse=True)
+    return nodes, lc.reshape(cnodes.shape), touch.reshape(-1)[cell_idx]
+
+
+def _edge_operators(lc, weight, n, d):
+    """The trajectory solve's matrices from the cells' edges (thesis sec. 3.1, global form).
+
+    An edge i -> j along axis a of cell c, with the cell's ``weight`` w, should equal
+    h F_c(s)[:, a]. Its least-squares term adds w (e_i - e_j)(e_i - e_j)^T to the
+    weighted graph Laplacian L (n, n) and w (e_j - e_i) to column (c, a) of B
+    (n, nc d), so that the right-hand side is B T with T's row (c, a) the target.
+    (L = D^T W D and B = D^T W E, D the edge differences and E the edges' targets; summed
+    edge by edge here, so that no edge-sized matrix is kept.)
+    """
+    nc = len(lc)
+    L = sp.csr_matrix((n, n))
+    B = sp.csr_matrix((n, nc * d))
+    for a, k, hi in _edge_pairs(d):  # 2^(d-1) d edges per cell
+        i, j = lc[:, k], lc[:, hi]
+        L = L + sp.csr_matrix((np.concatenate([weight, weight, -weight, -weight]),
+                               (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
+                              shape=(n, n))
+        col = np.arange(nc) * d + a
+        B = B + sp.csr_matrix((np.concatenate([-weight, weight]),
+                               (np.concatenate([i, j]), np.concatenate([col, col]))),
+                              shape=(n, nc * d))
+    return L, B
+
+
+def _cell_polar(y, lc, h):
+    """Polar decomposition F = R S of every cell's deformation gradient F (the mean of its
+    parallel edge differences over h), from the mapped positions ``y`` (n, d) of the
+    nodes; also whether F folds (det F <= 0). Returns R, S (nc, d, d) and folded (nc,)."""
+    d = y.shape[1]
+    F = np.zeros((len(lc), d, d))
+    pairs = _edge_pairs(d)
+    for a, k, hi in pairs:
+        F[:, :, a] += y[lc[:, hi]] - y[lc[:, k]]
+    F /= h * (len(pairs) // d)
+    R, S = polar(F)
+    return R, S, np.linalg.det(F) <= 0
+
+
 # ----------------------------------------------------------------------------
 class Trajectories:
     """As-rigid-as-possible node paths x(s) from x to the map y(x) (section 3.1).
@@ -317,99 +386,41 @@ class Trajectories:
         self._ext = self._body_arrays(nodes)
 
     def _init_global(self, dist):
-        grid, d, h = self.grid, self.dim, self.grid.spacing
-        shape = np.asarray(grid.shape)
-        corners = elements.corners(d)  # (2^d, d)
-        corner_off = corners @ grid.strides
-
-        active_node = self.region_nodes()
-        an = active_node.reshape(grid.shape)
-        # active cells: all corners active
-        cell_ok = np.ones(tuple(shape - 1), dtype=bool)
-        touch = np.zeros(tuple(shape - 1), dtype=bool)
-        for c in corners:
-            sl = tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))
-            cell_ok &= an[sl]
-            touch |= self.material[sl]
-        cell_idx = np.flatnonzero(cell_ok)
-        base = np.ravel_multi_index(np.unravel_index(cell_idx, tuple(shape - 1)), grid.shape)
-        cnodes = base[:, None] + corner_off[None, :]  # (nc, 2^d) flat node indices
-        w_cell = np.where(touch.reshape(-1)[cell_idx], 1.0, self.margin_weight)
-        nc = cell_idx.size
+        grid, d = self.grid, self.dim
+        nodes, lc, touch = _active_cells(grid, self.region_nodes(), self.material)
+        nc, n = len(lc), nodes.size
         if nc == 0:
             raise ValueError("no active cell: the material is thinner than one cell; "
                              "use a finer grid.")
-
-        nodes = np.unique(cnodes)
-        lc = np.searchsorted(nodes, cnodes)  # the cells' corners among the active nodes
-        n = nodes.size
-
-        # per-cell edges (i -> j along axis a); target of each edge is h * F_c[:, a]
-        rows_i, rows_j, col, wts = [], [], [], []
-        for a in range(d):
-            lo = np.flatnonzero(corners[:, a] == 0)
-            for k in lo:
-                hi = int(np.flatnonzero(np.all(corners == corners[k] + np.eye(d, dtype=int)[a],
-                                               axis=1))[0])
-                rows_i.append(lc[:, k])
-                rows_j.append(lc[:, hi])
-                col.append(np.arange(nc) * d + a)
-                wts.append(w_cell)
-        ei = np.concatenate(rows_i)
-        ej = np.concatenate(rows_j)
-        ec = np.concatenate(col)
-        ew = np.concatenate(wts)
-        ne = ei.size
-        Dm = sp.csr_matrix((np.concatenate([-np.ones(ne), np.ones(ne)]),
-                            (np.concatenate([np.arange(ne)] * 2), np.concatenate([ei, ej]))),
-                           shape=(ne, n))
-        DtW = (Dm.T @ sp.diags(ew)).tocsr()
-        L = (DtW @ Dm).tocsr()
-        # rhs = B @ T, T rows = (cell, axis) targets h F_c(s)[:, a]
-        E = sp.csr_matrix((np.ones(ne), (np.arange(ne), ec)), shape=(ne, nc * d))
-        self._B = (DtW @ E).tocsr()
-
-        ncomp, comp = connected_components(L, directed=False)
+        self._check()
+        # each edge of a cell pulls towards h F_c[:, a]; margin cells pull more weakly
+        self._L, self._B = _edge_operators(lc, np.where(touch, 1.0, self.margin_weight), n, d)
+        ncomp, comp = connected_components(self._L, directed=False)
         # L is singular (one translation per component) and the right-hand sides are
         # consistent: CG on its range, the translation fixed afterwards (`_poisson`)
-        self._L = L
         coords = np.stack(np.unravel_index(nodes, grid.shape), axis=1)
-        self._mg = BlockMultigrid(L, coords, check=self._check)
+        self._mg = BlockMultigrid(self._L, coords, check=self._check)
+        del coords
         self._solved = []  # the last (s, Y) solved, at distinct times: the next solve's start
         self.stats["multigrid_levels"] = self._mg.sizes
         self.stats["cg_iterations"] = []
 
-        # per-cell F (mean of parallel edge differences) and its polar decomposition
+        # per-cell F and its polar decomposition: the targets' rotation and stretch
         self._check()
-        yc = self._y[cnodes]  # (nc, 2^d, d)
-        F = np.empty((nc, d, d))
-        for a in range(d):
-            lo = np.flatnonzero(corners[:, a] == 0)
-            hi = [int(np.flatnonzero(np.all(corners == corners[k] + np.eye(d, dtype=int)[a],
-                                            axis=1))[0]) for k in lo]
-            F[:, :, a] = (yc[:, hi] - yc[:, lo]).mean(axis=1) / h
-        R, S = polar(F)
+        ya = self._y[nodes]
+        R, S, folded = _cell_polar(ya, lc, grid.spacing)
+        del lc
         self._check()
-        folded = np.linalg.det(F) <= 0
         self._cell_rv = rotation_log(R)
         self._cell_S = S
         self.stats["folded_cells"] = int(folded.sum())
 
         # centroid constraint per component of the active graph: material nodes of it
-        mat_local = self.material.reshape(-1)[nodes]
         self._comp = comp
         self._ncomp = ncomp
-        xa = self.grid.node_points(nodes)
-        ya = self._y[nodes]
-        self._xbar = np.zeros((ncomp, d))
-        self._ybar = np.zeros((ncomp, d))
-        cw = np.where(mat_local, 1.0, 0.0)
-        for c in range(ncomp):  # components are few
-            m = comp == c
-            wsel = cw[m] if cw[m].sum() > 0 else np.ones(m.sum())
-            self._xbar[c] = (wsel[:, None] * xa[m]).sum(0) / wsel.sum()
-            self._ybar[c] = (wsel[:, None] * ya[m]).sum(0) / wsel.sum()
-        self._cw = cw
+        self._cw = np.where(self.material.reshape(-1)[nodes], 1.0, 0.0)
+        self._xbar = self._component_centroids(self.grid.node_points(nodes))
+        self._ybar = self._component_centroids(ya)
         self._nodes = nodes
         self._ncells = nc
         self.stats["active_nodes"] = int(n)
@@ -418,13 +429,22 @@ class Trajectories:
 
         # residual so that x(1) = y exactly
         self._check()
-        Y1 = self._poisson(1.0)
-        self._resid = ya - Y1
+        self._resid = ya - self._poisson(1.0)
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
 
         # blend of the Poisson paths with the body formula over the outer half of the margin
         dl = dist[nodes]
         self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
+
+    def _component_centroids(self, points):
+        """Centroid (ncomp, d) of the material nodes of each component of the active graph
+        (of all its nodes where it holds no material), from the active nodes' points."""
+        out = np.zeros((self._ncomp, self.dim))
+        for c in range(self._ncomp):  # components are few
+            m = self._comp == c
+            w = self._cw[m] if self._cw[m].sum() > 0 else np.ones(m.sum())
+            out[c] = (w[:, None] * points[m]).sum(0) / w.sum()
+        return out
 
     def _cell_targets(self, s):
         """Target gradients F_c(s) = R_c^s ((1 - s) I + s S_c) of the active cells, (nc, d, d)."""
@@ -444,12 +464,7 @@ class Trajectories:
         self.stats["cg_iterations"].append(its)
         # fix each component's translation: material centroid on the straight path
         target = (1.0 - s) * self._xbar + s * self._ybar
-        cw = self._cw
-        for c in range(self._ncomp):
-            m = self._comp == c
-            wsel = cw[m] if cw[m].sum() > 0 else np.ones(m.sum())
-            cen = (wsel[:, None] * Y[m]).sum(0) / wsel.sum()
-            Y[m] += target[c] - cen
+        Y += (target - self._component_centroids(Y))[self._comp]
         return Y
 
     def _start(self, s):
