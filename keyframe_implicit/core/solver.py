@@ -77,6 +77,12 @@ from .terms import TERMS, ElementBatch, NodeBatch, heaviside
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 
+#: Storage of the Gauss-Newton Hessian (the stencil blocks and the BSR matrix made from them):
+#: the largest array of a solve (3^d d^2 values per node). Single precision halves it; its
+#: rounding (1e-7 relative) is far below the loose CG tolerance it serves (``cg_tolerance``),
+#: and energy, gradient and line search stay in double precision (benchmarks/README.md).
+_HESSIAN_DTYPE = np.float32
+
 #: Default options of `solve_map` (besides the term weights).
 DEFAULTS = dict(
     margin_weight=0.1,
@@ -260,7 +266,7 @@ class _Level:
         d, K = self.d, self.elem.shape[1]
         energies = {}
         grad = np.zeros((self.n, d))
-        Hs = np.zeros((self.n, len(self.offsets), d, d)) if hessian else None
+        Hs = np.zeros((self.n, len(self.offsets), d, d), _HESSIAN_DTYPE) if hessian else None
         el_terms = [t for t in TERMS if t.kind == "element"]
         for t in TERMS:
             energies[t.name] = 0.0
@@ -397,10 +403,11 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             mu = opts["damping"] * max(float(np.mean(np.trace(diag, axis1=1, axis2=2))) / d, 1e-300)
             Hs[:, level.centre_off] += mu * np.eye(d)
             H = level.bsr(Hs)
-            precond = cons.block_preconditioner(Hs[:, level.centre_off])
+            precond = cons.block_preconditioner(Hs[:, level.centre_off].astype(float))
 
-        def apply_A(z):
-            return cons.reduce((H @ cons.expand(z).reshape(-1)).reshape(-1, d))
+        def apply_A(z):  # the product in the Hessian's precision (a cast, not an upcast of H)
+            Tz = cons.expand(z).reshape(-1).astype(_HESSIAN_DTYPE)
+            return cons.reduce((H @ Tz).reshape(-1, d).astype(float))
 
         b = -cons.reduce(g)
         z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]),
