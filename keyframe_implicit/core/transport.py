@@ -41,7 +41,7 @@ _ON_FACE = 1e-4  # cells: local coordinates this far outside the unit cell still
 
 
 def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
-                   max_candidates=500_000, check=None):
+                   max_candidates=65_536, check=None):
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
     Every cell listed in ``cells`` is moved (its corners to
@@ -65,7 +65,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         Newton iterations at most per candidate (the affine start makes 1-2 enough
         for near-rigid cells; converged candidates drop out).
     max_candidates : int
-        Cells are processed in chunks of at most this many candidate nodes.
+        Cells are processed in chunks of at most this many candidate nodes (a
+        chunk's arrays then stay small: less memory, and faster than large chunks).
     check : callable, optional
         Called before every chunk (cancellation).
 
