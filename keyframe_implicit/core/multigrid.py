@@ -107,12 +107,22 @@ class BlockMultigrid:
             return self.coarse @ r
         A, wd, P = self.levels[k]
         wd = wd if r.ndim == 1 else wd[:, None]
+
+        def residual(x):  # r - A x, in the product's own array
+            t = A @ x
+            return np.subtract(r, t, out=t)
+
+        def smooth(x):  # one damped Jacobi sweep, in place
+            t = residual(x)
+            t *= wd
+            x += t
+
         x = wd * r
         for _ in range(self.sweeps - 1):
-            x += wd * (r - A @ x)
-        x += P @ self._cycle(k + 1, P.T @ (r - A @ x))
+            smooth(x)
+        x += P @ self._cycle(k + 1, P.T @ residual(x))
         for _ in range(self.sweeps):
-            x += wd * (r - A @ x)
+            smooth(x)
         return x
 
 
