@@ -167,15 +167,15 @@ def _refusal(grid, resolution, need, limit, fits):
 # scikit-image; per grid node the keyframes' distance grids, their spline coefficients,
 # the maps, the in-between fields and the level-set transients; per active solver node
 # the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables, and the
-# trajectories' multigrid. Fitted by least squares on the relative error
-# (benchmarks/fit_memory.py) to the peaks benchmarks/bench_scale.py measured on its
-# seven cases at 64 and 128 cells; tables in benchmarks/README.md.
+# trajectories' multigrid. Fitted to the largest relative error (benchmarks/fit_memory.py)
+# on the peaks benchmarks/bench_scale.py measured on its seven cases at 64 and 128 cells;
+# tables in benchmarks/README.md.
 # 2D: not measured; per active node scaled by the stencil (9 blocks of 2 x 2 against 27
 # of 3 x 3).
 _COPIES = 2
-_PROCESS_BYTES = 166 * 2 ** 20
-_NODE_BYTES = {2: 198.0, 3: 198.0}
-_ACTIVE_BYTES = {2: 5413.0 * 36 / 243, 3: 5413.0}
+_PROCESS_BYTES = 198 * 2 ** 20
+_NODE_BYTES = {2: 109.0, 3: 109.0}
+_ACTIVE_BYTES = {2: 3518.0 * 36 / 243, 3: 3518.0}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
