@@ -17,7 +17,8 @@ Algorithm
   null space (eq. 2.16 by elimination rather than a KKT system). Energy,
   gradient and the Gauss-Newton Hessian are assembled per element in closed
   form straight into a fixed 3**d-neighbour block stencil (no Jacobian is
-  formed), then handed to scipy as a block-sparse (BSR) matrix.
+  formed), then handed to scipy as a block-sparse (BSR) matrix, stored in single
+  precision (``_HESSIAN_DTYPE``).
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
   preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2),
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
