@@ -90,18 +90,10 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
                              * max_candidates)
     edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
     found, local = [], []
-    for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over a few chunks
+    for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over the chunks
         if check is not None:
             check()
-        # component-major layout, (2^d, d, C): the batch axis last, so the arithmetic runs
-        # along it (one contiguous copy; a transposed view would stride every operation)
-        P = np.ascontiguousarray(corner_positions[c0:c1].transpose(1, 2, 0))
-        P -= np.asarray(grid.origin, dtype=float)[:, None]
-        P /= grid.spacing
-        coef = _centred_coefficients(P)
-        del P
-        Jinv = _inverse_small(_centre_jacobian(coef))
-        margin = np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
+        coef, Jinv, margin = _cell_maps(grid, corner_positions[c0:c1], tol)
         cell, z, v = _lookup_chunk(cnt[c0:c1], ext[:, c0:c1], lo[:, c0:c1], coef, Jinv, margin,
                                    newton_steps)
         found.append((cell + c0, z))
@@ -122,6 +114,20 @@ def _bounding_boxes(grid, corner_positions, tol):
     lo = np.maximum(np.ceil(low - tol), 0).astype(np.int64)
     hi = np.minimum(np.floor(high + tol), shape - 1).astype(np.int64)
     return lo, np.maximum(hi - lo + 1, 0)
+
+
+def _cell_maps(grid, corner_positions, tol):
+    """The moved cells' multilinear maps in index units, batch axis last: centred
+    coefficients (2^d, d, C), inverse Jacobians at the centres (d, d, C) and how far
+    outside the unit cell an affine guess may fall (d, C; `_affine_margin`)."""
+    # component-major layout: one contiguous copy (a transposed view would stride every
+    # operation after it)
+    P = np.ascontiguousarray(corner_positions.transpose(1, 2, 0))
+    P -= np.asarray(grid.origin, dtype=float)[:, None]
+    P /= grid.spacing
+    coef = _centred_coefficients(P)
+    Jinv = _inverse_small(_centre_jacobian(coef))
+    return coef, Jinv, np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
 
 
 def _lookup_chunk(cnt, ext, lo, coef, Jinv, margin, newton_steps):
