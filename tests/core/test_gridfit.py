@@ -146,7 +146,7 @@ def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     """A turning sphere through `animate` with its helper process, in a fresh interpreter:
     the peak resident sets of both processes against the model, at two sizes. The model
     is fitted on Python 3.11 / numpy 1.26 to the benchmark's cases (benchmarks/README.md,
-    "Memory model": 13.8 % at most on fourteen rows); here it meets other Python and numpy
+    "Memory model": 13.9 % at most on sixteen rows); here it meets other Python and numpy
     lines too (3.13 / numpy 2). The sphere is lighter than those cases for its grid: the
     model is high by 15 % at 72 cells and 4-6 % at 88, and by 20-28 % at 56-64 cells,
     where the two interpreters are most of the peak."""
