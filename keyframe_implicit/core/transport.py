@@ -108,9 +108,8 @@ def _bounding_boxes(grid, corner_positions, tol):
     """The grid nodes' index box of every moved cell (corners (C, 2^d, d), world units):
     its lowest node (d, C) and its extent in nodes (d, C), 0 where it holds none."""
     shape = np.asarray(grid.shape)[:, None]
-    origin = np.asarray(grid.origin, dtype=float)[:, None]
-    low = (corner_positions.min(axis=1).T - origin) / grid.spacing
-    high = (corner_positions.max(axis=1).T - origin) / grid.spacing
+    low = grid.to_index(corner_positions.min(axis=1)).T
+    high = grid.to_index(corner_positions.max(axis=1)).T
     lo = np.maximum(np.ceil(low - tol), 0).astype(np.int64)
     hi = np.minimum(np.floor(high + tol), shape - 1).astype(np.int64)
     return lo, np.maximum(hi - lo + 1, 0)
@@ -120,12 +119,10 @@ def _cell_maps(grid, corner_positions, tol):
     """The moved cells' multilinear maps in index units, batch axis last: centred
     coefficients (2^d, d, C), inverse Jacobians at the centres (d, d, C) and how far
     outside the unit cell an affine guess may fall (d, C; `_affine_margin`)."""
-    # component-major layout: one contiguous copy (a transposed view would stride every
+    # component-major layout: a contiguous copy (a transposed view would stride every
     # operation after it)
-    P = np.ascontiguousarray(corner_positions.transpose(1, 2, 0))
-    P -= np.asarray(grid.origin, dtype=float)[:, None]
-    P /= grid.spacing
-    coef = _centred_coefficients(P)
+    coef = _centred_coefficients(np.ascontiguousarray(
+        grid.to_index(corner_positions).transpose(1, 2, 0)))
     Jinv = _inverse_small(_centre_jacobian(coef))
     return coef, Jinv, np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
 
