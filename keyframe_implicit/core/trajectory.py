@@ -205,15 +205,12 @@ def _edge_operators(lc, weight, n, d):
 
 
 def _cell_polar(y, lc, h):
-    """Polar decomposition F = R S of every cell's deformation gradient F (the mean of its
-    parallel edge differences over h), from the mapped positions ``y`` (n, d) of the
-    nodes; also whether F folds (det F <= 0). Returns R, S (nc, d, d) and folded (nc,)."""
-    d = y.shape[1]
-    F = np.zeros((len(lc), d, d))
-    pairs = _edge_pairs(d)
-    for a, k, hi in pairs:
-        F[:, :, a] += y[lc[:, hi]] - y[lc[:, k]]
-    F /= h * (len(pairs) // d)
+    """Polar decomposition F = R S of every cell's deformation gradient F at its centre
+    (the mean of its parallel edge differences over h), from the mapped positions ``y``
+    (n, d) of the nodes; also whether F folds (det F <= 0). Returns R, S (nc, d, d) and
+    folded (nc,)."""
+    centre = elements.quadrature(y.shape[1], h, "centre").G
+    F = elements.deformation_gradient(y[lc], centre)[:, 0]
     R, S = polar(F)
     return R, S, np.linalg.det(F) <= 0
 
