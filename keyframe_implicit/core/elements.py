@@ -28,13 +28,54 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["corners", "gradient_operator", "Quadrature", "quadrature",
-           "deformation_gradient", "determinant", "cofactor"]
+__all__ = ["corners", "corner_views", "cells_within", "gradient_operator", "Quadrature",
+           "quadrature", "deformation_gradient", "determinant", "cofactor"]
 
 
 def corners(d: int) -> np.ndarray:
     """Corner offsets of a cell, shape ``(2**d, d)``, in ``itertools.product`` order."""
     return np.array(list(itertools.product((0, 1), repeat=d)), dtype=np.int64)
+
+
+def corner_views(values: np.ndarray, d: int | None = None) -> list:
+    """A node array seen from the cells: one view per corner offset c (`corners` order).
+
+    ``views[k][i]`` is the value at node ``i + corners(d)[k]`` of cell ``i`` (its lowest
+    corner at node ``i``); each view has one entry fewer than the grid along each axis.
+    Per-cell sums, "any corner" and "all corners" are reductions over the views.
+
+    Parameters
+    ----------
+    values : ndarray, the grid's shape (plus trailing axes, if any)
+    d : int, optional
+        Number of grid axes (default ``values.ndim``).
+    """
+    d = values.ndim if d is None else d
+    n = values.shape[:d]
+    return [values[tuple(slice(o, o + m - 1) for o, m in zip(c, n))] for c in corners(d)]
+
+
+def cells_within(grid, region):
+    """The cells whose 2**d corners all lie in ``region`` (bool over the grid's nodes).
+
+    Returns
+    -------
+    lower : (nc,) int
+        Flat node index of each cell's lowest corner (cells in C order).
+    nodes : (n,) int
+        The flat indices of their corners, sorted, each once.
+    local : (nc, 2**d) int
+        Each cell's corners as indices into ``nodes``, in `corners` order.
+    """
+    views = corner_views(np.asarray(region, dtype=bool).reshape(grid.shape))
+    inside = views[0].copy()
+    for v in views[1:]:
+        inside &= v
+    cell_shape = inside.shape
+    lower = np.ravel_multi_index(np.unravel_index(np.flatnonzero(inside), cell_shape), grid.shape)
+    corner_nodes = lower[:, None] + (corners(grid.dim) @ grid.strides)[None, :]
+    nodes, local = np.unique(corner_nodes, return_inverse=True)
+    return lower, nodes, local.reshape(corner_nodes.shape)
 
 
 def gradient_operator(d: int, xi, h: float) -> np.ndarray:

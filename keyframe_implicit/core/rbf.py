@@ -35,6 +35,7 @@ the map is component k's; elsewhere an inverse-distance blend (weights
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass, field
 
@@ -126,12 +127,9 @@ def min_det(mapped, grid: Grid, material):
     2**d Gauss points, as the solver measures it; <= 0 means the map folds.
     """
     d = grid.dim
-    shape = np.asarray(grid.shape)
-    mat = np.asarray(material, dtype=bool).reshape(grid.shape)
     cs = elements.corners(d)
-    touch = np.zeros(tuple(shape - 1), dtype=bool)
-    for c in cs:
-        touch |= mat[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))]
+    views = elements.corner_views(np.asarray(material, dtype=bool).reshape(grid.shape))
+    touch = functools.reduce(np.logical_or, views)  # a corner in the material
     lower = np.argwhere(touch)
     if lower.size == 0:
         return np.inf

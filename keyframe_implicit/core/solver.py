@@ -191,12 +191,12 @@ class _Level:
         self.phi_b = phi_b
         h = grid.spacing
         self.eps = 1.5 * h  # eq. 2.7
-        cshape = tuple(n - 1 for n in grid.shape)
         cs = elements.corners(d)
-        centre = np.zeros(cshape)
-        for c in cs:
-            centre += phi_a[tuple(slice(int(o), int(o) + n) for o, n in zip(c, cshape))]
+        centre = np.zeros(tuple(n - 1 for n in grid.shape))  # Phi at each cell's centre
+        for v in elements.corner_views(phi_a):
+            centre += v
         centre /= len(cs)
+        cshape = centre.shape
         mat = centre < 0
         margin = ((~mat) & (centre < margin_cells * h) if (margin_weight > 0 and margin_cells > 0)
                   else np.zeros_like(mat))

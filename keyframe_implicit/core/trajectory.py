@@ -158,27 +158,6 @@ def _edge_pairs(d):
             for a in range(d) for k, c in enumerate(corners.tolist()) if c[a] == 0]
 
 
-def _active_cells(grid, region, material):
-    """The cells whose corners all lie in ``region`` (flat bool): the active nodes (their
-    corners, flat grid indices, sorted), each cell's corners as indices into them
-    (nc, 2^d), and whether each cell touches ``material`` (a corner inside)."""
-    d = grid.dim
-    shape = np.asarray(grid.shape)
-    an = region.reshape(grid.shape)
-    cell_ok = np.ones(tuple(shape - 1), dtype=bool)
-    touch = np.zeros(tuple(shape - 1), dtype=bool)
-    corners = elements.corners(d)
-    for c in corners:
-        sl = tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))
-        cell_ok &= an[sl]
-        touch |= material[sl]
-    cell_idx = np.flatnonzero(cell_ok)
-    base = np.ravel_multi_index(np.unravel_index(cell_idx, tuple(shape - 1)), grid.shape)
-    cnodes = base[:, None] + (corners @ grid.strides)[None, :]
-    nodes, lc = np.unique(cnodes, return_inverse=True)
-    return nodes, lc.reshape(cnodes.shape), touch.reshape(-1)[cell_idx]
-
-
 def _edge_operators(lc, weight, n, d):
     """The trajectory solve's matrices from the cells' edges (thesis sec. 3.1, global form).
 
@@ -384,7 +363,8 @@ class Trajectories:
 
     def _init_global(self, dist):
         grid, d = self.grid, self.dim
-        nodes, lc, touch = _active_cells(grid, self.region_nodes(), self.material)
+        _, nodes, lc = elements.cells_within(grid, self.region_nodes())
+        touch = self.material.reshape(-1)[nodes][lc].any(axis=1)  # a corner inside
         nc, n = len(lc), nodes.size
         if nc == 0:
             raise ValueError("no active cell: the material is thinner than one cell; "

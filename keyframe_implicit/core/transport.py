@@ -380,27 +380,8 @@ class Transport:
 
 
 def _region_cells(grid, region):
-    """The cells with all corners in ``region`` (bool, flat).
-
-    Returns their lower-corner nodes, their corner nodes (unique), each cell's
-    corners as indices into those, and the border nodes: corners of some
-    region cell that are not surrounded by region cells.
-    """
-    shape = np.asarray(grid.shape)
-    d = grid.dim
-    near = region.reshape(grid.shape)
-    corners = elements.corners(d)
-    cell_ok = np.ones(tuple(shape - 1), dtype=bool)
-    for c in corners:
-        cell_ok &= near[tuple(slice(c[a], c[a] + shape[a] - 1) for a in range(d))]
-    cells = np.ravel_multi_index(np.unravel_index(np.flatnonzero(cell_ok), tuple(shape - 1)),
-                                 grid.shape)
-    cnodes = cells[:, None] + (corners @ grid.strides)[None, :]
-    corner_nodes, inv = np.unique(cnodes, return_inverse=True)
-    # a node is inside the union of region cells when all 2^d cells around it are region cells
-    padded = np.pad(cell_ok, 1)
-    inside = np.ones(grid.shape, dtype=bool)
-    for c in corners:
-        inside &= padded[tuple(slice(c[a], c[a] + shape[a]) for a in range(d))]
-    border = corner_nodes[~inside.reshape(-1)[corner_nodes]]
-    return cells, corner_nodes, inv.reshape(cnodes.shape), border
+    """`elements.cells_within` of ``region``, and its border nodes: corners of some region
+    cell that are not surrounded by region cells (fewer than 2**d region cells use them)."""
+    cells, nodes, local = elements.cells_within(grid, region)
+    surrounded = np.bincount(local.reshape(-1), minlength=len(nodes)) == 2 ** grid.dim
+    return cells, nodes, local, nodes[~surrounded]

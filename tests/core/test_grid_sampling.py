@@ -100,3 +100,29 @@ def test_distance_extension_gradient_outside_points_away_from_the_box():
     v, grad = sample_with_gradient(field, g, np.array([[5.0, 1.5], [-2.0, -2.0]]), outside="distance")
     np.testing.assert_allclose(v, [2.0, np.sqrt(8.0)])
     np.testing.assert_allclose(grad, [[1.0, 0.0], [-np.sqrt(0.5), -np.sqrt(0.5)]], atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(6, 5), (5, 6, 4)])
+def test_cells_within_match_a_cell_by_cell_count(shape):
+    """`elements.cells_within` and the transport's border against a loop over the cells."""
+    import itertools
+
+    from keyframe_implicit.core import elements
+    from keyframe_implicit.core.transport import _region_cells
+
+    g = Grid(origin=(0.0,) * len(shape), spacing=1.0, shape=shape)
+    region = np.random.default_rng(3).random(shape) < 0.8
+    offsets = elements.corners(g.dim)
+    want = [c for c in itertools.product(*(range(n - 1) for n in shape))
+            if all(region[tuple(np.add(c, o))] for o in offsets)]
+    lower, nodes, local, border = _region_cells(g, region.reshape(-1))
+    assert 0 < len(want) < np.prod(np.subtract(shape, 1))
+    np.testing.assert_array_equal(lower, [np.ravel_multi_index(c, shape) for c in want])
+    corner_flat = [[np.ravel_multi_index(tuple(np.add(c, o)), shape) for o in offsets] for c in want]
+    np.testing.assert_array_equal(nodes[local], corner_flat)
+    assert np.array_equal(nodes, np.unique(corner_flat))
+    # a node is on the border when some cell around it (or past the grid's edge) is not kept
+    kept = {tuple(c) for c in want}
+    around = [tuple(np.subtract(np.unravel_index(n, shape), o)) for n in nodes for o in offsets]
+    surrounded = np.reshape([a in kept for a in around], (len(nodes), len(offsets))).all(axis=1)
+    np.testing.assert_array_equal(border, nodes[~surrounded])

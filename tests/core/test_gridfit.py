@@ -148,7 +148,7 @@ def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     is fitted on Python 3.11 / numpy 1.26 to the benchmark's cases (benchmarks/README.md,
     "Memory model": 13.9 % at most on sixteen rows); here it meets other Python and numpy
     lines too (3.13 / numpy 2). The sphere is lighter than those cases for its grid: the
-    model is high by 15 % at 72 cells and 4-6 % at 88, and by 20-28 % at 56-64 cells,
+    model is high by 13 % at 72 cells and 5 % at 88, and by 20-28 % at 56-64 cells,
     where the two interpreters are most of the peak."""
     import json
     import pathlib
