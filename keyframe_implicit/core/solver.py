@@ -468,8 +468,7 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check):
     return None
 
 
-def _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius, patch_rigidity,
-                       base, options):
+def _constrained_level(pa, pb, g, xa, yb, margin_cells, options, base):
     """The `_Level` of grid ``g`` with feature patches no larger than the start allows.
 
     A patch moves its nodes by one affine map. Where the features ask for a kink at a
@@ -480,10 +479,11 @@ def _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius, p
     """
     d, chunk = g.dim, int(options["chunk_elements"])
     diag = 1.01 * np.sqrt(d) * g.spacing  # a patch must hold its feature's cell
+    radius, margin_weight = options["feature_radius"], options["margin_weight"]
     rad = max(float(radius), diag) if radius > 0 else 0.0
     floor = None  # the start's own det F floor: the region and its cells do not depend on rad
     while True:
-        level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, patch_rigidity)
+        level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, options["patch_rigidity"])
         if rad == 0.0 or level.cons.n_patch == 0:
             return level
         raw = base.reshape(-1, d)[level.active]
@@ -651,8 +651,58 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     take_renamed(opts, {"band_weight": "margin_weight", "band_cells": "margin_cells"}, "solve_map")
     margin_cells = opts.pop("margin_cells", margin_cells)
     phi_a, phi_b, xa, yb = _check_inputs(phi_a, phi_b, grid, features_a, features_b)
-    weight_opts = {"volume_weight": volume_weight, "rigidity_weight": rigidity_weight,
-                   "levelset_weight": levelset_weight}
+    options, weights = _options(opts, {"volume_weight": volume_weight, "rigidity_weight": rigidity_weight,
+                                       "levelset_weight": levelset_weight}, grid)
+    if int(max_iterations) < 0:
+        raise ValueError("max_iterations must be >= 0.")
+    rep = Reporter(progress, cancel)
+    timing = {"initial map": 0.0, "setup": 0.0, "assembly": 0.0, "linear solve": 0.0,
+              "line search": 0.0, "extension": 0.0}
+
+    t0 = time.perf_counter()
+    rep(0.0, "Initial map (radial basis functions)")
+    init = initial_map(phi_a, phi_b, grid, xa, yb)
+    y0 = init.mapped if options["initial"] is None else options["initial"]
+    timing["initial map"] = time.perf_counter() - t0
+    disp0 = y0 - grid.points()
+
+    grids = _levels(grid, int(options["coarse_nodes"]))
+    nlev = len(grids)
+    # work per level grows ~2**d per refinement: give progress slices accordingly
+    cost = np.array([2.0 ** (grid.dim * i) for i in range(nlev)])
+    edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
+    corr = None
+    level_stats = []
+    for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
+        t0 = time.perf_counter()
+        pa, pb, base = ((phi_a, phi_b, y0) if li == nlev - 1
+                        else _level_fields(phi_a, phi_b, disp0, grid, g))
+        if not np.any(pa < 0):
+            continue  # material too thin for this coarse level
+        level = _constrained_level(pa, pb, g, xa, yb, margin_cells, options, base)
+        y_start_full, y = _level_start(level, base, corr, options)
+        timing["setup"] += time.perf_counter() - t0
+        y, history, iters, cg_total, dets, terms = _solve_level(
+            level, y, weights, options, int(max_iterations), float(tolerance),
+            rep.sub(edges[li], edges[li + 1]), timing)
+        t0 = time.perf_counter()
+        corr = _correction(level, y, y_start_full, base, int(options["extension_passes"]))
+        timing["extension"] += time.perf_counter() - t0
+        level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
+                                iterations=iters, cg_iterations=cg_total, history=history))
+    rep(1.0, "Volume map done")
+    stats = _map_stats(level, y, dets, terms, weights, level_stats, init)
+    stats["seconds"] = dict(timing, total=time.perf_counter() - t_start)
+    region = np.zeros(grid.size, dtype=bool)
+    region[level.active] = True
+    return MapResult(mapped=y0 + corr, stats=stats, grid=grid, region=region.reshape(grid.shape),
+                     material=phi_a < 0, components=init.components)
+
+
+def _options(opts, weight_opts, grid):
+    """`DEFAULTS` updated by ``opts`` (checked; ``feature_radius`` resolved, ``initial``
+    an array), and the weight of every term of `TERMS` by its name: (options, weights).
+    ``weight_opts`` holds the named weight arguments."""
     extra = {t.weight_option for t in TERMS} - set(weight_opts)
     options = dict(DEFAULTS)
     for k, v in opts.items():
@@ -663,107 +713,68 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         else:
             raise ValueError(f"unknown option {k!r} for solve_map; known options: "
                              f"{sorted(set(options) | extra)}.")
-    for t in TERMS:
-        weight_opts.setdefault(t.weight_option, t.default)
     weights = {}
     for t in TERMS:
-        w = float(weight_opts[t.weight_option])
+        w = float(weight_opts.get(t.weight_option, t.default))
         if not np.isfinite(w) or w < 0:
             raise ValueError(f"{t.weight_option} must be a finite number >= 0, got {w}.")
         weights[t.name] = w
-    if int(max_iterations) < 0:
-        raise ValueError("max_iterations must be >= 0.")
-    d = grid.dim
-    margin_weight = float(options["margin_weight"])
     patch_rigidity = float(options["patch_rigidity"])
     if not np.isfinite(patch_rigidity) or patch_rigidity < 0:
         raise ValueError(f"patch_rigidity must be a finite number >= 0 (a factor on rigidity_weight inside "
                          f"the feature patches; 1 = plain material, default 10), got {patch_rigidity}.")
-    radius = options["feature_radius"]
-    if radius is None:
-        radius = 0.08 * float(np.max(grid.upper - grid.origin))
-    rep = Reporter(progress, cancel)
-    timing = {"initial map": 0.0, "setup": 0.0, "assembly": 0.0, "linear solve": 0.0,
-              "line search": 0.0, "extension": 0.0}
-
-    t0 = time.perf_counter()
-    rep(0.0, "Initial map (radial basis functions)")
-    init = initial_map(phi_a, phi_b, grid, xa, yb)
-    y0 = init.mapped
+    options["patch_rigidity"] = patch_rigidity
+    options["margin_weight"] = float(options["margin_weight"])
+    if options["feature_radius"] is None:
+        options["feature_radius"] = 0.08 * float(np.max(grid.upper - grid.origin))
     if options["initial"] is not None:
         y0 = np.asarray(options["initial"], dtype=float)
-        if y0.shape != grid.shape + (d,) or not np.all(np.isfinite(y0)):
-            raise ValueError(f"initial must be a finite array of shape {grid.shape + (d,)} "
+        if y0.shape != grid.shape + (grid.dim,) or not np.all(np.isfinite(y0)):
+            raise ValueError(f"initial must be a finite array of shape {grid.shape + (grid.dim,)} "
                              "(y(x) of every node), e.g. the .mapped of an earlier solve.")
-    timing["initial map"] = time.perf_counter() - t0
-    disp0 = y0 - grid.points()
+        options["initial"] = y0
+    return options, weights
 
-    grids = _levels(grid, int(options["coarse_nodes"]))
-    nlev = len(grids)
-    # work per level grows ~2**d per refinement: give progress slices accordingly
-    cost = np.array([2.0 ** (d * i) for i in range(nlev)])
-    edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
-    corr_prev = None
-    level_stats = []
-    for li, g in enumerate(grids):
-        lrep = rep.sub(edges[li], edges[li + 1])
-        t0 = time.perf_counter()
-        fine = li == nlev - 1
-        if fine:
-            pa, pb = phi_a, phi_b
-            base = y0
-        else:
-            pts = g.points()
-            pa = sample(phi_a, grid, pts, outside="distance")
-            pb = sample(phi_b, grid, pts, outside="distance")
-            base = pts + sample(disp0, grid, pts)
-        if not np.any(pa < 0):
-            continue  # material too thin for this coarse level
-        level = _constrained_level(pa, pb, g, xa, yb, margin_cells, margin_weight, radius,
-                                   patch_rigidity, base, options)
-        y_start_full, y = _level_start(level, base, corr_prev, options)
-        timing["setup"] += time.perf_counter() - t0
-        y, history, iters, cg_total, dets, terms = _solve_level(level, y, weights, options, int(max_iterations),
-                                                   float(tolerance), lrep, timing)
-        t0 = time.perf_counter()
-        full = y_start_full.reshape(-1, d).copy()
-        full[level.active] = y
-        known = np.zeros(g.size, dtype=bool)
-        known[level.active] = True
-        corr = (full - base.reshape(-1, d)).reshape(g.shape + (d,))
-        corr = _extend(corr, known.reshape(g.shape), int(options["extension_passes"]))
-        timing["extension"] += time.perf_counter() - t0
-        level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
-                                iterations=iters, cg_iterations=cg_total, history=history))
-        corr_prev = corr
-        if fine:
-            break
-    mapped = y0 + corr_prev
-    # finest-level figures
-    mind, cdet = dets  # of the last accepted iterate, no re-evaluation
-    E = float(sum(terms.values()))
+
+def _level_fields(phi_a, phi_b, disp0, grid, g):
+    """The keyframes' fields and the start map on the coarse grid ``g``: (pa, pb, base)."""
+    pts = g.points()
+    return (sample(phi_a, grid, pts, outside="distance"), sample(phi_b, grid, pts, outside="distance"),
+            pts + sample(disp0, grid, pts))
+
+
+def _correction(level, y, y_start_full, base, passes):
+    """The level's solution as a correction of its start map ``base`` on every node of
+    its grid: solved on the active nodes, extended beyond them (`_extend`)."""
+    g, d = level.grid, level.d
+    full = y_start_full.reshape(-1, d).copy()
+    full[level.active] = y
+    known = np.zeros(g.size, dtype=bool)
+    known[level.active] = True
+    corr = (full - base.reshape(-1, d)).reshape(g.shape + (d,))
+    return _extend(corr, known.reshape(g.shape), passes)
+
+
+def _map_stats(level, y, dets, terms, weights, level_stats, init):
+    """`MapResult.stats` (but its ``seconds``) from the finest level's last accepted iterate."""
+    mind, cdet = dets
     res = level.cons.residual(y)
-    rep(1.0, "Volume map done")
-    stats = dict(
+    h = level.grid.spacing
+    return dict(
         iterations=level_stats[-1]["iterations"],
         cg_iterations=level_stats[-1]["cg_iterations"],
         history=level_stats[-1]["history"],
         levels=level_stats,
-        energy=E,
+        energy=float(sum(terms.values())),
         terms=terms,
         weights=dict(weights),
         min_det=float(mind.min()) if len(mind) else 1.0,
         max_abs_det_minus_1=float(np.max(np.abs(cdet - 1))) if len(cdet) else 0.0,
         feature_residual=float(res.max()) if len(res) else 0.0,
-        feature_residual_h=float(res.max() / grid.spacing) if len(res) else 0.0,
+        feature_residual_h=float(res.max() / h) if len(res) else 0.0,
         active_nodes=level.n,
         unknowns=level.cons.size,
         patch_features=int(np.sum(level.cons.is_patch)),
         hard_features=int(len(level.cons.hard)),
         initial_methods=list(init.methods),
-        seconds=dict(timing, total=time.perf_counter() - t_start),
     )
-    region = np.zeros(grid.size, dtype=bool)
-    region[level.active] = True
-    return MapResult(mapped=mapped, stats=stats, grid=grid, region=region.reshape(grid.shape),
-                     material=phi_a < 0, components=init.components)
