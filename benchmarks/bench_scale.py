@@ -105,7 +105,7 @@ def run_child(name, n, processes):
     cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n), str(processes)]
     out = subprocess.run(cmd, capture_output=True, text=True)
     if out.returncode != 0:
-        return dict(case=name, n=n, error=out.stderr.strip().splitlines()[-1:])
+        return dict(case=name, n=n, error=out.stderr.strip().splitlines()[-25:])
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import pickle
 import threading
 
 __all__ = ["Helper", "HelperError"]
@@ -111,15 +112,19 @@ def _serve(conn, lifeline, preload):
         __import__(name)
     while True:
         try:
-            call = conn.recv()
+            call = conn.recv_bytes()
         except EOFError:
             return
-        fn, args, kwargs = call
-        try:
+        try:  # unpickling runs code too: an `Inbetween` rebuilds itself here
+            fn, args, kwargs = pickle.loads(call)
             answer = (True, fn(*args, **kwargs))
         except BaseException as exc:  # every failure is the caller's to raise
             answer = (False, exc)
-        conn.send(answer)
+        del call
+        try:
+            conn.send(answer)
+        except Exception as exc:  # pickling failed before anything was sent
+            conn.send((False, HelperError(f"the helper's answer could not be sent back: {exc!r}")))
 
 
 def _leave_with_parent(lifeline):

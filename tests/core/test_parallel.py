@@ -36,6 +36,28 @@ def test_helper_answers_calls_in_turn_and_raises_their_errors():
         assert helper.result() == 6
 
 
+class _FailsToArrive:
+    """Unpickled by calling int("rebuilt wrong"): an argument whose rebuilding in the
+    helper fails, as an `Inbetween` rebuilding its transports can."""
+
+    def __reduce__(self):
+        return int, ("rebuilt wrong",)
+
+
+def test_errors_unpickling_a_call_or_pickling_its_answer_come_back_as_errors():
+    import threading
+
+    with Helper(preload=()) as helper:
+        helper.submit(len, _FailsToArrive())
+        with pytest.raises(ValueError, match="rebuilt wrong"):
+            helper.result()
+        helper.submit(threading.Lock)  # an answer that cannot be pickled
+        with pytest.raises(HelperError, match="could not be sent back"):
+            helper.result()
+        helper.submit(sum, [1, 2, 3])  # still serving after both
+        assert helper.result() == 6
+
+
 def test_a_killed_helper_is_an_error_that_names_the_signal():
     with Helper(preload=()) as helper:
         helper.submit(time.sleep, 30)
