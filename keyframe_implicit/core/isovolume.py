@@ -54,12 +54,12 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     """
     h = grid.spacing
     f = np.asarray(field, dtype=float)
-    grad = np.gradient(f, h)
-    gh = np.maximum(np.sqrt(sum(g * g for g in grad)), 0.05).reshape(-1) * h
     flat = f.reshape(-1)
-    near = np.abs(flat) < (max_cells + 2) * h
-    inner = np.count_nonzero(flat[~near] < 0) * grid.cell_volume
-    fn, ghn = flat[near], gh[near]
+    reach = (max_cells + 2) * h
+    near = np.flatnonzero((flat > -reach) & (flat < reach))  # the only nodes c can move across
+    fn = flat[near]
+    ghn = np.maximum(_gradient_norm(f, h, near), 0.05) * h
+    inner = (np.count_nonzero(flat < 0) - np.count_nonzero(fn < 0)) * grid.cell_volume
 
     def smooth(c):
         """Smoothed-Heaviside volume of {f < c} and its derivative in c (both increasing)."""
@@ -72,7 +72,7 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     c = 0.0
     err = 0.0
     for _ in range(max_steps):
-        v = enclosed_volume(f - c, grid)
+        v = enclosed_volume(f, grid, level=c)
         err = (v - target) / target
         if abs(err) <= rtol:
             break
@@ -86,5 +86,20 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
             step = c + (want - vol) / slope if slope > 0 else np.inf
             c = step if lo < step < hi else 0.5 * (lo + hi)
     else:
-        err = (enclosed_volume(f - c, grid) - target) / target
+        err = (enclosed_volume(f, grid, level=c) - target) / target
     return float(c), float(err)
+
+
+def _gradient_norm(f, h, nodes):
+    """|grad f| at the flat indices ``nodes`` of the grid array ``f`` (spacing ``h``), with
+    `numpy.gradient`'s differences: central inside, one-sided on the grid's faces. Only
+    these nodes are read, so no gradient of the whole grid is made."""
+    flat = f.reshape(-1)
+    strides = np.cumprod((1,) + f.shape[:0:-1])[::-1]
+    total = np.zeros(len(nodes))
+    for i, n, stride in zip(np.unravel_index(nodes, f.shape), f.shape, strides):
+        lo = np.where(i > 0, nodes - stride, nodes)
+        hi = np.where(i < n - 1, nodes + stride, nodes)
+        g = (flat[hi] - flat[lo]) / ((hi - lo) // stride * h)
+        total += g * g
+    return np.sqrt(total)

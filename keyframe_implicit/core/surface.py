@@ -78,19 +78,18 @@ def extract_surface(levelset, grid: Grid, level: float = 0.0):
     """
     if not isinstance(grid, Grid):
         raise ValueError("grid must be a keyframe_implicit.core.Grid.")
-    f = grid.check_field(levelset, "levelset") - float(level)
-    pad_value = float(np.abs(f).max()) + grid.spacing
-    padded = np.pad(f, 1, mode="constant", constant_values=pad_value)
-    origin = grid.origin - grid.spacing
     h = grid.spacing
     if grid.dim == 3:
-        if not (padded.min() < 0.0 < padded.max()):
+        f = grid.check_field(levelset, "levelset")
+        level = float(level)
+        if not float(f.min()) - level < 0.0:
             return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
         from skimage.measure import marching_cubes
 
+        padded, corner = _padded_box(f, level, h)
         verts, faces, _, _ = marching_cubes(padded, level=0.0, spacing=(h, h, h),
                                             allow_degenerate=False)
-        verts = verts + origin
+        verts = verts + (grid.origin + h * (corner - 1))
         faces = faces.astype(np.int64)
         # skimage's winding depends on its gradient convention: make normals point outward
         if mesh_volume(verts, faces) < 0:
@@ -98,6 +97,9 @@ def extract_surface(levelset, grid: Grid, level: float = 0.0):
         return verts, faces
     from skimage.measure import find_contours
 
+    f = grid.check_field(levelset, "levelset") - float(level)
+    padded = np.pad(f, 1, mode="constant", constant_values=float(np.abs(f).max()) + h)
+    origin = grid.origin - h
     if not (padded.min() < 0.0 < padded.max()):
         return []
     loops = []
@@ -109,3 +111,30 @@ def extract_surface(levelset, grid: Grid, level: float = 0.0):
             continue
         loops.append(np.ascontiguousarray(origin + h * c))
     return loops
+
+
+def _padded_box(f, level, h):
+    """``f - level`` over the box of nodes that marching cubes needs, closed by padding.
+
+    The field is padded by one node of a positive value (max |f - level| + h) so that
+    a body touching the grid's faces gets a closed surface. Only cells with a corner
+    at or below ``level`` can hold surface, so only the box around those nodes, one
+    node wider on each side, is made: on a grid much larger than the body this is a
+    small part of the padded grid. Returns the box and the padded-grid index of its
+    first node (the grid's own node index is one less).
+    """
+    level_or_below = f <= level
+    first, last = [], []
+    for a in range(f.ndim):
+        rows = np.flatnonzero(level_or_below.any(axis=tuple(b for b in range(f.ndim) if b != a)))
+        first.append(rows[0])
+        last.append(rows[-1] + 2)  # padded index of the node after the last one
+    del level_or_below
+    corner = np.array(first)
+    pad = max(abs(float(f.max()) - level), abs(float(f.min()) - level)) + h
+    box = np.full(tuple(np.array(last) - corner + 1), pad)
+    lo = np.maximum(corner - 1, 0)  # the grid nodes inside the box
+    hi = np.minimum(np.array(last) - 1, np.array(f.shape) - 1)
+    box[tuple(slice(l + 1 - c, u + 2 - c) for l, u, c in zip(lo, hi, corner))] = \
+        f[tuple(slice(l, u + 1) for l, u in zip(lo, hi))] - level
+    return box, corner
