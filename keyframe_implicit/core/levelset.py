@@ -328,7 +328,11 @@ class Inbetween:
             phi_s = self.forward.carry(s, other=self.backward)
             psi_s = back.result()
         self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
-        return (1.0 - s) * np.nan_to_num(phi_s, nan=w) + s * np.nan_to_num(psi_s, nan=w)
+        field, other = (np.nan_to_num(a, copy=False, nan=w) for a in (phi_s, psi_s))
+        field *= 1.0 - s  # in place: both are grid-sized and this call's own
+        other *= s
+        field += other
+        return field
 
     def _keep_volume(self, field, s):
         """Shift by the iso-value that gives the volume (1 - s) V_A + s V_B (`isovolume`)."""
@@ -339,7 +343,8 @@ class Inbetween:
         c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
         self.stats.setdefault("volume_offset_h", {})[s] = c / self.grid.spacing
         self.stats.setdefault("volume_error", {})[s] = err
-        return field - c
+        field -= c  # the blend's own array
+        return field
 
     def _one_sided_values(self, s):
         """v_s = (1 - s) Phi(x) + s Psi(y(x)) at source points given in index coordinates."""
