@@ -117,10 +117,10 @@ def _serve(conn, lifeline, preload):
             return
         try:  # unpickling runs code too: an `Inbetween` rebuilds itself here
             fn, args, kwargs = pickle.loads(call)
+            call = None  # not through the call: the bytes can be a segment's maps
             answer = (True, fn(*args, **kwargs))
         except BaseException as exc:  # every failure is the caller's to raise
             answer = (False, exc)
-        del call
         try:
             conn.send(answer)
         except Exception as exc:  # pickling failed before anything was sent

@@ -58,6 +58,23 @@ def test_errors_unpickling_a_call_or_pickling_its_answer_come_back_as_errors():
         assert helper.result() == 6
 
 
+def _resident_mib(_payload):
+    with open("/proc/self/status") as fh:
+        return next(int(line.split()[1]) / 1024 for line in fh if line.startswith("VmRSS:"))
+
+
+def test_the_helper_does_not_keep_a_calls_pickled_bytes_through_the_call():
+    """A segment's in-betweens travel as their maps: the pickle's bytes go once the call's
+    arguments are rebuilt, so the call holds them once, not twice."""
+    payload = np.ones(2 ** 23)  # 64 MiB
+    with Helper(preload=()) as helper:
+        helper.submit(_resident_mib, None)
+        before = helper.result()
+        helper.submit(_resident_mib, payload)
+        during = helper.result()
+    assert during - before < 1.5 * payload.nbytes / 2 ** 20
+
+
 def test_a_killed_helper_is_an_error_that_names_the_signal():
     with Helper(preload=()) as helper:
         helper.submit(time.sleep, 30)
