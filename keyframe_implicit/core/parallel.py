@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import pickle
 import threading
 
 __all__ = ["Helper", "HelperError"]
@@ -112,12 +111,12 @@ def _serve(conn, lifeline, preload):
         __import__(name)
     while True:
         try:
-            call = conn.recv_bytes()
+            fn, args, kwargs = conn.recv()
         except EOFError:
             return
-        try:  # unpickling runs code too: an `Inbetween` rebuilds itself here
-            fn, args, kwargs = pickle.loads(call)
-            call = None  # not through the call: the bytes can be a segment's maps
+        except BaseException as exc:  # unpickling runs code: an `Inbetween` rebuilds itself
+            fn, args, kwargs = _reraise, (exc,), {}
+        try:
             answer = (True, fn(*args, **kwargs))
         except BaseException as exc:  # every failure is the caller's to raise
             answer = (False, exc)
@@ -125,6 +124,10 @@ def _serve(conn, lifeline, preload):
             conn.send(answer)
         except Exception as exc:  # pickling failed before anything was sent
             conn.send((False, HelperError(f"the helper's answer could not be sent back: {exc!r}")))
+
+
+def _reraise(exc):
+    raise exc
 
 
 def _leave_with_parent(lifeline):
