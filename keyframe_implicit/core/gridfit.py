@@ -169,13 +169,13 @@ def _refusal(grid, resolution, need, limit, fits):
 # the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables, and the
 # trajectories' multigrid. Fitted to the largest relative error (benchmarks/fit_memory.py)
 # on the peaks benchmarks/bench_scale.py measured on its seven cases at 64 and 128 cells
-# and two of them (bend, morph) at 192; tables in benchmarks/README.md.
+# and two of them (bend, morph) at 256; tables in benchmarks/README.md.
 # 2D: not measured; per active node scaled by the stencil (9 blocks of 2 x 2 against 27
 # of 3 x 3).
 _COPIES = 2
-_PROCESS_BYTES = 197 * 2 ** 20
-_NODE_BYTES = {2: 128.0, 3: 128.0}
-_ACTIVE_BYTES = {2: 3480.0 * 36 / 243, 3: 3480.0}
+_PROCESS_BYTES = 196 * 2 ** 20
+_NODE_BYTES = {2: 156.0, 3: 156.0}
+_ACTIVE_BYTES = {2: 3430.0 * 36 / 243, 3: 3430.0}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
