@@ -26,6 +26,8 @@ from .surface import enclosed_volume
 
 __all__ = ["volume_offset"]
 
+_CHUNK = 1 << 18  # nodes per gradient chunk (bounds the index temporaries)
+
 
 def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cells=3.0):
     """Iso-value c with ``enclosed_volume(field - c) = target``.
@@ -58,7 +60,10 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     reach = (max_cells + 2) * h
     near = np.flatnonzero((flat > -reach) & (flat < reach))  # the only nodes c can move across
     fn = flat[near]
-    ghn = np.maximum(_gradient_norm(f, h, near), 0.05) * h
+    ghn = np.empty(len(near))  # a chunk at a time: a truncated in-between is near everywhere
+    for s in range(0, len(near), _CHUNK):
+        part = slice(s, s + _CHUNK)
+        ghn[part] = np.maximum(_gradient_norm(f, h, near[part]), 0.05) * h
     inner = (np.count_nonzero(flat < 0) - np.count_nonzero(fn < 0)) * grid.cell_volume
 
     def smooth(c):
