@@ -63,7 +63,7 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     ghn = np.empty(len(near))  # a chunk at a time: a truncated in-between is near everywhere
     for s in range(0, len(near), _CHUNK):
         part = slice(s, s + _CHUNK)
-        ghn[part] = np.maximum(_gradient_norm(f, h, near[part]), 0.05) * h
+        ghn[part] = np.maximum(_gradient_norm(f, grid, near[part]), 0.05) * h
     inner = (np.count_nonzero(flat < 0) - np.count_nonzero(fn < 0)) * grid.cell_volume
 
     def smooth(c):
@@ -95,16 +95,15 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     return float(c), float(err)
 
 
-def _gradient_norm(f, h, nodes):
-    """|grad f| at the flat indices ``nodes`` of the grid array ``f`` (spacing ``h``), with
+def _gradient_norm(f, grid, nodes):
+    """|grad f| at the flat indices ``nodes`` of the field ``f`` on ``grid``, with
     `numpy.gradient`'s differences: central inside, one-sided on the grid's faces. Only
     these nodes are read, so no gradient of the whole grid is made."""
     flat = f.reshape(-1)
-    strides = np.cumprod((1,) + f.shape[:0:-1])[::-1]
     total = np.zeros(len(nodes))
-    for i, n, stride in zip(np.unravel_index(nodes, f.shape), f.shape, strides):
+    for i, n, stride in zip(np.unravel_index(nodes, grid.shape), grid.shape, grid.strides):
         lo = np.where(i > 0, nodes - stride, nodes)
         hi = np.where(i < n - 1, nodes + stride, nodes)
-        g = (flat[hi] - flat[lo]) / ((hi - lo) // stride * h)
+        g = (flat[hi] - flat[lo]) / ((hi - lo) // stride * grid.spacing)
         total += g * g
     return np.sqrt(total)

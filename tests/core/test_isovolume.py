@@ -11,10 +11,10 @@ from keyframe_implicit.core.surface import enclosed_volume
 @pytest.mark.parametrize("shape", [(7, 2, 5), (9, 6, 8), (11, 4)])
 def test_gradient_at_nodes_is_numpys_gradient_there(shape):
     f = np.random.default_rng(2).standard_normal(shape)
-    h = 0.3
-    want = np.sqrt(sum(g * g for g in np.gradient(f, h))).reshape(-1)
+    grid = Grid(origin=(0.0,) * len(shape), spacing=0.3, shape=shape)
+    want = np.sqrt(sum(g * g for g in np.gradient(f, grid.spacing))).reshape(-1)
     nodes = np.arange(f.size)[::2]  # inside and on every face
-    np.testing.assert_array_equal(_gradient_norm(f, h, nodes), want[nodes])
+    np.testing.assert_array_equal(_gradient_norm(f, grid, nodes), want[nodes])
 
 
 def test_offset_gives_the_volume_of_the_sphere_it_asks_for():
