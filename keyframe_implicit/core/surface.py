@@ -82,11 +82,12 @@ def extract_surface(levelset, grid: Grid, level: float = 0.0):
     if grid.dim == 3:
         f = grid.check_field(levelset, "levelset")
         level = float(level)
-        if not float(f.min()) - level < 0.0:
+        lowest = float(f.min()) - level
+        if not lowest < 0.0:
             return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
         from skimage.measure import marching_cubes
 
-        padded, corner = _padded_box(f, level, h)
+        padded, corner = _padded_box(f, level, lowest, h)
         verts, faces, _, _ = marching_cubes(padded, level=0.0, spacing=(h, h, h),
                                             allow_degenerate=False)
         verts = verts + (grid.origin + h * (corner - 1))
@@ -113,8 +114,9 @@ def extract_surface(levelset, grid: Grid, level: float = 0.0):
     return loops
 
 
-def _padded_box(f, level, h):
-    """``f - level`` over the box of nodes that marching cubes needs, closed by padding.
+def _padded_box(f, level, lowest, h):
+    """``f - level`` over the box of nodes that marching cubes needs, closed by padding
+    (``lowest``: min(f) - level, which the caller has).
 
     The field is padded by one node of a positive value (max |f - level| + h) so that
     a body touching the grid's faces gets a closed surface. Only cells with a corner
@@ -131,7 +133,7 @@ def _padded_box(f, level, h):
         last.append(rows[-1] + 2)  # padded index of the node after the last one
     del level_or_below
     corner = np.array(first)
-    pad = max(abs(float(f.max()) - level), abs(float(f.min()) - level)) + h
+    pad = max(abs(float(f.max()) - level), abs(lowest)) + h
     box = np.full(tuple(np.array(last) - corner + 1), pad)
     lo = np.maximum(corner - 1, 0)  # the grid nodes inside the box
     hi = np.minimum(np.array(last) - 1, np.array(f.shape) - 1)
