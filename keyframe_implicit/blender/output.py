@@ -30,14 +30,19 @@ Mesh sequence (topology free, for merges and splits; PAPER-NOTES section 9):
   after the mesh). Only built-in nodes, so the .blend plays and renders
   without the add-on.
 
-Geometry and shape keys are written with ``foreach_set`` (as glTF-Blender-IO's
-importer does); F-curves go through `fcurves`. If anything fails half way,
+The mesh comes as `core.meshdata.MeshData` (made by the worker process, edges
+included) and is copied in with ``foreach_set`` through the mesh's attributes
+and shape keys' points, one copy per array (as glTF-Blender-IO's importer
+writes with ``foreach_set``); F-curves go through `fcurves`. `write_steps`
+does the writing a piece at a time, so the modal bake gives the main loop a
+turn between pieces. If anything fails half way, or the writing is stopped,
 every data-block created here is removed again, so the scene is as before.
 """
 
 import bpy
 import numpy as np
 
+from ..core.meshdata import FRAME_ATTRIBUTE, SHAPE_KEYS, resolve_output
 from ..core.quality import describe_worst
 from . import fcurves
 
@@ -45,7 +50,8 @@ OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
 SEQUENCE_TAG = "kfi_sequence"
 VOLUME_TAG = "kfi_volume"  # the output's OpenVDB Volume object (a child of the output)
-FRAME_ATTRIBUTE = "kfi_frame"
+#: Shape-key points written between two turns of the main loop (`frame_key_steps`).
+KEY_POINTS_PER_STEP = 1_000_000
 
 
 def frame_key_name(frame):
@@ -63,60 +69,61 @@ def key_schedule(frames):
     return out
 
 
-def _clean_faces(faces):
-    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
-    return faces[keep]
-
-
-def build_mesh(name, vertices, faces, attributes=None):
-    """A new mesh from (V, 3) vertices and (F, 3) triangles (degenerate ones dropped), via
-    foreach_set, smooth shaded; or, with ``attributes`` (`core.attributes.MeshAttributes`),
-    from their polygons, with their UVs, colours, materials, edge flags and normals."""
-    from ..core.attributes import MeshAttributes
-
-    if attributes is None:
-        attributes = MeshAttributes.from_triangles(_clean_faces(faces))
-    verts = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
-    mesh = bpy.data.meshes.new(name)
-    try:
-        mesh.vertices.add(len(verts))
-        mesh.vertices.foreach_set("co", verts.ravel())
-        mesh.loops.add(attributes.n_loops)
-        mesh.loops.foreach_set("vertex_index", _ints(attributes.loop_vertices))
-        mesh.polygons.add(attributes.n_polygons)
-        mesh.polygons.foreach_set("loop_start", _ints(attributes.loop_start))
-        try:  # read-only (derived from loop_start) since Blender 4.0; kept for older files
-            mesh.polygons.foreach_set("loop_total", _ints(attributes.loop_total))
-        except (AttributeError, TypeError, RuntimeError):
-            pass
-        mesh.update(calc_edges=True)
-        write_attributes(mesh, attributes)
-        mesh.update()
-    except Exception:
-        bpy.data.meshes.remove(mesh)
-        raise
-    return mesh
-
-
 def _ints(a):
     return np.ascontiguousarray(a, dtype=np.int32).ravel()
 
 
-def write_attributes(mesh, attributes):
+def _floats(a):
+    return np.ascontiguousarray(a, dtype=np.float32).ravel()
+
+
+def mesh_steps(mesh, data, fps=1.0):
+    """Copy ``data`` (`core.meshdata.MeshData`) into the new, empty ``mesh``, yielding
+    between copies so that a caller on Blender's main loop can give it a turn.
+
+    Positions, corners and edges go through the mesh's own attributes (one copy each; the
+    ``mesh.vertices`` / ``mesh.loops`` route costs a property call per element), and the
+    edges come made (``mesh.update(calc_edges=True)`` would build them here). Point vectors
+    (the sequence's velocity, per frame) are scaled by ``fps`` to world units per second.
+    """
+    polygons = data.polygons
+    mesh.vertices.add(len(data.positions))
+    mesh.attributes["position"].data.foreach_set("vector", _floats(data.positions))
+    mesh.loops.add(polygons.n_loops)
+    mesh.attributes[".corner_vert"].data.foreach_set("value", _ints(polygons.loop_vertices))
+    yield
+    mesh.polygons.add(polygons.n_polygons)
+    mesh.polygons.foreach_set("loop_start", _ints(polygons.loop_start))
+    yield
+    mesh.edges.add(len(data.edges))
+    mesh.attributes[".edge_verts"].data.foreach_set("value", _ints(data.edges))
+    mesh.attributes[".corner_edge"].data.foreach_set("value", _ints(data.corner_edges))
+    mesh.update()
+    yield
+    write_attributes(mesh, data)
+    for name, values in data.face_ints.items():
+        mesh.attributes.new(name, "INT", "FACE").data.foreach_set("value", _ints(values))
+    for name, values in data.point_vectors.items():
+        attr = mesh.attributes.new(name, "FLOAT_VECTOR", "POINT")
+        attr.data.foreach_set("vector", _floats(np.asarray(values, dtype=np.float32) * fps))
+    mesh.update()
+
+
+def write_attributes(mesh, data):
     """UV maps (the first active), colour attributes, material indices, smooth flags, sharp
-    and seam edges (matched by their vertex pair) and custom split normals onto ``mesh``,
-    whose polygons are ``attributes``' own."""
+    and seam edges and custom split normals of ``data`` (`core.meshdata.MeshData`) onto
+    ``mesh``, whose polygons and edges are ``data``'s own."""
+    attributes = data.polygons
     n_poly = attributes.n_polygons
     for name, uv in attributes.uv_maps.items():
         layer = mesh.uv_layers.new(name=name, do_init=False)
-        layer.uv.foreach_set("vector", np.ascontiguousarray(uv, dtype=np.float32).ravel())
+        layer.uv.foreach_set("vector", _floats(uv))
     if len(mesh.uv_layers):
         mesh.uv_layers.active_index = 0
         mesh.uv_layers[0].active_render = True
-    for name, (domain, data_type, data) in attributes.colors.items():
+    for name, (domain, data_type, values) in attributes.colors.items():
         col = mesh.color_attributes.new(name, data_type, domain)
-        col.data.foreach_set("color", np.ascontiguousarray(data, dtype=np.float32).ravel())
+        col.data.foreach_set("color", _floats(values))
     # new faces are smooth and in slot 0; the face attributes below keep their names on
     # every supported line and take one copy (``mesh.polygons`` costs a call per face)
     if attributes.material_index is not None:
@@ -124,16 +131,9 @@ def write_attributes(mesh, attributes):
     if attributes.smooth is not None:
         sharp = ~np.asarray(attributes.smooth, dtype=bool).reshape(n_poly)
         _write_face_attribute(mesh, "sharp_face", "BOOLEAN", sharp)
-    if attributes.edges is not None and len(mesh.edges):
-        edges = np.empty(2 * len(mesh.edges), dtype=np.int32)
-        mesh.edges.foreach_get("vertices", edges)
-        rows = _match_edges(edges.reshape(-1, 2), attributes.edges)
-        for prop, flags in (("use_edge_sharp", attributes.sharp_edges),
-                            ("use_seam", attributes.seams)):
-            if flags is not None:
-                out = np.zeros(len(mesh.edges), dtype=bool)
-                out[rows >= 0] = np.asarray(flags, dtype=bool)[rows[rows >= 0]]
-                _write_edge_flag(mesh, prop, out)
+    for prop, flags in (("use_edge_sharp", data.sharp_edges), ("use_seam", data.seams)):
+        if flags is not None:
+            _write_edge_flag(mesh, prop, np.asarray(flags, dtype=bool))
     if attributes.custom_normals is not None:
         mesh.normals_split_custom_set(np.asarray(attributes.custom_normals, dtype=np.float32))
 
@@ -167,31 +167,22 @@ def _write_edge_flag(mesh, prop, flags):
         mesh.edges.foreach_set(prop, flags)
 
 
-def _match_edges(edges, source):
-    """Row of ``source`` (E_s, 2) holding each edge of ``edges`` (E, 2) (either order), or -1."""
-    scale = int(max(np.max(edges, initial=0), np.max(source, initial=0))) + 1
-
-    def key(e):
-        e = np.sort(np.asarray(e, dtype=np.int64), axis=1)
-        return e[:, 0] * scale + e[:, 1]
-    src = key(source)
-    order = np.argsort(src)
-    want = key(edges)
-    pos = np.clip(np.searchsorted(src[order], want), 0, max(len(src) - 1, 0))
-    found = (len(src) > 0) & (src[order][pos] == want)
-    return np.where(found, order[pos], -1)
-
-
-def add_frame_keys(obj, frames, vertices, action_name):
-    """Basis + one shape key per frame on ``obj``, keyed by `key_schedule` through `fcurves`."""
+def frame_key_steps(obj, frames, vertices, action_name):
+    """Basis + one shape key per frame on ``obj``, keyed by `key_schedule` through
+    `fcurves`; yields after every `KEY_POINTS_PER_STEP` points written."""
     obj.shape_key_add(name="Basis", from_mix=False)
     blocks = []
+    written = 0
     for f, verts in zip(frames, vertices):
         kb = obj.shape_key_add(name=frame_key_name(f), from_mix=False)
-        kb.data.foreach_set("co", np.ascontiguousarray(verts, dtype=np.float32).ravel())
+        kb.points.foreach_set("co", _floats(verts))  # ``kb.data``: a property call per point
         kb.slider_min = 0.0
         kb.slider_max = 1.0
         blocks.append(kb)
+        written += len(verts)
+        if written >= KEY_POINTS_PER_STEP:
+            written = 0
+            yield
     key = obj.data.shape_keys
     key.name = f"{obj.name} Key"
     key.use_relative = True
@@ -200,14 +191,6 @@ def add_frame_keys(obj, frames, vertices, action_name):
         path = f'key_blocks["{bpy.utils.escape_identifier(kb.name)}"].value'
         fc = fcurves.ensure_fcurve(key, path, 0, channels=channels)
         fcurves.set_keyframes(fc, ks, vals, "LINEAR")
-    return key
-
-
-def add_velocity(mesh, velocity):
-    """The float3 point attribute ``velocity`` (world units per second) on ``mesh``."""
-    attr = mesh.attributes.new("velocity", "FLOAT_VECTOR", "POINT")
-    attr.data.foreach_set("vector", np.ascontiguousarray(velocity, dtype=np.float32).ravel())
-    return attr
 
 
 def _link(tree, a, out, b, inp):
@@ -257,39 +240,6 @@ def frame_switch_group(name, first, count):
     return tree
 
 
-def build_sequence(name, surfaces, velocities, fps, attributes=None):
-    """One mesh holding every frame's surface, frame after frame, with the face attribute
-    ``FRAME_ATTRIBUTE`` (the frame's index) and ``velocity`` per second (``velocities`` are
-    per frame). ``attributes``, per frame, optional `MeshAttributes` (UVs, colours,
-    material indices) of each surface; without them a surface's degenerate triangles are
-    dropped."""
-    from ..core.attributes import MeshAttributes, concatenate
-
-    attributes = attributes or [None] * len(surfaces)
-    parts = [a if a is not None else MeshAttributes.from_triangles(_clean_faces(faces))
-             for (_, faces), a in zip(surfaces, attributes)]
-    verts = [np.asarray(v, dtype=np.float32).reshape(-1, 3) for v, _ in surfaces]
-    mesh = build_mesh(name, np.concatenate(verts), None,
-                      concatenate(parts, [len(v) for v in verts]))
-    try:
-        frame = mesh.attributes.new(FRAME_ATTRIBUTE, "INT", "FACE")
-        frame.data.foreach_set("value", _ints(np.repeat(np.arange(len(parts)),
-                                                        [p.n_polygons for p in parts])))
-        add_velocity(mesh, np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1, 3)
-                                           for v in velocities]) * fps)
-    except Exception:
-        bpy.data.meshes.remove(mesh)
-        raise
-    return mesh
-
-
-def _surface_attributes(animation):
-    """Per frame, the attributes of the frame's own surface (None without the artist's mesh)."""
-    if getattr(animation, "attributes", None) is None:
-        return None
-    return [animation.surface_attributes(i) for i in range(len(animation.surfaces))]
-
-
 def slot_materials(own, material_names):
     """The output's material slots: ``own`` slot names in order (the first keyframe's own
     slots when its mesh is the template, or every frame's slots of a mesh sequence; "" for
@@ -299,18 +249,6 @@ def slot_materials(own, material_names):
     mats += [bpy.data.materials.get(n) for n in material_names if n not in own]
     return [m for m in mats if m is not None] if not own else \
         [m for i, m in enumerate(mats) if i < len(own) or m is not None]
-
-
-def resolve_output(mode, stats):
-    """("shape_keys" | "mesh_sequence", reason) for the setting ``mode`` (AUTO,
-    SHAPE_KEYS, MESH_SEQUENCE) and the core's figures (``Animation.stats``)."""
-    if mode == "SHAPE_KEYS":
-        return "shape_keys", "chosen in the output settings"
-    if mode == "MESH_SEQUENCE":
-        return "mesh_sequence", "chosen in the output settings"
-    if "output" in stats:
-        return stats["output"], stats.get("output_reason", "")
-    return "shape_keys", "no per-frame surfaces to choose from"
 
 
 def bake_report(kind, reason, frames, stats):
@@ -411,10 +349,30 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
     (``settings.output_object``) is removed only once the new one is
     complete, and only if the setup no longer uses it (`retire_output`; its
     note, if any, is appended to ``notes``). On any error everything created
-    here is removed and the scene is left as it was.
+    here is removed and the scene is left as it was. The mesh is
+    ``animation.output_mesh(kind)``, made by the worker when it knew the kind.
 
-    Returns the new object.
+    Returns the new object. `write_steps` does the same a step at a time.
     """
+    return run_steps(write_steps(scene, settings, animation, material_names=material_names,
+                                 stats=stats, notes=notes))
+
+
+def run_steps(steps):
+    """Run a generator of steps to its end; its return value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
+def write_steps(scene, settings, animation, *, material_names=(), stats=None, notes=None):
+    """`write_animation` as a generator: it yields after each piece of work (a few copies
+    into the mesh, a batch of shape keys, the object) and returns the new object, so the
+    modal bake writes a large result over several turns of the main loop. Closed before
+    its end (``close()``) or failing, it removes everything it created: the scene is as
+    before."""
     frames = [int(f) for f in np.asarray(animation.frames).reshape(-1)]
     verts = np.asarray(animation.vertices)
     if verts.ndim != 3 or verts.shape[0] != len(frames) or verts.shape[2] != 3:
@@ -422,29 +380,19 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
                          "expected (frames, V, 3).")
     kind, reason = resolve_output(getattr(settings, "output_mode", "AUTO"),
                                   getattr(animation, "stats", {}) or {})
-    surfaces = getattr(animation, "surfaces", None) or []
-    if kind == "mesh_sequence" and len(surfaces) != len(frames):
-        raise ValueError("This bake holds no per-frame surfaces: choose Shape Keys as the output.")
+    data = animation.output_mesh(kind)
     name = settings.output_name or "KFI Animation"
     coll_name = settings.output_collection or "Keyframe Implicit"
     mesh = obj = group = coll = None
     coll_created = coll_linked = False
     try:
-        attributes = getattr(animation, "attributes", None)
-        if kind == "shape_keys":
-            mesh = build_mesh(name, verts[0], animation.faces, attributes)
-            own = getattr(attributes, "material_names", None)
-        else:
-            fps = scene.render.fps / scene.render.fps_base
-            per_frame = _surface_attributes(animation)
-            mesh = build_sequence(name, surfaces, animation.velocities, fps, per_frame)
-            own = list(dict.fromkeys(n for a in per_frame or [] if a is not None
-                                     for n in a.material_names))
-        for m in slot_materials(own, material_names):
+        mesh = bpy.data.meshes.new(name)
+        yield from mesh_steps(mesh, data, scene.render.fps / scene.render.fps_base)
+        for m in slot_materials(data.polygons.material_names, material_names):
             mesh.materials.append(m)
         obj = bpy.data.objects.new(name, mesh)
-        if kind == "shape_keys":
-            add_frame_keys(obj, frames, verts, f"{name} Frames")
+        if kind == SHAPE_KEYS:
+            yield from frame_key_steps(obj, frames, verts, f"{name} Frames")
             key = mesh.shape_keys
             names = ((key, bpy.data.shape_keys, f"{name} Key"),
                      (key.animation_data.action, bpy.data.actions, f"{name} Frames"))
@@ -453,23 +401,10 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
             obj.modifiers.new("Frame Switch", "NODES").node_group = group
             obj[SEQUENCE_TAG] = True
             names = ((group, bpy.data.node_groups, f"{name} Frame Switch"),)
+        yield
         coll, coll_created, coll_linked = _ensure_collection(scene, coll_name)
         coll.objects.link(obj)
-        obj[OUTPUT_TAG] = True
-        obj["kfi_frames"] = [frames[0], frames[-1]]
-        obj["kfi_output_kind"] = kind
-        obj["kfi_output_reason"] = reason
-        obj["kfi_report"] = bake_report(kind, reason, frames, getattr(animation, "stats", {}))
-        grid = getattr(animation, "grid", None)
-        if grid is not None:
-            obj["kfi_spacing"] = float(grid.spacing)
-        for k, v in (stats or {}).items():  # scalar figures only (timings, iterations, ...)
-            if isinstance(v, (bool, np.bool_)) or len(str(k)) > 58:
-                continue
-            if isinstance(v, (int, np.integer)):
-                obj[f"kfi_{k}"] = int(v)
-            elif isinstance(v, (float, np.floating)):
-                obj[f"kfi_{k}"] = float(v)
+        _tag_output(obj, kind, reason, frames, animation, stats)
         old = settings.output_object
         if old is not None and old != obj:
             note = retire_output(scene, settings, old)
@@ -480,10 +415,29 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
                                      (mesh, bpy.data.meshes, name)) + names:
             if block.name != wanted and coll_.get(wanted) is None:
                 block.name = wanted  # the old output is gone: take back the plain names
-    except Exception:
+    except BaseException:  # an error, or closed half way (GeneratorExit)
         _undo_partial(scene, obj, mesh, group, coll, coll_created, coll_linked)
         raise
     return obj
+
+
+def _tag_output(obj, kind, reason, frames, animation, stats):
+    """What the output object says of itself: its tags, kind, report, spacing, figures."""
+    obj[OUTPUT_TAG] = True
+    obj["kfi_frames"] = [frames[0], frames[-1]]
+    obj["kfi_output_kind"] = kind
+    obj["kfi_output_reason"] = reason
+    obj["kfi_report"] = bake_report(kind, reason, frames, getattr(animation, "stats", {}))
+    grid = getattr(animation, "grid", None)
+    if grid is not None:
+        obj["kfi_spacing"] = float(grid.spacing)
+    for k, v in (stats or {}).items():  # scalar figures only (timings, iterations, ...)
+        if isinstance(v, (bool, np.bool_)) or len(str(k)) > 58:
+            continue
+        if isinstance(v, (int, np.integer)):
+            obj[f"kfi_{k}"] = int(v)
+        elif isinstance(v, (float, np.floating)):
+            obj[f"kfi_{k}"] = float(v)
 
 
 def _sequence_blocks(obj):

@@ -63,6 +63,8 @@ class Animation:
     keyframe_attributes : dict timeline frame -> `attributes.MeshAttributes` of the keyframe
         mesh that frame's surface is (with the artist's mesh, a keyframe's frame in
         ``surfaces`` is the keyframe's own mesh).
+    prepared : dict output kind -> `meshdata.MeshData`, the output meshes made so far
+        (`output_mesh`; the worker process makes the one the bake will store).
     """
 
     frames: np.ndarray
@@ -75,6 +77,16 @@ class Animation:
     levelsets: list = field(default_factory=list)
     attributes: object = None
     keyframe_attributes: dict = field(default_factory=dict)
+    prepared: dict = field(default_factory=dict)
+
+    def output_mesh(self, kind):
+        """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),
+        made once (`meshdata.output_mesh`) and kept in ``prepared``."""
+        if kind not in self.prepared:
+            from .meshdata import output_mesh
+
+            self.prepared[kind] = output_mesh(self, kind)
+        return self.prepared[kind]
 
     def surface_attributes(self, i):
         """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
