@@ -16,8 +16,10 @@ ahead of the parent's own ``PYTHONPATH``.
 
 Protocol: pickles on the worker's standard streams.
 
-- parent -> stdin: the sender's package name, then `animate`'s keyword arguments. The
-  worker leaves as soon as stdin reaches its end (the parent has gone).
+- parent -> stdin: the sender's package name, then `animate`'s keyword arguments and,
+  optionally, ``output_mode`` (the output setting: the worker then also makes the output's
+  mesh, `Animation.output_mesh`, so Blender's main loop only copies it in). The worker
+  leaves as soon as stdin reaches its end (the parent has gone).
 - worker -> stdout: ``("progress", fraction, message)`` any number of times, then
   ``("done", animation)`` or ``("failed", type name, text, is a ValueError)``. Whatever else
   the worker prints goes to stderr (the console), never into this stream.
@@ -107,7 +109,8 @@ class Worker:
     Parameters
     ----------
     arguments : dict
-        `animate`'s keyword arguments, all picklable (no callables).
+        `animate`'s keyword arguments, all picklable (no callables), and optionally
+        ``output_mode`` (see the protocol above).
     """
 
     def __init__(self, arguments):
@@ -211,10 +214,15 @@ def main():
     arguments = receive(sys.stdin.buffer, sender)
     threading.Thread(target=_leave_when_parent_gone, daemon=True).start()
     from .core import pipeline
+    from .core.meshdata import resolve_output
 
+    mode = arguments.pop("output_mode", None)
     try:
         result = pipeline.animate(**arguments, processes=_PROCESSES,
                                   progress=lambda f, m: send(answers, ("progress", f, m)))
+        if mode is not None:  # the output's mesh, edges and all, made here, not in Blender
+            send(answers, ("progress", 1.0, "Preparing the output mesh"))
+            result.output_mesh(resolve_output(mode, result.stats)[0])
     except Exception as exc:  # every failure is the parent's to report
         if not isinstance(exc, ValueError):
             traceback.print_exc()

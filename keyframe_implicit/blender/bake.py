@@ -5,7 +5,7 @@ polls it, and a crash or an out-of-memory kill there leaves the session and the 
 they were. `BakeJob` is the one cancellation path: the modal operator calls
 ``job.cancel()`` on ESC, a script or test may call it from anywhere (e.g. from
 ``on_progress``). `BakeJob.apply` writes the result into the scene and must run on the
-main thread.
+main thread; `BakeJob.apply_steps` does it a piece per turn of the main loop.
 
 Blocking use (scripts, ``blender -b``)::
 
@@ -16,7 +16,7 @@ Background use (what the modal operator does)::
     job = BakeJob(scene_io.collect(scene, depsgraph))
     job.start()            # a thread that talks to the worker process
     ... job.poll(), job.fraction, job.message, job.cancel() ...
-    if job.state == DONE: job.apply(scene)
+    if job.state == DONE: obj = job.apply(scene)   # or a step per turn: job.apply_steps(scene)
 """
 
 import os
@@ -97,6 +97,7 @@ class BakeJob:
             self.on_progress(self, float(fraction), str(message))
 
     def _arguments(self):
+        """`core.animate`'s keyword arguments for this bake."""
         inp = self.inputs
         return dict(keyframes=inp.keyframes, features=inp.features, resolution=inp.resolution,
                     weights=inp.weights, feature_names=inp.feature_names or None,
@@ -107,7 +108,7 @@ class BakeJob:
         with self._lock:
             if self._cancel.is_set():
                 raise Cancelled("cancelled before start")
-            self._worker = Worker(self._arguments())
+            self._worker = Worker(dict(self._arguments(), output_mode=self.inputs.output_mode))
         return self._worker.result(self._progress)
 
     def run(self):
@@ -171,19 +172,35 @@ class BakeJob:
     # -- writing back (main thread only) ------------------------------------
     def apply(self, scene):
         """Write the result into ``scene`` (main thread); returns the output object."""
+        return output.run_steps(self.apply_steps(scene))
+
+    def apply_steps(self, scene):
+        """`apply` a piece at a time (`output.write_steps`): a generator that yields between
+        pieces and returns the output object. The modal bake runs one step per turn of the
+        main loop and keeps polling (`poll`), so the object's ``kfi_main_loop_stall`` counts
+        the writing too. Closed half way, it leaves the scene as it was."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
         self.notes = list(stats.pop("notes", []))
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
-        if self.poll_step:  # polled by a main loop (a blocking bake is not)
-            stats["main_loop_stall"] = self.stall
         settings = scene.keyframe_implicit
         paths = volumes.write_result(settings, self.result) if self.inputs.levelsets else []
-        obj = output.write_animation(scene, settings, self.result,
-                                     material_names=self.inputs.material_names, stats=stats,
-                                     notes=self.notes)
+        steps = output.write_steps(scene, settings, self.result, stats=stats, notes=self.notes,
+                                   material_names=self.inputs.material_names)
+        try:
+            while True:
+                if self.poll_step:  # polled by a main loop (a blocking bake is not)
+                    stats["main_loop_stall"] = self.stall
+                try:
+                    next(steps)
+                except StopIteration as done:
+                    obj = done.value
+                    break
+                yield
+        finally:
+            steps.close()  # stopped half way: the writer removes what it made
         if paths:
             vol = volumes.add_volume_object(obj, paths, int(self.result.frames[0]))
             obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "

@@ -299,6 +299,7 @@ class KFI_OT_bake(bpy.types.Operator):
     _job = None
     _timer = None
     _shown = None  # the progress text on show
+    _writer = None  # `BakeJob.apply_steps` once the worker is done
 
     @classmethod
     def poll(cls, context):
@@ -382,6 +383,8 @@ class KFI_OT_bake(bpy.types.Operator):
     def modal(self, context, event):
         job = self._job
         if event.type == "ESC" and event.value == "PRESS":
+            if self._writer is not None:  # the result is half written: take it out again
+                return self._stop_writing(context)
             job.cancel()
             self._status(context, "Baking: cancelling...")
             return {"RUNNING_MODAL"}
@@ -394,19 +397,38 @@ class KFI_OT_bake(bpy.types.Operator):
                 context.window_manager.progress_update(int(100 * fraction))
                 self._status(context, text)
             return {"RUNNING_MODAL"}
-        self._finish(context)
-        if job.state == bake.CANCELLED:
-            self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
-            return {"CANCELLED"}
-        if job.state == bake.FAILED:
-            self.report({"ERROR"}, _failed("Bake failed", job.error_message()))
-            return {"CANCELLED"}
+        if self._writer is None:
+            if job.state == bake.CANCELLED:
+                self._finish(context)
+                self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
+                return {"CANCELLED"}
+            if job.state == bake.FAILED:
+                self._finish(context)
+                self.report({"ERROR"}, _failed("Bake failed", job.error_message()))
+                return {"CANCELLED"}
+            self._writer = job.apply_steps(context.scene)
+            self._status(context, "Baking: writing the result (ESC to cancel)")
+        return self._write_step(context)
+
+    def _write_step(self, context):
+        """One piece of writing the result (`BakeJob.apply_steps`) per timer event, so the
+        main loop gets a turn between pieces."""
         try:
-            obj = job.apply(context.scene)
+            next(self._writer)
+        except StopIteration as done:
+            self._finish(context)
+            return self._done(context, done.value, self._job.seconds, notes=self._job.notes)
         except Exception as exc:
+            self._finish(context)
             self.report({"ERROR"}, _failed("Writing the result failed", str(exc)))
             return {"CANCELLED"}
-        return self._done(context, obj, job.seconds, notes=job.notes)
+        return {"RUNNING_MODAL"}
+
+    def _stop_writing(self, context):
+        self._writer.close()  # removes what it wrote
+        self._finish(context)
+        self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
+        return {"CANCELLED"}
 
     def _done(self, context, obj, seconds=None, notes=()):
         """Show the result (selected, keyframes hidden, frame range) and say what was made where;
@@ -424,6 +446,8 @@ class KFI_OT_bake(bpy.types.Operator):
     def cancel(self, context):  # window closed / file loaded while running
         if self._job is not None:
             self._job.cancel()
+        if self._writer is not None:
+            self._writer.close()
         self._finish(context)
 
 

@@ -31,6 +31,7 @@ class BakeInput:
     pair_ids: list = field(default_factory=list)  # per segment, the pair ids in row order
     feature_names: list = field(default_factory=list)  # per segment, (Empty A, Empty B) per row
     levelsets: bool = False  # keep every frame's level set (the OpenVDB volume)
+    output_mode: str = "AUTO"  # the output setting when the bake started
 
     @property
     def frames(self):
@@ -179,4 +180,5 @@ def collect(scene, depsgraph, resolution=0):
         pair_ids=ids,
         feature_names=feature_names(scene, settings),
         levelsets=bool(settings.volume_export),
+        output_mode=str(settings.output_mode),
     )

@@ -209,9 +209,9 @@ def _modal_operator(job, scene):
     from keyframe_implicit.blender import ops
 
     reports = []
-    me = types.SimpleNamespace(_job=job, _timer=None, _shown=None)
+    me = types.SimpleNamespace(_job=job, _timer=None, _shown=None, _writer=None)
     me.report = lambda kind, msg: reports.append((next(iter(kind)), msg))
-    for name in ("_status", "_finish", "_hints", "_done"):
+    for name in ("_status", "_finish", "_hints", "_done", "_write_step", "_stop_writing"):
         setattr(me, name, getattr(ops.KFI_OT_bake, name).__get__(me))
     ctx = types.SimpleNamespace(window_manager=_Recorder(), workspace=_Recorder(), screen=None,
                                 scene=scene, view_layer=bpy.context.view_layer)
@@ -284,6 +284,29 @@ def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
     assert any(name == "progress_update" for name, _ in ctx.window_manager.calls)
     assert reports[-1][0] == "INFO" and "Baked" in reports[-1][1]
     assert not ops._running
+
+
+def test_modal_bake_writes_over_several_turns_and_esc_there_changes_nothing(scene, kfi):
+    """The result is written a piece per timer event (`BakeJob.apply_steps`); ESC half way
+    through takes out what was written."""
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    state = kfi.snapshot()
+    meshes = set(bpy.data.meshes)
+    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    me, ctx, reports = _modal_operator(job, scene)
+    job.start()
+    job.join(120.0)
+    assert job.state == bake.DONE
+    assert ops.KFI_OT_bake.modal(me, ctx, _event("TIMER")) == {"RUNNING_MODAL"}
+    assert ops.KFI_OT_bake.modal(me, ctx, _event("TIMER")) == {"RUNNING_MODAL"}
+    made = set(bpy.data.meshes) - meshes
+    assert len(made) == 1 and len(next(iter(made)).polygons) > 0  # half written
+    assert ops.KFI_OT_bake.modal(me, ctx, _event("ESC")) == {"CANCELLED"}
+    assert reports[-1][0] == "WARNING" and "cancelled" in reports[-1][1]
+    assert set(bpy.data.meshes) == meshes and not ops._running
+    assert kfi.snapshot() == state
 
 
 def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(scene, kfi):

@@ -11,6 +11,7 @@ import pytest
 
 from keyframe_implicit.blender import bake, scene_io
 from keyframe_implicit.core import pipeline
+from keyframe_implicit.core.meshdata import resolve_output
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
 
@@ -124,6 +125,8 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     np.testing.assert_allclose(job.result.vertices, mine.vertices, rtol=0, atol=1e-5)
     np.testing.assert_array_equal(job.result.faces, mine.faces)
     assert type(job.result) is pipeline.Animation  # mapped onto this process's classes
+    kind, _ = resolve_output(scene.keyframe_implicit.output_mode, job.result.stats)
+    assert list(job.result.prepared) == [kind]  # the output's mesh came made from the worker
     out = job.apply(scene)
     assert "kfi_main_loop_stall" not in out  # nothing polled this job: no main loop to speak of
     keys = out.data.shape_keys.key_blocks[1:]
