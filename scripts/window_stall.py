@@ -12,8 +12,8 @@ main loop's turns with a `bpy.app.timers` callback asking for a call every `TICK
   bake (what one redraw costs this window: any redraw during the bake costs as much);
 - the bake, started as a user starts it (the modal operator), split into ``start`` (the
   operator's invoke: the scene is read and the worker started), ``running`` (the worker
-  bakes, the operator polls) and ``end`` (the operator's last turn: the result is written
-  into the scene, then its first redraw).
+  bakes, the operator polls; then ``writing``: the result is written into the scene a piece
+  per turn) and ``end`` (the operator's last turn, then the result's first redraw).
 
 A gap's stall is the gap beyond the asked step. Printed per phase: the longest gap, its
 median and 99th percentile, and the gaps over 50 ms of stall; for ``running``, the longest
@@ -173,12 +173,18 @@ def report(rec, job, marks, load):
     print(figures(rec, "running", running))
     print(figures(rec, "  undrawn", [x for x in running if not rec.drawing(x[0], x[0] + x[1])])
           + "  (gaps without 3D view drawing)")
-    print(figures(rec, "end", ending) + "  (the result written into the scene)")
+    print(figures(rec, "  writing", [x for x in running if x[2].startswith("done")])
+          + "  (the result written into the scene, a piece per turn)")
+    print(figures(rec, "end", ending) + "  (the operator's last turn and the first redraw)")
     if shot:
         print(f"  (the gap around the screenshot's start, {shot[0][1] * 1000:.0f} ms, is left out)")
     print("  longest gaps while running: " + "; ".join(
         f"{g * 1000:.0f} ms at {a - marks['invoke']:.1f} s ({lab}; 3D view drawing "
         f"{rec.drawing(a, a + g) * 1000:.0f} ms)" for a, g, lab in sorted(running, key=lambda x: -x[1])[:3]))
+    undrawn = [x for x in running if not rec.drawing(x[0], x[0] + x[1])]
+    print("  longest gaps without 3D view drawing: " + "; ".join(
+        f"{g * 1000:.0f} ms at {a - marks['invoke']:.1f} s ({lab})"
+        for a, g, lab in sorted(undrawn, key=lambda x: -x[1])[:5]))
     draws = [e - s for s, e in rec.draws if first <= s <= end]
     if draws:
         print(f"  3D view drawn {len(draws)} times while running, {np.median(draws) * 1000:.0f} ms "

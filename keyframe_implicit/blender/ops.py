@@ -1,5 +1,7 @@
 """Operators (thin: the logic lives in features, bake, output, validate)."""
 
+import time
+
 import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
@@ -282,6 +284,11 @@ _running = []  # the BakeJob of the modal bake in progress (at most one)
 # is redrawn unless the progress text changed), and a short step keeps its stall figure
 # (`BakeJob.stall`: the longest gap between polls beyond this step) within 20 ms of the truth.
 TIMER_STEP = 0.02
+# Seconds of writing the result per turn of the main loop: pieces of `BakeJob.apply_steps` run
+# until this is spent. Every turn that changes data redraws the 3D view (110-200 ms with
+# software GL, benchmarks/README.md), so a small result is written in one turn, a large one
+# over as few turns as keep each under the issue's 50 ms where its pieces allow.
+WRITE_BUDGET = 0.025
 
 
 class KFI_OT_bake(bpy.types.Operator):
@@ -300,6 +307,7 @@ class KFI_OT_bake(bpy.types.Operator):
     _timer = None
     _shown = None  # the progress text on show
     _writer = None  # `BakeJob.apply_steps` once the worker is done
+    _write_budget = WRITE_BUDGET
 
     @classmethod
     def poll(cls, context):
@@ -411,18 +419,22 @@ class KFI_OT_bake(bpy.types.Operator):
         return self._write_step(context)
 
     def _write_step(self, context):
-        """One piece of writing the result (`BakeJob.apply_steps`) per timer event, so the
-        main loop gets a turn between pieces."""
+        """Pieces of writing the result (`BakeJob.apply_steps`) until `WRITE_BUDGET` is spent,
+        then the main loop's turn."""
+        t0 = time.perf_counter()
         try:
-            next(self._writer)
+            while True:
+                next(self._writer)
+                if time.perf_counter() - t0 >= self._write_budget:
+                    return {"RUNNING_MODAL"}
         except StopIteration as done:
             self._finish(context)
             return self._done(context, done.value, self._job.seconds, notes=self._job.notes)
         except Exception as exc:
+            self._writer.close()  # (an error inside it has closed it already)
             self._finish(context)
             self.report({"ERROR"}, _failed("Writing the result failed", str(exc)))
             return {"CANCELLED"}
-        return {"RUNNING_MODAL"}
 
     def _stop_writing(self, context):
         self._writer.close()  # removes what it wrote
