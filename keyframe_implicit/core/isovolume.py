@@ -46,6 +46,9 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     max_cells : float
         |c| stays below this many grid spacings: a volume that needs a larger
         shift is not a blending error, and is left to the caller to report.
+        A truncated field (its maximum, the value where no transport reached, is
+        under the search's reach of ``max_cells + 2`` cells) keeps c half a cell
+        below that plateau, whose nodes are outside at any such c and are not read.
 
     Returns
     -------
@@ -58,9 +61,16 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     f = np.asarray(field, dtype=float)
     flat = f.reshape(-1)
     reach = (max_cells + 2) * h
-    near = np.flatnonzero((flat > -reach) & (flat < reach))  # the only nodes c can move across
+    lim = max_cells * h
+    top = flat.max()
+    if top < reach:  # truncated: its plateau is "not reached", outside, and c stays below it
+        lim_up = max(0.0, min(lim, top - 0.5 * h))
+        near = np.flatnonzero((flat > -reach) & (flat < top))
+    else:
+        lim_up = lim
+        near = np.flatnonzero((flat > -reach) & (flat < reach))  # the only nodes c can move across
     fn = flat[near]
-    ghn = np.empty(len(near))  # a chunk at a time: a truncated in-between is near everywhere
+    ghn = np.empty(len(near))  # a chunk at a time: bounds the index temporaries
     for s in range(0, len(near), _CHUNK):
         part = slice(s, s + _CHUNK)
         ghn[part] = np.maximum(_gradient_norm(f, grid, near[part]), 0.05) * h
@@ -73,7 +83,6 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
         vol = inner + np.clip(ramp, 0.0, 1.0).sum() * grid.cell_volume
         return vol, float(np.sum(1.0 / ghn[inside])) * grid.cell_volume
 
-    lim = max_cells * h
     c = 0.0
     err = 0.0
     for _ in range(max_steps):
@@ -82,7 +91,7 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
         if abs(err) <= rtol:
             break
         want = smooth(c)[0] + (target - v)
-        lo, hi = -lim, lim
+        lo, hi = -lim, lim_up
         for _ in range(30):  # safeguarded Newton on the monotone smooth volume
             vol, slope = smooth(c)
             lo, hi = (c, hi) if vol < want else (lo, c)

@@ -26,3 +26,28 @@ def test_offset_gives_the_volume_of_the_sphere_it_asks_for():
     assert abs(err) <= 1e-3
     assert abs(c - 0.03) < 0.1 * g.spacing
     assert volume_offset(f, g, v) == (0.0, 0.0)
+
+
+def test_a_truncated_fields_plateau_is_not_read_and_gives_the_same_offset(monkeypatch):
+    """A two-sided in-between is truncated a few cells out (the value where no transport
+    reached, 1.9 cells in the benchmark's morph), under the search's reach: its plateau is
+    outside at any shift below it, so only the nodes under it are read, and the offset is
+    the one of the untruncated field."""
+    from keyframe_implicit.core import isovolume
+
+    g = Grid(origin=(-1.0, -1.0, -1.0), spacing=2.0 / 47, shape=(48, 48, 48))
+    f = np.linalg.norm(g.points(), axis=-1) - 0.5
+    cut = np.minimum(f, 1.9 * g.spacing)
+    target = enclosed_volume(f - 0.03, g)
+    read = []
+    real = isovolume._gradient_norm
+    monkeypatch.setattr(isovolume, "_gradient_norm",
+                        lambda field, grid, nodes: read.append(len(nodes)) or real(field, grid, nodes))
+    c_cut, err_cut = volume_offset(cut, g, target)
+    assert sum(read) == np.count_nonzero((cut < cut.max()) & (cut > -5 * g.spacing)) < 0.1 * cut.size
+    c, err = volume_offset(f, g, target)
+    assert abs(err_cut) <= 1e-3 and abs(c_cut - c) < 0.01 * g.spacing
+    # a volume only a shift past the plateau could give: the shift stops half a cell under it
+    huge = enclosed_volume(f - 2.5 * g.spacing, g)
+    c_far, _ = volume_offset(cut, g, huge)
+    assert c_far <= 1.4 * g.spacing + 1e-12
