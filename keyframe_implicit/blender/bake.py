@@ -5,7 +5,7 @@ polls it, and a crash or an out-of-memory kill there leaves the session and the 
 they were. `BakeJob` is the one cancellation path: the modal operator calls
 ``job.cancel()`` on ESC, a script or test may call it from anywhere (e.g. from
 ``on_progress``). `BakeJob.apply` writes the result into the scene and must run on the
-main thread; `BakeJob.apply_steps` does it a piece per turn of the main loop.
+main thread; `BakeJob.apply_steps` does it in pieces, between turns of the main loop.
 
 Blocking use (scripts, ``blender -b``)::
 
@@ -176,9 +176,10 @@ class BakeJob:
 
     def apply_steps(self, scene):
         """`apply` a piece at a time (`output.write_steps`): a generator that yields between
-        pieces and returns the output object. The modal bake runs one step per turn of the
-        main loop and keeps polling (`poll`), so the object's ``kfi_main_loop_stall`` counts
-        the writing too. Closed half way, it leaves the scene as it was."""
+        pieces and returns the output object. The modal bake runs pieces until its budget
+        per turn of the main loop is spent and keeps polling (`poll`), so the object's
+        ``kfi_main_loop_stall`` counts the writing too (up to its last piece). Closed half
+        way, it leaves the scene as it was (OpenVDB files already written stay on disk)."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
