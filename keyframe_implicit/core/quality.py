@@ -50,12 +50,13 @@ def _triangles(vertices, faces):
 def mesh_distance(points, vertices, faces, candidates=16):
     """Distance from points (P, 3) to a triangle mesh.
 
-    Exact point-triangle distances (`sdf.point_triangle_distance`) to the
-    ``candidates`` triangles whose centroids are nearest; the smallest is taken.
+    Exact point-triangle distances (`sdf._Triangles.distance`, its constants made once
+    per triangle of the mesh, not per pair) to the ``candidates`` triangles whose
+    centroids are nearest; the smallest is taken.
     """
     from scipy.spatial import cKDTree
 
-    from .sdf import point_triangle_distance
+    from .sdf import _Triangles
 
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v, f = _triangles(vertices, faces)
@@ -66,9 +67,7 @@ def mesh_distance(points, vertices, faces, candidates=16):
     k = min(int(candidates), len(f))
     _, idx = cKDTree(v[f].mean(axis=1)).query(p, k=k, workers=-1)
     idx = idx.reshape(len(p), k)
-    tri = f[idx.reshape(-1)]
-    d = point_triangle_distance(np.repeat(p, k, axis=0), v[tri[:, 0]], v[tri[:, 1]],
-                                v[tri[:, 2]])
+    d = _Triangles(v, f).distance(np.repeat(p, k, axis=0), idx.reshape(-1))
     return d.reshape(len(p), k).min(axis=1)
 
 

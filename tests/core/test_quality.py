@@ -72,3 +72,19 @@ def test_auto_output_of_the_examples_meets_every_limit(name):
     for kf in ex.keyframes:
         assert "keyframe_max" in per_frame[kf.frame - an.frames[0]]
     assert LIMITS["keyframe_max"] == 1.0
+
+
+def test_mesh_distance_is_the_nearest_of_every_triangle_when_all_are_candidates():
+    """With every triangle a candidate, `mesh_distance` is the brute-force minimum of the
+    exact point-triangle distances (each pair measured on its own)."""
+    from keyframe_implicit.core.quality import mesh_distance
+    from keyframe_implicit.core.sdf import point_triangle_distance
+
+    rng = np.random.default_rng(4)
+    v = rng.standard_normal((30, 3))
+    f = np.array([rng.choice(30, 3, replace=False) for _ in range(40)])
+    p = 2.0 * rng.standard_normal((300, 3))
+    pairs = np.repeat(p, len(f), axis=0), *(np.tile(v[f[:, i]], (len(p), 1)) for i in range(3))
+    want = point_triangle_distance(*pairs).reshape(len(p), len(f)).min(axis=1)
+    np.testing.assert_array_equal(mesh_distance(p, v, f, candidates=len(f)), want)
+    assert np.all(mesh_distance(p, v, f, candidates=3) >= want)  # fewer: never nearer
