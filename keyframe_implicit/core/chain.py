@@ -62,7 +62,7 @@ class ChainResult:
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
                   levelsets=False, template=None, keyframe_meshes=None, processes=1,
-                  progress=None, cancel=None, **options):
+                  helper=None, progress=None, cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -102,6 +102,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         frame, in two threads). 2 or more: one helper process (`parallel.Helper`)
         solves each segment's map B -> A and the later half of its frames, for a
         machine with two free cores and a caller that may start processes.
+    helper : `parallel.Helper`, optional
+        The helper to use instead of starting one (its caller closes it).
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
@@ -151,7 +153,9 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     meshes, velocities, fields = [], [], []
     what = dict(coverage=coverage, per_frame=per_frame, levelsets=levelsets,
                 keyframe_meshes=keyframe_meshes)
-    helper = Helper() if processes > 1 and nk > 1 else None
+    own = helper is None and processes > 1 and nk > 1
+    if own:
+        helper = Helper()
     try:
         for k in range(nk - 1):  # loop over segments (keyframe pairs)
             seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
@@ -187,6 +191,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     finally:
         if helper is not None:
             stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
+        if own:
             helper.close()
     stats["seconds"] = time.perf_counter() - t0
     stats["vertices"] = int(len(verts))

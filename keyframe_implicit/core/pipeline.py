@@ -111,6 +111,41 @@ _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
                  "levelset": "levelset_weight"}
 
 
+def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
+    """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each; with a
+    ``helper`` process, it makes the later half of them while this process makes the rest."""
+    n = len(keyframes)
+    half = (n + 1) // 2 if helper is not None else n
+    if half < n:
+        helper.submit(_distance_grid_range, keyframes, surfaces, grid, range(half, n))
+    done = _distance_grid_range(keyframes, surfaces, grid, range(half), rep, cancel)
+    if half < n:
+        done += helper.result(check=rep.check)
+        rep(1.0, f"Distance grids of keyframes {half + 1}-{n} (second process)")
+    return [phi for phi, _ in done], [st for _, st in done]
+
+
+def _distance_grid_range(keyframes, surfaces, grid, ks, rep=None, cancel=None):
+    """(field, figures) of keyframes ``ks``; ValueError naming the keyframe on bad input."""
+    from .sdf import mesh_to_sdf
+
+    rep = rep or Reporter()
+    n, out = len(keyframes), []
+    for k in ks:
+        sub = rep.sub(k / n, (k + 1) / n)
+        sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
+        kf, (v, tris) = keyframes[k], surfaces[k][:2]
+        figures = {}
+        try:
+            phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
+        except ValueError as exc:
+            raise ValueError(f"{_keyframe_label(k, kf)}: {exc}") from exc
+        if not np.any(phi < 0):
+            raise ValueError(_no_volume_message(k, kf, v, tris, grid))
+        out.append((phi, figures))
+    return out
+
+
 def _physical_memory():
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -385,7 +420,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     from .chain import animate_chain
     from .quality import choose_output
     from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
-    from .sdf import mesh_to_sdf
+    from .parallel import Helper
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
@@ -427,30 +462,21 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                 f"Resolution {resolution} would need about {exc.required / 2**20:,.0f} MB but "
                 f"the limit is {max_bytes / 2**20:,.0f} MB: {hint}.",
                 exc.required, max_bytes, best) from None
-    stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing, "sdf": []}
+    stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
 
-    phis = []
-    n = len(keyframes)
-    for k, kf in enumerate(keyframes):
-        sub = rep.sub(0.15 * k / n, 0.15 * (k + 1) / n)
-        sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
-        sdf_stats = {}
-        v, tris = surfaces[k][:2]
-        try:
-            phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=sdf_stats)
-        except ValueError as exc:
-            raise ValueError(f"{_keyframe_label(k, kf)}: {exc}") from exc
-        if not np.any(phi < 0):
-            raise ValueError(_no_volume_message(k, kf, v, tris, grid))
-        phis.append(phi)
-        stats["sdf"].append(sdf_stats)
-    stats["sdf_seconds"] = time.perf_counter() - t0
-
-    artist = _artist_template(keyframes[0], surfaces[0], template)
-    if artist is not None:
-        opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
-    chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
-                          progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
+    helper = Helper() if opts.get("processes", 1) > 1 else None
+    try:
+        phis, stats["sdf"] = _distance_grids(keyframes, surfaces, grid, rep.sub(0.0, 0.15),
+                                             cancel, helper)
+        stats["sdf_seconds"] = time.perf_counter() - t0
+        artist = _artist_template(keyframes[0], surfaces[0], template)
+        if artist is not None:
+            opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
+        chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
+                              helper=helper, progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
+    finally:
+        if helper is not None:
+            helper.close()
     _check_result(chain, grid, keyframes)
     stats.update(chain.stats)
     stats["loose_vertices"] = [s[2] for s in surfaces]

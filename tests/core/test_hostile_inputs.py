@@ -88,12 +88,13 @@ def test_loose_far_vertex_is_ignored_and_counted():
     _check_result(anim, kfs)
 
 
-def test_reoriented_faces_are_reported():
+@pytest.mark.parametrize("processes", [1, 2])  # 2: keyframe 2's distance grid in the helper
+def test_reoriented_faces_are_reported(processes):
     kfs = _spheres()
     f = kfs[1].faces.copy()
     f[::2] = f[::2, ::-1]
     kfs[1] = Keyframe(kfs[1].vertices, f, 5, "Ball.001")
-    anim = animate(kfs, [_features()], resolution=RES)
+    anim = animate(kfs, [_features()], resolution=RES, processes=processes)
     notes = [n for n in anim.stats["notes"] if "Keyframe 2 ('Ball.001', frame 5)" in n]
     assert len(notes) == 1 and "Recalculate Outside" in notes[0], anim.stats["notes"]
     _check_result(anim, kfs)
@@ -126,6 +127,14 @@ def test_open_mesh_is_told_to_close_it():
     kfs[0] = Keyframe(sheet, [[0, 1, 2, 3]], 1, "Sheet")  # a flat open square
     with pytest.raises(ValueError, match="Keyframe 1 \\('Sheet', frame 1\\).*4 open edges.*Close"):
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES)
+
+
+def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too():
+    kfs = _spheres()
+    sheet = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], float)
+    kfs[1] = Keyframe(sheet + (2.0, 0.0, 0.0), [[0, 1, 2, 3]], 5, "Sheet")
+    with pytest.raises(ValueError, match="Keyframe 2 \\('Sheet', frame 5\\).*4 open edges.*Close"):
+        animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES, processes=2)
 
 
 @pytest.mark.parametrize("gap", [0.001, 0.01])
