@@ -15,7 +15,7 @@ face attribute naming the frame and each point's velocity).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -33,7 +33,8 @@ class MeshData:
 
     positions : (V, 3) float32, the points.
     polygons : `attributes.MeshAttributes`, the faces (corners, UVs, colours, materials,
-        smooth flags, custom normals); its own ``edges`` / flags are not used here.
+        smooth flags, custom normals), their corner arrays int32 as Blender stores them;
+        its own ``edges`` / flags are not used here.
     edges : (E, 2) int32, each edge's vertices, every edge once.
     corner_edges : (L,) int32, the edge from each corner to the next corner of its face.
     sharp_edges, seams : (E,) bool or None, the flags on ``edges``.
@@ -56,6 +57,8 @@ class MeshData:
         with `polygon_edges`, the polygons' sharp and seam flags carried onto them."""
         edges, corner_edges = polygon_edges(polygons.loop_start, polygons.loop_total,
                                             polygons.loop_vertices)
+        polygons = replace(polygons, **{name: np.asarray(getattr(polygons, name), np.int32)
+                                        for name in ("loop_start", "loop_total", "loop_vertices")})
         data = cls(np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3), polygons,
                    edges, corner_edges)
         if polygons.edges is not None:
