@@ -178,8 +178,9 @@ class BakeJob:
         """`apply` a piece at a time (`output.write_steps`): a generator that yields between
         pieces and returns the output object. The modal bake runs pieces until its budget
         per turn of the main loop is spent and keeps polling (`poll`), so the object's
-        ``kfi_main_loop_stall`` counts the writing too (up to its last piece). Closed half
-        way, it leaves the scene as it was (OpenVDB files already written stay on disk)."""
+        ``kfi_main_loop_stall`` counts the writing too. Closed half way (the close reaches
+        the writer, which removes what it made), it leaves the scene as it was (OpenVDB
+        files already written stay on disk)."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
@@ -188,20 +189,11 @@ class BakeJob:
         stats["resolution"] = self.inputs.resolution
         settings = scene.keyframe_implicit
         paths = volumes.write_result(settings, self.result) if self.inputs.levelsets else []
-        steps = output.write_steps(scene, settings, self.result, stats=stats, notes=self.notes,
-                                   material_names=self.inputs.material_names)
-        try:
-            while True:
-                if self.poll_step:  # polled by a main loop (a blocking bake is not)
-                    stats["main_loop_stall"] = self.stall
-                try:
-                    next(steps)
-                except StopIteration as done:
-                    obj = done.value
-                    break
-                yield
-        finally:
-            steps.close()  # stopped half way: the writer removes what it made
+        obj = yield from output.write_steps(scene, settings, self.result, stats=stats,
+                                            notes=self.notes,
+                                            material_names=self.inputs.material_names)
+        if self.poll_step:  # polled by a main loop (a blocking bake is not)
+            obj["kfi_main_loop_stall"] = self.stall
         if paths:
             vol = volumes.add_volume_object(obj, paths, int(self.result.frames[0]))
             obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "
