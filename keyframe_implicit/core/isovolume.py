@@ -62,13 +62,9 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     flat = f.reshape(-1)
     reach = (max_cells + 2) * h
     lim = max_cells * h
-    top = flat.max()
-    if top < reach:  # truncated: its plateau is "not reached", outside, and c stays below it
-        lim_up = max(0.0, min(lim, top - 0.5 * h))
-        near = np.flatnonzero((flat > -reach) & (flat < top))
-    else:
-        lim_up = lim
-        near = np.flatnonzero((flat > -reach) & (flat < reach))  # the only nodes c can move across
+    top = flat.max()  # under reach: a truncated field's plateau, outside at any c below it
+    lim_up = lim if top >= reach else max(0.0, min(lim, top - 0.5 * h))
+    near = np.flatnonzero((flat > -reach) & (flat < min(reach, top)))  # the nodes c can cross
     fn = flat[near]
     ghn = np.empty(len(near))  # a chunk at a time: bounds the index temporaries
     for s in range(0, len(near), _CHUNK):
