@@ -111,11 +111,18 @@ _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
                  "levelset": "levelset_weight"}
 
 
+#: Grids of fewer nodes than this are all made in this process even with a helper: the
+#: helper starts at the same time and is not ready (0.4-1 s) before a small grid is done.
+SHARED_DISTANCE_NODES = 64 ** 3
+
+
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each; with a
-    ``helper`` process, it makes the later half of them while this process makes the rest."""
+    ``helper`` process and a grid of `SHARED_DISTANCE_NODES` or more, it makes the later half
+    of them while this process makes the rest."""
     n = len(keyframes)
-    half = (n + 1) // 2 if helper is not None else n
+    shared = helper is not None and grid.size >= SHARED_DISTANCE_NODES
+    half = (n + 1) // 2 if shared else n
     if half < n:
         helper.submit(_distance_grid_range, keyframes, surfaces, grid, range(half, n))
     done = _distance_grid_range(keyframes, surfaces, grid, range(half), rep, cancel)

@@ -88,8 +88,16 @@ def test_loose_far_vertex_is_ignored_and_counted():
     _check_result(anim, kfs)
 
 
+@pytest.fixture
+def shared_distance_grids(monkeypatch):
+    """The helper makes the later keyframes' distance grids even on these small grids."""
+    from keyframe_implicit.core import pipeline
+
+    monkeypatch.setattr(pipeline, "SHARED_DISTANCE_NODES", 0)
+
+
 @pytest.mark.parametrize("processes", [1, 2])  # 2: keyframe 2's distance grid in the helper
-def test_reoriented_faces_are_reported(processes):
+def test_reoriented_faces_are_reported(processes, shared_distance_grids):
     kfs = _spheres()
     f = kfs[1].faces.copy()
     f[::2] = f[::2, ::-1]
@@ -129,7 +137,7 @@ def test_open_mesh_is_told_to_close_it():
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES)
 
 
-def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too():
+def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too(shared_distance_grids):
     kfs = _spheres()
     sheet = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], float)
     kfs[1] = Keyframe(sheet + (2.0, 0.0, 0.0), [[0, 1, 2, 3]], 5, "Sheet")

@@ -151,3 +151,35 @@ def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
     assert "cancelled" in outcome
     assert outcome["cancelled"] - t_flip < 1.0
     assert not multiprocessing.active_children(), "the helper outlived the cancelled bake"
+
+
+class _CountingHelper:
+    """Stands in for `Helper` in `_distance_grids`: runs the call here and counts it."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def submit(self, fn, *args, **kwargs):
+        self.calls += 1
+        self._value = fn(*args, **kwargs)
+
+    def result(self, check=None):
+        return self._value
+
+
+@pytest.mark.parametrize("resolution, shared", [(20, False), (64, True)])
+def test_helper_makes_distance_grids_only_on_grids_worth_its_start(resolution, shared):
+    """On a small grid the helper is still starting when this process has made every
+    distance grid; handing it half of them made a 20-cell bake's grids 0.2 -> 0.5 s."""
+    from keyframe_implicit.core import pipeline
+    from keyframe_implicit.core.gridfit import fit_grid
+    from keyframe_implicit.core.progress import Reporter
+
+    kfs, _ = turning_sphere(n=16, last=11)
+    surfaces = [pipeline._surface_vertices(k, kf) for k, kf in enumerate(kfs)]
+    grid = fit_grid([kf.vertices for kf in kfs], resolution)
+    helper = _CountingHelper()
+    phis, _ = pipeline._distance_grids(kfs, surfaces, grid, Reporter(), helper=helper)
+    assert (grid.size >= pipeline.SHARED_DISTANCE_NODES) == shared
+    assert helper.calls == int(shared)
+    assert len(phis) == len(kfs) and all(p.shape == grid.shape for p in phis)
