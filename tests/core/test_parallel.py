@@ -183,3 +183,35 @@ def test_helper_makes_distance_grids_only_on_grids_worth_its_start(resolution, s
     assert (grid.size >= pipeline.SHARED_DISTANCE_NODES) == shared
     assert helper.calls == int(shared)
     assert len(phis) == len(kfs) and all(p.shape == grid.shape for p in phis)
+
+
+def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
+    """`parallel.send` pickles only the arrays' shapes and types; each contiguous array's
+    memory is a message of its own, read into the buffer the received array uses."""
+    import multiprocessing
+    import threading
+
+    from keyframe_implicit.core.parallel import receive, send
+
+    mine, theirs = multiprocessing.Pipe()
+    sent = []
+
+    class Spy:  # records the size of each message
+        def send_bytes(self, buf):
+            sent.append(memoryview(buf).nbytes)
+            mine.send_bytes(buf)
+
+    big = np.random.default_rng(1).random((500, 200))
+    obj = dict(big=big, fortran=np.asfortranarray(big[:50]), strided=big[:, ::2],
+               empty=np.zeros((0, 3)), labels=np.arange(7, dtype=np.int32), text="frame 3")
+    thread = threading.Thread(target=send, args=(Spy(), obj))
+    thread.start()
+    got = receive(theirs)
+    thread.join()
+    assert sent[0] <= obj["strided"].nbytes + 4096  # the pickle: the strided copy, no other
+    assert big.nbytes in sent[1:] and obj["fortran"].nbytes in sent[1:]
+    assert got.keys() == obj.keys() and got["text"] == "frame 3"
+    for key in ("big", "fortran", "strided", "empty", "labels"):
+        assert got[key].dtype == obj[key].dtype and np.array_equal(got[key], obj[key]), key
+        assert got[key].flags.writeable, key
+    assert got["fortran"].flags.f_contiguous
