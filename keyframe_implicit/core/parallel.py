@@ -107,19 +107,21 @@ class Helper:
 
 def send(conn, obj):
     """Send ``obj`` over a `multiprocessing` connection, its arrays' memory out of band:
-    the pickle and the buffers' sizes in one message, then each buffer as it lies.
+    the buffers' sizes, the pickle, then each buffer as it lies, each a message.
     Pickling happens before anything is sent, so a failure leaves the pipe clean."""
     buffers = []
     head = pickle.dumps(obj, protocol=5, buffer_callback=buffers.append)
     raw = [b.raw() for b in buffers]
-    conn.send_bytes(pickle.dumps((head, [r.nbytes for r in raw]), protocol=5))
+    conn.send_bytes(pickle.dumps([r.nbytes for r in raw]))
+    conn.send_bytes(head)
     for r in raw:
         conn.send_bytes(r)
 
 
 def receive(conn):
     """The object `send` sent: each buffer read into a bytearray its array then uses."""
-    head, sizes = pickle.loads(conn.recv_bytes())
+    sizes = pickle.loads(conn.recv_bytes())
+    head = conn.recv_bytes()
     buffers = [bytearray(n) for n in sizes]
     for b in buffers:
         conn.recv_bytes_into(b)
