@@ -147,10 +147,10 @@ def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     the peak resident sets of both processes against the model, at two sizes. The model
     is fitted on Python 3.11 / numpy 1.26 to the benchmark's cases (benchmarks/README.md,
     "Memory model": 10.1 % at most on sixteen rows); here it meets other Python and numpy
-    lines too (3.13 / numpy 2). The sphere is lighter than those cases for its grid: the
-    constants before the last refit were high by 13 % at 72 cells and 5 % at 88, and by
-    20-28 % at 56-64 cells, where the two interpreters are most of the peak; the refit
-    lowers the estimate at 72 and 88 cells by 11 and 9 %."""
+    lines too (3.13 / numpy 2). The sphere is lighter than those cases for its grid, and
+    below 64 cells the two interpreters are most of the peak (constants of earlier fits
+    were 20-28 % high at 56-64 cells); with the current constants the model is high by
+    6-11 % at 72 and 88 cells on both lines."""
     import json
     import pathlib
     import subprocess
