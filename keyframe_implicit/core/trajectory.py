@@ -67,7 +67,7 @@ from . import elements
 from .grid import Grid
 from .multigrid import BlockMultigrid, block_pcg
 from .progress import Reporter
-from .sampling import cell_weights
+from .sampling import cell_weights, sample
 
 __all__ = ["Trajectories", "polar", "rigid_fit", "rotation_log", "rotation_exp"]
 
@@ -522,8 +522,12 @@ class Trajectories:
         if p.ndim != 2 or p.shape[1] != self.dim:
             raise ValueError(f"points must have shape (P, {self.dim}), got {p.shape}.")
         s = self._check_s(s)
-        if p.shape[0] == 0:
+        if p.shape[0] == 0 or s == 0.0:
             return p.copy()
+        if s == 1.0:  # the map itself, read where the points are: no path to evaluate
+            box = np.asarray(self.grid.shape) - 1
+            clamped = self.grid.to_world(np.clip(self.grid.to_index(p), 0, box))
+            return p - clamped + sample(self.mapped, self.grid, p)
         flat, w = cell_weights(self.grid, p)
         nodes, inv = np.unique(flat, return_inverse=True)
         disp = self.node_positions(s, nodes) - self.grid.node_points(nodes)

@@ -53,6 +53,25 @@ def test_paths_end_exactly_at_the_map_for_a_non_rigid_map():
     assert np.abs(b - a).max() < 4e-3  # speed < 4 world units per unit s on this box
 
 
+def test_points_at_the_ends_follow_the_node_paths_inside_and_outside_the_grid():
+    # s = 0 and s = 1 take a shortcut (the points themselves, the map read at them): it
+    # must give what interpolating the nodes' positions gives, clamped points included
+    from keyframe_implicit.core.sampling import cell_weights
+
+    grid, phi_a, _, mapped, _ = bend_case(d=2, n=30)
+    traj = Trajectories(grid, mapped, phi_a < 0)
+    rng = np.random.default_rng(3)
+    lo, hi = grid.origin, grid.upper
+    pts = rng.uniform(lo - 0.2 * (hi - lo), hi + 0.2 * (hi - lo), size=(400, 2))
+    assert (~grid.contains(pts)).sum() > 50 and grid.contains(pts).sum() > 50
+    flat, w = cell_weights(grid, pts)
+    for s in (0.0, 1.0):
+        disp = traj.node_positions(s, flat.reshape(-1)) - grid.node_points(flat.reshape(-1))
+        expect = pts + np.einsum("pk,pkd->pd", w, disp.reshape(flat.shape + (2,)))
+        np.testing.assert_allclose(traj(pts, s), expect, rtol=0, atol=1e-12)
+    assert np.abs(traj(pts, 1.0) - pts).max() > 0.05  # the map moves them
+
+
 def test_folded_cells_keep_paths_finite_and_straight_for_a_squeeze():
     # the merge map presses the two balls into each other along x: cells in between
     # fold; a pure squeeze has no rotation, so every path is the straight one
