@@ -22,7 +22,10 @@ Algorithm
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
   preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2),
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
-  unpinned rigid modes stay bounded.
+  unpinned rigid modes stay bounded. A level of ``coarse_space_from``
+  (100,000) unknowns or more adds a coarse correction (`coarse.CoarseSpace`,
+  about ``coarse_space_size`` = 4000 coarse unknowns): block Jacobi alone
+  needs iterations in proportion to the grid's resolution.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
   energy (Armijo) that also refuses any step taking det F of the material
   (any quadrature point) below ``min_det`` (0.2), or below its current
@@ -68,6 +71,7 @@ import scipy.sparse as sp
 from scipy import ndimage
 
 from . import elements
+from .coarse import CoarseSpace
 from .constraints import FeatureConstraints
 from .grid import Grid
 from .progress import Reporter
@@ -92,6 +96,8 @@ DEFAULTS = dict(
     coarse_nodes=24,
     cg_tolerance=3e-2,
     cg_max_iterations=300,
+    coarse_space_from=100_000,
+    coarse_space_size=4000,
     damping=1e-6,
     chunk_elements=512,
     extension_passes=8,
@@ -395,6 +401,9 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     it = 0
     cg_total = 0
     fresh = True  # Hs was assembled at the current y
+    t0 = time.perf_counter()
+    coarse = _coarse_space(level, opts)
+    timing["setup"] += time.perf_counter() - t0
     for it in range(1, max_iterations + 1):
         rep((it - 1) / max_iterations, f"Gauss-Newton iteration {it}")
         t0 = time.perf_counter()
@@ -405,6 +414,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             Hs[:, level.centre_off] += mu * np.eye(d)
             H = level.bsr(Hs)
             precond = cons.block_preconditioner(Hs[:, level.centre_off].astype(float))
+            if coarse is not None:
+                precond = _with_correction(precond, coarse.correction(Hs), cons.n_free, d)
 
         def apply_A(z):  # the product in the Hessian's precision (a cast, not an upcast of H)
             Tz = cons.expand(z).reshape(-1).astype(_HESSIAN_DTYPE)
@@ -444,6 +455,29 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms
+
+
+def _coarse_space(level, opts):
+    """The level's `CoarseSpace`, or None where its systems are small enough for block
+    Jacobi alone (fewer than ``coarse_space_from`` unknowns)."""
+    if level.cons.size < opts["coarse_space_from"]:
+        return None
+    coords = np.stack(np.unravel_index(level.active, level.grid.shape), axis=-1)
+    return CoarseSpace(coords, level.bsr_indices.reshape(level.n, -1), level.cons.free_nodes,
+                       opts["coarse_space_size"])
+
+
+def _with_correction(precond, correction, n_free, d):
+    """The additive two-level preconditioner: ``precond`` plus the coarse ``correction``
+    on the free nodes' unknowns (the first ``n_free * d`` of the reduced vector)."""
+    m = n_free * d
+
+    def apply(r):
+        out = precond(r)
+        out[:m] += correction(r[:m].reshape(n_free, d)).reshape(-1)
+        return out
+
+    return apply
 
 
 def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check):
