@@ -43,8 +43,8 @@ class CoarseSpace:
     free_nodes : int ndarray
         The nodes whose displacements are unknowns of their own (not in a feature patch).
     unknowns : int
-        About how many coarse unknowns to make: the aggregate's side is the
-        smallest (at least 2 nodes) that gives no more than this on a full box.
+        The most coarse unknowns to make: the aggregates' side is the smallest
+        (at least 2 nodes) that gives no more.
     """
 
     def __init__(self, coords, neighbours, free_nodes, unknowns):
@@ -52,11 +52,15 @@ class CoarseSpace:
         self.d = d
         self.free_nodes = np.asarray(free_nodes)
         side = max(2, int(np.ceil((d * len(self.free_nodes) / float(unknowns)) ** (1.0 / d))))
+        while True:  # a ragged region fills its blocks partly: widen them until few enough
+            block = coords // side
+            span = block.max(axis=0) + 1
+            key = np.ravel_multi_index(tuple(block[self.free_nodes].T), tuple(span))
+            keys, agg_free = np.unique(key, return_inverse=True)
+            if d * len(keys) <= unknowns:
+                break
+            side += 1
         self.side = side
-        block = coords // side
-        span = block.max(axis=0) + 1
-        key = np.ravel_multi_index(tuple(block[self.free_nodes].T), tuple(span))
-        keys, agg_free = np.unique(key, return_inverse=True)
         self.agg_free = agg_free.reshape(-1)
         nc = len(keys)
         self.n_aggregates = nc
