@@ -24,7 +24,7 @@ Algorithm
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
   unpinned rigid modes stay bounded. A level of ``coarse_space_from``
   (120,000) unknowns or more adds a coarse correction (`coarse.CoarseSpace`,
-  at most ``coarse_space_size`` = 8000 coarse unknowns): block Jacobi alone
+  at most ``coarse_space_size`` = 9000 coarse unknowns): block Jacobi alone
   needs iterations in proportion to the grid's resolution.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
   energy (Armijo) that also refuses any step taking det F of the material
@@ -97,7 +97,7 @@ DEFAULTS = dict(
     cg_tolerance=3e-2,
     cg_max_iterations=300,
     coarse_space_from=120_000,
-    coarse_space_size=8000,
+    coarse_space_size=9000,
     damping=1e-6,
     chunk_elements=512,
     extension_passes=8,
