@@ -57,7 +57,7 @@ class CoarseSpace:
             span = block.max(axis=0) + 1
             key = np.ravel_multi_index(tuple(block[self.free_nodes].T), tuple(span))
             keys, agg_free = np.unique(key, return_inverse=True)
-            if d * len(keys) <= unknowns:
+            if d * len(keys) <= unknowns or len(keys) == 1:
                 break
             side += 1
         self.side = side

@@ -758,6 +758,12 @@ def _options(opts, weight_opts, grid):
         raise ValueError(f"patch_rigidity must be a finite number >= 0 (a factor on rigidity_weight inside "
                          f"the feature patches; 1 = plain material, default 10), got {patch_rigidity}.")
     options["patch_rigidity"] = patch_rigidity
+    for name, least in (("coarse_space_from", 0), ("coarse_space_size", 1)):
+        v = options[name]
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
+            raise ValueError(f"{name} must be an integer >= {least}, got {v!r} (unknowns: "
+                             "coarse_space_from is the smallest system with a coarse correction, "
+                             "coarse_space_size the most coarse unknowns).")
     options["margin_weight"] = float(options["margin_weight"])
     if options["feature_radius"] is None:
         options["feature_radius"] = 0.08 * float(np.max(grid.upper - grid.origin))

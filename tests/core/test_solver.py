@@ -302,6 +302,10 @@ def test_bad_options_are_rejected():
         solve_map(pa, pb, g, fa, fb, levelset_weight=-1)
     with pytest.raises(ValueError, match="patch_rigidity must be"):
         solve_map(pa, pb, g, fa, fb, patch_rigidity=-1.0)
+    with pytest.raises(ValueError, match="coarse_space_size must be an integer >= 1"):
+        solve_map(pa, pb, g, fa, fb, coarse_space_size=0)
+    with pytest.raises(ValueError, match="coarse_space_from must be an integer >= 0"):
+        solve_map(pa, pb, g, fa, fb, coarse_space_from=1.5e5)
 
 
 @pytest.mark.parametrize("margin_weight", [0.1, 0.0])
