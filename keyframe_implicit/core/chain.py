@@ -159,18 +159,18 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     try:
         for k in range(nk - 1):  # loop over segments (keyframe pairs)
             seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
+            f0, f1 = frames[k], frames[k + 1]
+            local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
+            split = _FrameSplit(helper, local, (f0, f1), k, (verts, faces), what)
             if maps is not None:
                 inb = Inbetween.from_map(phis[k], phis[k + 1], grid, maps[k], cancel=cancel,
                                          **options)
             else:
                 fa, fb = features[k]
                 inb = inbetween(phis[k], phis[k + 1], grid, fa, fb, progress=seg.sub(0.0, 0.5),
-                                cancel=cancel, helper=helper, **options)
-            f0, f1 = frames[k], frames[k + 1]
-            local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
+                                cancel=cancel, helper=helper, on_maps=split.start, **options)
             t_seg = time.perf_counter()
-            records = _segment_frames(inb, local, (f0, f1), k, (verts, faces), what,
-                                      seg.sub(0.5, 1.0), helper)
+            records = split.run(inb, seg.sub(0.5, 1.0))
             for f, rec in zip(local, records):
                 out[f - frames[0]] = rec["vertices"]
                 stats["max_abs_phi"].append(rec["max_abs_phi"])
@@ -199,18 +199,39 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)
 
 
-def _segment_frames(inb, frames, ends, k, template, what, rep, helper=None):
-    """One record (`_frames`) per timeline frame of segment ``k``; with a ``helper``
-    process, it takes the later half of the frames while this process does the first."""
-    if helper is None or len(frames) < 4:
-        return _frames(inb, frames, ends, k, template, what, rep)
-    half = len(frames) // 2
-    helper.submit(_frames, inb, frames[half:], ends, k, template, what)
-    first = _frames(inb, frames[:half], ends, k, template, what,
-                    rep.sub(0.0, half / len(frames)))
-    rest = helper.result(check=rep.check)
-    rep(1.0, f"frames {frames[half]}-{frames[-1]} (second process)")
-    return first + rest
+class _FrameSplit:
+    """One segment's frames (`_frames`), the later half in a ``helper`` process when there
+    is one (and at least 4 frames) while this process does the first half.
+
+    `start` hands the helper its half as soon as the in-betweens' `levelset.Recipe` is
+    known, so that it builds its copy of the trajectories while this process builds its
+    own; `run` starts it then if it was not started before.
+    """
+
+    def __init__(self, helper, frames, ends, k, template, what):
+        self.helper = helper if helper is not None and len(frames) >= 4 else None
+        self.frames, self.ends, self.k, self.template, self.what = frames, ends, k, template, what
+        self.half = len(frames) // 2
+        self.started = False
+
+    def start(self, inbetweens):
+        """Submit the later half to the helper (``inbetweens`` an `Inbetween` or its recipe)."""
+        if self.helper is not None and not self.started:
+            self.helper.submit(_frames, inbetweens, self.frames[self.half:], self.ends, self.k,
+                               self.template, self.what)
+            self.started = True
+
+    def run(self, inb, rep):
+        """Every frame's record, in order."""
+        if self.helper is None:
+            return _frames(inb, self.frames, self.ends, self.k, self.template, self.what, rep)
+        self.start(inb)
+        n, half = len(self.frames), self.half
+        first = _frames(inb, self.frames[:half], self.ends, self.k, self.template, self.what,
+                        rep.sub(0.0, half / n))
+        rest = self.helper.result(check=rep.check)
+        rep(1.0, f"frames {self.frames[half]}-{self.frames[-1]} (second process)")
+        return first + rest
 
 
 def _frames(inb, frames, ends, k, template, what, rep=None):

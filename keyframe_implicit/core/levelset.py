@@ -440,6 +440,17 @@ def _from_recipe(args, kwargs):
     return Inbetween.from_map(*args, **kwargs)
 
 
+class Recipe:
+    """The inputs of `Inbetween.from_map` (maps, fields, options): pickled, it becomes the
+    in-betweens where it is unpickled (`parallel.Helper`), built there."""
+
+    def __init__(self, args, kwargs):
+        self.args, self.kwargs = args, kwargs
+
+    def __reduce__(self):
+        return _from_recipe, (self.args, self.kwargs)
+
+
 def map_agreement(grid, mapped, mapped_back, material):
     """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max)."""
     from .sampling import sample
@@ -454,7 +465,7 @@ def map_agreement(grid, mapped, mapped_back, material):
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
-              **options):
+              on_maps=None, **options):
     """Solve the maps between two keyframes and return their in-betweens.
 
     ``inbetween = solve_map (A -> B, and B -> A with the feature pairs swapped
@@ -468,6 +479,10 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     features_a, features_b : (N, d) arrays
         Feature points of A and their targets in B.
     progress, cancel : callables, optional (see `progress.Reporter`).
+    on_maps : callable, optional
+        Called with the in-betweens' `Recipe` once the maps are solved, before this
+        process builds its trajectories: a caller may hand it to another process
+        (`parallel.Helper`), which builds its own copy meanwhile.
     **options
         ``transport``, ``keep_volume``, ``trajectory_method``,
         ``trajectory_margin_cells``, ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
@@ -501,11 +516,12 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     if back is not None:
         st["map_back"] = back.stats
     rep(0.8, "trajectories")
-    out = Inbetween.from_map(phi_a, phi_b, grid, res.mapped,
-                             mapped_back=None if back is None else back.mapped,
-                             material=res.material, components=res.components,
-                             stats=st, map_result=res, map_result_back=back, cancel=cancel,
-                             **mine)
+    inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
+                  components=res.components, **mine)
+    if on_maps is not None:
+        on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
+    out = Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,
+                             map_result_back=back, cancel=cancel, **inputs)
     rep(1.0, "in-betweens ready")
     return out
 

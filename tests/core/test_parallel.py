@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Cancelled, animate
+from keyframe_implicit.core import Cancelled, Grid, animate
 from keyframe_implicit.core.parallel import Helper, HelperError
 
 from test_pipeline import turning_sphere
@@ -183,6 +183,55 @@ def test_helper_makes_distance_grids_only_on_grids_worth_its_start(resolution, s
     assert (grid.size >= pipeline.SHARED_DISTANCE_NODES) == shared
     assert helper.calls == int(shared)
     assert len(phis) == len(kfs) and all(p.shape == grid.shape for p in phis)
+
+
+class _OrderHelper:
+    """Stands in for `Helper` in `animate_chain`: each call crosses a pickle, as it would
+    the pipe, and runs here; it records how many trajectories this process had built
+    when each call came."""
+
+    def __init__(self, built):
+        self.built, self.calls = built, []
+
+    def submit(self, fn, *args, **kwargs):
+        import pickle
+
+        self.calls.append((fn.__name__, self.built[0]))
+        fn, args, kwargs = pickle.loads(pickle.dumps((fn, args, kwargs)))
+        self._value = fn(*args, **kwargs)
+
+    def result(self, check=None):
+        return self._value
+
+    def peak_rss_kib(self):
+        return 0
+
+
+def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(monkeypatch):
+    """The helper builds its own copy of the in-betweens for its half of the frames: handed
+    the recipe as soon as the maps are solved, it builds while this process builds too."""
+    from keyframe_implicit.core import chain, trajectory
+
+    built = [0]
+    init = trajectory.Trajectories.__init__
+
+    def counting(self, *args, **kwargs):
+        built[0] += 1
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(trajectory.Trajectories, "__init__", counting)
+    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
+    P = grid.points()
+    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
+    feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
+    helper = _OrderHelper(built)
+    res = chain.animate_chain(phis, grid, feats, [1, 9], helper=helper, surfaces=False,
+                              coverage=False)
+    assert [name for name, _ in helper.calls] == ["solve_map", "_frames"]
+    assert helper.calls[1][1] == 0  # none built here yet when the frames went
+    assert built[0] == 4  # two here, two from the recipe
+    one = chain.animate_chain(phis, grid, feats, [1, 9], surfaces=False, coverage=False)
+    assert np.abs(res.vertices - one.vertices).max() <= 1e-4 * grid.spacing
 
 
 def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
