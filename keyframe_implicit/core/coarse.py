@@ -18,7 +18,7 @@ B the block diagonal. Because a stencil block of H couples a node with a
 neighbour at most one node away and a >= 2, it couples aggregates whose
 lattice positions differ by at most one: A_c is again a 3^d block stencil,
 summed from H's stencil blocks without a sort (`CoarseSpace.operator`). A_c
-is small (about ``unknowns``) and is factored directly, once per Hessian.
+is small (at most ``unknowns``) and is factored directly, once per Hessian.
 """
 
 from __future__ import annotations
