@@ -271,7 +271,7 @@ class Inbetween:
         out = cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume,
                   resample=resample, idw_radius=idw_radius, stats=st, map_result=map_result,
                   map_result_back=map_result_back)
-        out._recipe = ((phi_a, phi_b, grid, mapped), dict(
+        out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, transport=transport, keep_volume=keep_volume,
             material=material, components=components, trajectory_method=trajectory_method,
             trajectory_margin_cells=traj_opts["margin_cells"],
@@ -284,8 +284,7 @@ class Inbetween:
         in the other process (`parallel.Helper`): trajectories and transports are not sent."""
         if not hasattr(self, "_recipe"):
             raise TypeError("only an Inbetween made by Inbetween.from_map can be pickled")
-        args, kwargs = self._recipe
-        return _from_recipe, (args, kwargs)
+        return self._recipe.__reduce__()
 
     # ------------------------------------------------------------------
     def levelset(self, s):
