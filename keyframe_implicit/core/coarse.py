@@ -27,6 +27,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from .multigrid import aggregate_blocks
+
 __all__ = ["CoarseSpace"]
 
 
@@ -52,23 +54,21 @@ class CoarseSpace:
         self.d = d
         self.free_nodes = np.asarray(free_nodes)
         side = max(2, int(np.ceil((d * len(self.free_nodes) / float(unknowns)) ** (1.0 / d))))
+        free_coords = coords[self.free_nodes]
         while True:  # a ragged region fills its blocks partly: widen them until few enough
-            block = coords // side
-            span = block.max(axis=0) + 1
-            key = np.ravel_multi_index(tuple(block[self.free_nodes].T), tuple(span))
-            keys, agg_free = np.unique(key, return_inverse=True)
-            if d * len(keys) <= unknowns or len(keys) == 1:
+            agg_free, lattice = aggregate_blocks(free_coords, side)
+            if d * len(lattice) <= unknowns or len(lattice) == 1:
                 break
             side += 1
         self.side = side
-        self.agg_free = agg_free.reshape(-1)
-        nc = len(keys)
+        self.agg_free = agg_free
+        nc = len(lattice)
         self.n_aggregates = nc
         agg = np.full(n, -1, np.int64)
-        agg[self.free_nodes] = self.agg_free
+        agg[self.free_nodes] = agg_free
         # every stencil block (i, o) lands in coarse stencil block (agg i, lattice offset of
         # agg nbr from agg i); blocks with a node outside the free ones go to a last, dropped bin
-        block = block.astype(np.int32)
+        block = (coords // side).astype(np.int32)
         code = np.zeros(neighbours.shape, np.int32)
         for a in range(d):  # one axis at a time: the temporaries stay (n, S) int32
             code *= 3
@@ -78,7 +78,8 @@ class CoarseSpace:
         self._slot = slot.reshape(-1)
         # the coarse stencil's columns: the aggregate at each lattice offset, -1 where none
         offs = np.array(list(np.ndindex(*(3,) * d))) - 1
-        lattice = np.stack(np.unravel_index(keys, tuple(span)), axis=1)
+        span = lattice.max(axis=0) + 1
+        keys = np.ravel_multi_index(tuple(lattice.T), tuple(span))  # sorted (aggregate_blocks)
         q = lattice[:, None, :] + offs[None, :, :]
         inside = np.all((q >= 0) & (q < span), axis=-1)
         qkey = np.where(inside, np.ravel_multi_index(tuple(np.moveaxis(np.clip(q, 0, span - 1), -1, 0)),

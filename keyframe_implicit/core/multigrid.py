@@ -46,9 +46,10 @@ def _largest_eigenvalue(A, dinv, iterations=12, seed=0):
     return 1.1 * lam
 
 
-def _aggregate(coords):
-    """Block of 2^d nodes each node falls in: (aggregate index per node, coarse coordinates)."""
-    block = coords // 2
+def aggregate_blocks(coords, side=2):
+    """The block of side^d grid nodes each node (grid index ``coords`` (n, d)) falls in:
+    (aggregate index per node, the aggregates' block coordinates, sorted by flat index)."""
+    block = coords // side
     span = block.max(axis=0) + 1
     key = np.ravel_multi_index(tuple(block.T), tuple(span))
     keys, agg = np.unique(key, return_inverse=True)
@@ -84,7 +85,7 @@ class BlockMultigrid:
             check()
             dinv = 1.0 / A.diagonal()
             omega = 4.0 / (3.0 * _largest_eigenvalue(A, dinv))
-            agg, coarse = _aggregate(coords)
+            agg, coarse = aggregate_blocks(coords)
             if coarse.shape[0] > 0.9 * A.shape[0]:  # blocks no longer shrink the problem
                 break
             n, nc = A.shape[0], coarse.shape[0]
