@@ -108,11 +108,22 @@ def _bounding_boxes(grid, corner_positions, tol):
     """The grid nodes' index box of every moved cell (corners (C, 2^d, d), world units):
     its lowest node (d, C) and its extent in nodes (d, C), 0 where it holds none."""
     shape = np.asarray(grid.shape)[:, None]
-    low = grid.to_index(corner_positions.min(axis=1)).T
-    high = grid.to_index(corner_positions.max(axis=1)).T
+    low, high = _corner_extremes(corner_positions)
+    low, high = grid.to_index(low).T, grid.to_index(high).T
     lo = np.maximum(np.ceil(low - tol), 0).astype(np.int64)
     hi = np.minimum(np.floor(high + tol), shape - 1).astype(np.int64)
     return lo, np.maximum(hi - lo + 1, 0)
+
+
+def _corner_extremes(corner_positions):
+    """Lowest and highest corner coordinates (C, d) of every cell (corners (C, 2^d, d)),
+    one elementwise pass per corner: a reduction over the middle axis takes twice as long."""
+    low = corner_positions[:, 0].copy()
+    high = low.copy()
+    for k in range(1, corner_positions.shape[1]):
+        np.minimum(low, corner_positions[:, k], out=low)
+        np.maximum(high, corner_positions[:, k], out=high)
+    return low, high
 
 
 def _cell_maps(grid, corner_positions, tol):
@@ -198,22 +209,25 @@ def _poly_eval(coef, v, jacobian=True):
 
     The coefficients, seen as an array (2, ..., 2, d, M) with one binary axis per
     coordinate (`elements.corners` order), are contracted one axis at a time, last
-    first: c0 + v_a c1 for T; for dT/dv_a the axis a contributes c1.
+    first: c0 + v_a c1 for T. dT/dv_a takes c1 where T contracts axis a and is then
+    contracted over the axes before it as T is, so the Jacobian shares T's partial sums.
     """
     d = v.shape[0]
-    c = coef.reshape((2,) * d + coef.shape[1:])
+    val = coef.reshape((2,) * d + coef.shape[1:])
+    derivs = []  # dT/dv_b of the axes b contracted so far, the last axis first
 
-    def contract(deriv):
-        out = c
-        for a in reversed(range(d)):
-            at = (slice(None),) * a
-            out = out[at + (1,)] if a == deriv else out[at + (0,)] + v[a] * out[at + (1,)]
-        return out
+    def contract(x, a):
+        at = (slice(None),) * a
+        return x[at + (0,)] + v[a] * x[at + (1,)]
 
-    T = contract(None)
+    for a in reversed(range(d)):
+        derivs = [contract(x, a) for x in derivs]
+        if jacobian:
+            derivs.append(val[(slice(None),) * a + (1,)])
+        val = contract(val, a)
     if not jacobian:
-        return T, None
-    return T, np.stack([contract(a) for a in range(d)], axis=1)
+        return val, None
+    return val, np.stack(derivs[::-1], axis=1)
 
 
 def _affine_margin(coef, Jinv):

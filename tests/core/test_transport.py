@@ -77,3 +77,11 @@ def test_inverse_lookup_of_no_cells_finds_nothing():
     grid = Grid(np.zeros(3), 1.0, (4, 4, 4))
     target, source = transport.inverse_lookup(grid, np.zeros((0, 8, 3)), np.zeros(0, np.int64))
     assert target.shape == (0,) and source.shape == (0, 3)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_corner_extremes_are_every_cells_lowest_and_highest_corner(d):
+    _, P, _, _ = bent_cells(d)
+    low, high = transport._corner_extremes(P)
+    np.testing.assert_array_equal(low, P.min(axis=1))
+    np.testing.assert_array_equal(high, P.max(axis=1))
