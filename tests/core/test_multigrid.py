@@ -124,3 +124,19 @@ def test_coarsest_inverse_cuts_the_translations():
     one = np.ones(tr._mg.coarse.shape[0])
     assert np.abs(tr._mg.coarse @ one).max() < 1e-8 * np.abs(tr._mg.coarse).max()
     assert max(tr.stats["cg_iterations"]) < 30
+
+
+@pytest.mark.parametrize("sweeps,coarse_sweeps", [(2, 1), (1, 2), (3, 3)])
+def test_v_cycle_is_symmetric_whatever_the_sweeps(sweeps, coarse_sweeps):
+    """CG needs a symmetric preconditioner: each level smooths as often after its coarse
+    correction as before it (the first sweep being the Jacobi step from zero)."""
+    grid, y, mat = _two_balls_bending(24)
+    tr = Trajectories(grid, y, mat)
+    coords = np.stack(np.unravel_index(tr._nodes, grid.shape), 1)
+    mg = BlockMultigrid(tr._L, coords, coarse_size=60, sweeps=sweeps, coarse_sweeps=coarse_sweeps)
+    assert len(mg.levels) >= 2  # a coarse level smooths too
+    rng = np.random.default_rng(0)
+    r1, r2 = rng.standard_normal((2, tr._L.shape[0]))
+    a, b = r2 @ mg(r1), r1 @ mg(r2)
+    assert abs(a - b) < 1e-9 * abs(a)
+    assert r1 @ mg(r1) > 0
