@@ -264,3 +264,19 @@ def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
         assert got[key].dtype == obj[key].dtype and np.array_equal(got[key], obj[key]), key
         assert got[key].flags.writeable, key
     assert got["fortran"].flags.f_contiguous
+
+
+@pytest.mark.parametrize("first, ends, mine", [(1, (1, 25), 13), (26, (25, 49), 12),
+                                                (11, (10, 14), 2)])
+def test_frame_split_halves_the_inbetweens_not_the_frames(first, ends, mine):
+    """A keyframe's own frame costs next to nothing: frames 1..25 give this process s = 0
+    and 12 in-betweens, the helper 11 and s = 1 (halving the frames gave it 12)."""
+    from keyframe_implicit.core.chain import _FrameSplit
+
+    frames = np.arange(first, ends[1] + 1)
+    split = _FrameSplit(object(), frames, ends, 0, None, None)
+    assert split.half == mine
+
+    def inner(f):
+        return int(np.count_nonzero((f > ends[0]) & (f < ends[1])))
+    assert 0 <= inner(frames[:mine]) - inner(frames[mine:]) <= 1
