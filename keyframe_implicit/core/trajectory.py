@@ -412,6 +412,7 @@ class Trajectories:
         # blend of the Poisson paths with the body formula over the outer half of the margin
         dl = dist[nodes]
         self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
+        self._blended = np.flatnonzero(self._wblend < 1.0)  # where the body formula counts
 
     def _component_centroids(self, points):
         """Centroid (ncomp, d) of the material nodes of each component of the active graph
@@ -480,8 +481,10 @@ class Trajectories:
         key = round(s, 12)  # i/n + 1/n and (i + 1)/n may differ in the last bit
         if key not in self._cache:
             Y = self._poisson(s) + s * self._resid
-            w = self._wblend[:, None]
-            self._cache[key] = w * Y + (1.0 - w) * self._body_path(s, self._nodes)
+            b = self._blended
+            w = self._wblend[b, None]
+            Y[b] = w * Y[b] + (1.0 - w) * self._body_path(s, self._nodes[b])
+            self._cache[key] = Y
             if len(self._cache) > _CACHED:
                 self._cache.pop(next(iter(self._cache)))
         return self._cache[key]

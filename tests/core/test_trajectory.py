@@ -132,3 +132,18 @@ def test_per_grid_node_only_the_map_the_region_and_the_body_are_kept():
                    if isinstance(v, np.ndarray) and v.shape[:1] == (grid.size,))
     assert per_node <= grid.size * (3 * 8 + 2 + 1)  # + the material mask given
     np.testing.assert_allclose(traj.positions(0.0), grid.points(), atol=1e-12)
+
+
+def test_the_body_formula_is_blended_in_over_the_outer_half_of_the_margin_only():
+    """Positions are w Y + (1 - w) body with w the margin blend; the body formula is
+    evaluated only where w < 1, and that gives the same positions as everywhere."""
+    grid, phi_a, _, mapped, _ = bend_case(d=3, n=24)
+    tr = Trajectories(grid, mapped, phi_a < 0)
+    inner = tr._wblend == 1.0
+    assert inner.any() and (~inner).any()
+    assert np.array_equal(np.flatnonzero(~inner), tr._blended)
+    s = 0.4
+    Y = tr._poisson(s) + s * tr._resid
+    w = tr._wblend[:, None]
+    want = w * Y + (1.0 - w) * tr._body_path(s, tr._nodes)
+    np.testing.assert_allclose(tr._active_positions(s), want, atol=1e-6 * grid.spacing)
