@@ -70,8 +70,8 @@ class BlockMultigrid:
     coarse_size : int
         Levels are added until at most this many unknowns remain.
     sweeps : int
-        Damped Jacobi sweeps after the coarse correction on the finest level (one fewer
-        before it).
+        Damped Jacobi sweeps before the coarse correction on the finest level (the first
+        from zero) and as many after it, so that the V-cycle is symmetric.
     coarse_sweeps : int
         The same on the coarser levels. Their Galerkin operators are denser than the
         grid's (about 30 and 130 entries a row on the first two, against 7), so a sweep
