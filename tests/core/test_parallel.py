@@ -269,7 +269,7 @@ def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
 @pytest.mark.parametrize("first, ends, mine", [(1, (1, 25), 13), (26, (25, 49), 12),
                                                 (11, (10, 14), 2)])
 def test_frame_split_halves_the_inbetweens_not_the_frames(first, ends, mine):
-    """A keyframe's own frame costs next to nothing: frames 1..25 give this process s = 0
+    """A keyframe's own frame adds no work of its own: frames 1..25 give this process s = 0
     and 12 in-betweens, the helper 11 and s = 1 (halving the frames gave it 12)."""
     from keyframe_implicit.core.chain import _FrameSplit
 
