@@ -17,7 +17,7 @@ import numpy as np
 from .elements import corners
 from .grid import Grid
 
-__all__ = ["cell_weights", "sample", "sample_with_gradient"]
+__all__ = ["cell_weights", "central_differences", "sample", "sample_with_gradient"]
 
 
 def cell_weights(grid: Grid, points):
@@ -33,7 +33,7 @@ def cell_weights(grid: Grid, points):
     weights : ndarray, shape (P, 2**d)
         Multilinear weights, non-negative, each row summing to 1.
     """
-    idx, frac = _locate(grid, points)
+    idx, frac, _ = _locate(grid, points)
     return _corner_nodes(grid, idx), _corner_products(1.0 - frac, frac)
 
 
@@ -46,20 +46,22 @@ def _corner_products(lo, hi):
     """Per point, the product over the axes of ``lo`` or ``hi`` (P, d) picked by each corner
     bit: (P, 2**d), corners in ``itertools.product((0, 1), repeat=d)`` order (first axis
     slowest), built as an outer product one axis at a time."""
-    out = np.ones((lo.shape[0], 1))
-    for a in range(lo.shape[1]):
-        out = (out[:, :, None] * np.stack([lo[:, a], hi[:, a]], axis=1)[:, None, :]).reshape(
-            lo.shape[0], -1)
+    pairs = np.stack([lo, hi], axis=-1)  # (P, d, 2): axis a's factor for bit 0 and bit 1
+    out = pairs[:, 0]
+    for a in range(1, lo.shape[1]):
+        out = (out[:, :, None] * pairs[:, a, None, :]).reshape(lo.shape[0], -1)
     return out
 
 
 def _locate(grid: Grid, points):
+    """Lowest corner (P, d) of each point's cell, its place in that cell (P, d, in [0, 1]) and
+    its unclamped index coordinates (P, d); points outside the grid are clamped onto it."""
     p = np.asarray(points, dtype=float).reshape(-1, grid.dim)
     u = grid.to_index(p)
     hi = np.asarray(grid.shape) - 1
-    u = np.clip(u, 0.0, hi)
-    idx = np.minimum(np.floor(u).astype(np.int64), hi - 1)
-    return idx, u - idx
+    uc = np.clip(u, 0.0, hi)
+    idx = np.minimum(np.floor(uc).astype(np.int64), hi - 1)
+    return idx, uc - idx, u
 
 
 def sample(field, grid: Grid, points, outside: str = "clamp"):
@@ -91,6 +93,39 @@ def sample_with_gradient(field, grid: Grid, points, outside: str = "clamp"):
     return _sample(field, grid, points, outside, gradient=True)
 
 
+def central_differences(field, grid: Grid, points, outside: str = "clamp"):
+    """Central differences over one cell of the multilinear interpolant of a scalar
+    ``field`` at ``points``: (f(p + h e_a) - f(p - h e_a)) / 2h for each axis a, (P, d).
+
+    Unlike the interpolant's own gradient (`sample_with_gradient`, constant in a cell
+    and jumping across its faces) this varies continuously with the point.
+
+    A probe one cell along an axis lies at the same place in the neighbouring cell. So
+    where every probe stays inside the grid the 2d probes share the point's weights, and
+    each difference is those weights applied to the corners' differences across two
+    cells. The other points are sampled probe by probe, with ``outside`` as in `sample`.
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, grid.dim)
+    h, d = grid.spacing, grid.dim
+    out = np.empty_like(p)
+    idx, frac, u = _locate(grid, p)
+    inner = np.all((u >= 1.0) & (u < np.asarray(grid.shape) - 2.0), axis=1)
+    if inner.any():
+        flat = np.asarray(field, dtype=float).reshape(-1)
+        nodes = _corner_nodes(grid, idx[inner])
+        w = _corner_products(1.0 - frac[inner], frac[inner])
+        for a, stride in enumerate(grid.strides):
+            out[inner, a] = np.einsum("pk,pk->p", w, flat[nodes + stride] - flat[nodes - stride])
+        out[inner] /= 2 * h
+    rest = np.flatnonzero(~inner)
+    if rest.size:
+        eye = h * np.eye(d)
+        probes = sample(field, grid, p[rest, None, :] + np.concatenate([eye, -eye])[None],
+                        outside=outside)
+        out[rest] = (probes[:, :d] - probes[:, d:]) / (2 * h)
+    return out
+
+
 def _sample(field, grid, points, outside, gradient):
     field = np.asarray(field, dtype=float)
     pts = np.asarray(points, dtype=float)
@@ -102,7 +137,7 @@ def _sample(field, grid, points, outside, gradient):
         raise ValueError(f"field shape {field.shape} does not start with grid shape {grid.shape}.")
     flat_field = field.reshape((grid.size,) + extra)
     p = pts.reshape(-1, grid.dim)
-    idx, frac = _locate(grid, p)
+    idx, frac, u = _locate(grid, p)
     vals = flat_field[_corner_nodes(grid, idx)]  # (P, 2**d, *extra)
     w = _corner_products(1.0 - frac, frac)
     value = np.einsum("pk,pk...->p...", w, vals)
@@ -125,14 +160,14 @@ def _sample(field, grid, points, outside, gradient):
     grad = np.empty((p.shape[0], grid.dim))
     lo, hi = 1.0 - frac, frac.copy()
     for a in range(grid.dim):  # d/du_a of the multilinear weights: the factor of axis a is -1 / +1
-        lo_a, hi_a = lo.copy(), hi.copy()
-        lo_a[:, a], hi_a[:, a] = -1.0, 1.0
-        grad[:, a] = np.einsum("pk,pk->p", _corner_products(lo_a, hi_a), vals) / grid.spacing
+        lo_a, hi_a = lo[:, a].copy(), hi[:, a].copy()
+        lo[:, a], hi[:, a] = -1.0, 1.0
+        grad[:, a] = np.einsum("pk,pk->p", _corner_products(lo, hi), vals) / grid.spacing
+        lo[:, a], hi[:, a] = lo_a, hi_a
     if outside == "distance":
         # Along a clamped axis the interpolant is flat and the distance term supplies
         # the slope. Decide "clamped" from the index (not from dist > 0, which rounding
         # makes true for points inside the box) and take the slope per clamped axis.
-        u = grid.to_index(p)
         tol = 1e-9  # in cells: a node on the box's face is inside, whatever the rounding
         clamped_axis = (u < -tol) | (u > np.asarray(grid.shape) - 1 + tol)
         off = np.where(clamped_axis, off, 0.0)

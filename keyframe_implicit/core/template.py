@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from .progress import Reporter
-from .sampling import sample, sample_with_gradient
+from .sampling import central_differences, sample, sample_with_gradient
 from .surface import extract_surface, mesh_area
 
 __all__ = ["track_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
@@ -94,11 +94,7 @@ def project_to_zero_set(points, levelset, grid, steps=3, tol=0.01):
 
 def _normals(levelset, grid, p):
     """Unit normals from central differences over one cell (smooth across cell faces)."""
-    h = grid.spacing
-    eye = h * np.eye(grid.dim)
-    probes = sample(levelset, grid, p[:, None, :] + np.concatenate([eye, -eye])[None],
-                    outside="distance")
-    n = (probes[:, :grid.dim] - probes[:, grid.dim:]) / (2 * h)
+    n = central_differences(levelset, grid, p, outside="distance")
     nn = np.linalg.norm(n, axis=1)
     return np.where(nn[:, None] > 1e-12, n / np.maximum(nn, 1e-12)[:, None], 0.0)
 

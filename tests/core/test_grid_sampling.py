@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Grid, cell_weights, sample, sample_with_gradient
+from keyframe_implicit.core.sampling import central_differences
 
 
 def test_node_positions_follow_origin_and_spacing():
@@ -56,6 +57,27 @@ def test_random_field_matches_scipys_trilinear_interpolation():
         same_cell = np.floor(g.to_index(q)[:, a]) == np.floor(g.to_index(p)[:, a])
         np.testing.assert_allclose(grad[same_cell, a], (ref(q) - ref(p))[same_cell] / step,
                                    atol=1e-5)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_central_differences_equal_the_probes_one_cell_away(dim):
+    """The shared-weight shortcut against sampling p +- h e_a one probe at a time, on a
+    grid whose axes all differ in length, at points deep inside, in the outermost cells
+    (where a probe leaves the grid and the shortcut must not be used) and outside."""
+    shape = (9, 11, 8)[:dim]
+    g = Grid(origin=(0.3, -1.0, 2.0)[:dim], spacing=0.2, shape=shape)
+    rng = np.random.default_rng(7)
+    field = rng.standard_normal(g.shape)
+    p = g.origin + (-0.1 + 1.2 * rng.random((400, dim))) * (g.upper - g.origin)
+    h, eye = g.spacing, g.spacing * np.eye(dim)
+    for outside in ("clamp", "distance"):
+        ref = np.stack([sample(field, g, p + eye[a], outside=outside)
+                        - sample(field, g, p - eye[a], outside=outside)
+                        for a in range(dim)], axis=1) / (2 * h)
+        np.testing.assert_allclose(central_differences(field, g, p, outside=outside), ref,
+                                   rtol=0, atol=1e-12)
+    inner = np.all((g.to_index(p) >= 1) & (g.to_index(p) < np.array(shape) - 2), axis=1)
+    assert 100 < inner.sum() < len(p) - 100  # both ways are exercised
 
 
 def test_weights_are_a_partition_of_unity_and_reproduce_position():
