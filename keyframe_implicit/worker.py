@@ -11,8 +11,8 @@ ends with it.
 The worker is the same Python (``sys.executable``: Blender's bundled Python, or the Python
 that has the bpy module) running ``python -m <package>.worker`` on this package's own files;
 it never imports bpy. Its ``PYTHONPATH`` holds the folder above this package and the folders
-numpy, scipy and scikit-image were found in (in Blender: the extension's unpacked wheels),
-ahead of the parent's own ``PYTHONPATH``.
+numpy, scipy, scikit-image and threadpoolctl were found in (in Blender: the extension's
+unpacked wheels), ahead of the parent's own ``PYTHONPATH``.
 
 Protocol: pickles on the worker's standard streams.
 
@@ -47,7 +47,7 @@ __all__ = ["Worker", "WorkerError"]
 ROOT = __package__
 WORKER_ROOT = os.path.basename(os.path.dirname(os.path.abspath(__file__)))
 #: The distributions the core imports, found by the worker where the parent found them.
-_NEEDS = ("numpy", "scipy", "skimage")
+_NEEDS = ("numpy", "scipy", "skimage", "threadpoolctl")
 #: Processes the bake uses (`chain.animate_chain`'s ``processes``): the worker and, on a
 #: machine with two cores or more, one helper it starts for the second core.
 _PROCESSES = 2 if (os.cpu_count() or 1) >= 2 else 1
@@ -90,16 +90,19 @@ def receive(stream, sender_root):
 
 def _python_path():
     """The worker's PYTHONPATH: the folder holding this package, then the folders numpy,
-    scipy and scikit-image come from unless they are this Python's own site-packages
-    (which the worker has anyway), then the parent's PYTHONPATH."""
+    scipy, scikit-image and threadpoolctl come from unless they are this Python's own
+    site-packages (which the worker has anyway), then the parent's PYTHONPATH."""
     own = set(site.getsitepackages())
     dirs = [os.path.dirname(os.path.dirname(os.path.abspath(__file__)))]
     for name in _NEEDS:
         spec = importlib.util.find_spec(name)
-        if spec is not None and spec.submodule_search_locations:
-            where = os.path.dirname(os.path.abspath(list(spec.submodule_search_locations)[0]))
-            if where not in own and where not in dirs:
-                dirs.append(where)
+        if spec is None:
+            continue
+        # a package's folder, or a single module's file (threadpoolctl.py)
+        inside = list(spec.submodule_search_locations or []) or [spec.origin]
+        where = os.path.dirname(os.path.abspath(inside[0]))
+        if where not in own and where not in dirs:
+            dirs.append(where)
     return os.pathsep.join(dirs + [p for p in [os.environ.get("PYTHONPATH")] if p])
 
 

@@ -9,14 +9,16 @@
 #    trixie, then apt-get install --no-install-recommends blender python3-numpy python3-pytest
 #    and an EGL/Mesa GL driver (numpy is what Blender's own builds bundle, Debian packages it
 #    separately; without a GL driver Workbench/EEVEE renders abort Blender).
-#    No scipy or scikit-image in the chroot: those come from the zip's wheels.
+#    No scipy, scikit-image or threadpoolctl in the chroot: those come from the zip's wheels.
 # 2. Builds the linux-x64 zip (scripts/build_extension.py, with the project venv).
-#    Test-only requirements (requirements-dev.txt minus bpy/numpy/scipy/scikit-image/pytest)
+#    Test-only requirements (requirements-dev.txt minus bpy/numpy/scipy/scikit-image/
+#    threadpoolctl/pytest)
 #    are installed as cp313 wheels into a directory of their own.
 # 3. Copies the checkout and the zip into the chroot, with a fresh HOME (an empty Blender
 #    profile), installs the zip with Blender's own
 #      blender --command extension install-file -r user_default -e ZIP
-#    and checks in a normal start-up that the add-on is enabled and scipy/scikit-image load
+#    and checks in a normal start-up that the add-on is enabled and scipy/scikit-image/
+#    threadpoolctl load
 #    from the unpacked cp313 wheels.
 # 4. Runs the tests in that Blender through tests/blender_runner.py, with another fresh HOME;
 #    scipy and scikit-image come from a copy of the site-packages Blender unpacked from the
@@ -47,7 +49,7 @@ install_zip "$ROOT"
 (
   source "$ROOT/scripts/env.sh"
   reqs=$(grep -v -E '^\s*(#|$)' "$ROOT/requirements-dev.txt" \
-         | grep -v -i -E '^(bpy|numpy|scipy|scikit-image|pytest)\b' || true)
+         | grep -v -i -E '^(bpy|numpy|scipy|scikit-image|threadpoolctl|pytest)\b' || true)
   if [ -n "$reqs" ]; then
     echo "numpy==$(chroot "$CHROOT" python3 -c 'import numpy; print(numpy.__version__)')" > "$run/numpy-pin.txt"
     python -m pip install --quiet --no-warn-conflicts --target "$run/testdeps" --only-binary=:all: --implementation cp \
@@ -66,12 +68,13 @@ in_chroot blender -b --python-exit-code 1 --python-expr '
 import sys, bpy, addon_utils
 name = "bl_ext.user_default.keyframe_implicit"
 assert name in bpy.context.preferences.addons, "extension not enabled after install-file"
-import numpy, scipy, skimage, skimage.measure
+import numpy, scipy, skimage, skimage.measure, threadpoolctl
 ext = bpy.utils.user_resource("EXTENSIONS")
-for m in (scipy, skimage):
+for m in (scipy, skimage, threadpoolctl):
     assert m.__file__.startswith(ext), (m.__name__, m.__file__, "not from the extension wheels")
 print("[blender_chroot] enabled:", name, "| Python", sys.version.split()[0], "| numpy", numpy.__version__,
-      "| scipy", scipy.__version__, "| scikit-image", skimage.__version__, "(from the zip wheels)")
+      "| scipy", scipy.__version__, "| scikit-image", skimage.__version__,
+      "| threadpoolctl", threadpoolctl.__version__, "(from the zip wheels)")
 ' 2>&1 | grep -E '^\[blender_chroot\]|Error|error' >&2
 
 # ---- 4. the tests in that Blender --------------------------------------------------------

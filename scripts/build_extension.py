@@ -49,7 +49,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 PACKAGE = "keyframe_implicit"
 
 #: What the zip must carry: the core's dependencies beyond numpy.
-REQUIREMENTS = ["scipy>=1.10", "scikit-image>=0.21"]
+REQUIREMENTS = ["scipy>=1.10", "scikit-image>=0.21", "threadpoolctl>=3.1"]
 
 #: Distributions Blender's bundled Python already provides (official builds ship
 #: numpy, requests and its dependencies, zstandard and cython in

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .grid import Grid
-from .parallel import Helper
+from .parallel import Helper, one_blas_thread
 from .progress import Reporter
 from .quality import frame_quality
 from .surface import extract_surface
@@ -101,7 +101,9 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         1: everything in this process (the two maps, and the two transports of each
         frame, in two threads). 2 or more: one helper process (`parallel.Helper`)
         solves each segment's map B -> A and the later half of its frames, for a
-        machine with two free cores and a caller that may start processes.
+        machine with two free cores and a caller that may start processes. Either way
+        BLAS keeps to one thread in this process while the chain runs
+        (`parallel.one_blas_thread`).
     helper : `parallel.Helper`, optional
         The helper to use instead of starting one (its caller closes it).
     progress, cancel : callables, optional (`progress.Reporter`).
@@ -156,6 +158,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     own = helper is None and processes > 1 and nk > 1
     if own:
         helper = Helper()
+    blas = one_blas_thread()
     try:
         for k in range(nk - 1):  # loop over segments (keyframe pairs)
             seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
@@ -189,6 +192,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                                           template_seconds=time.perf_counter() - t_seg))
             del inb
     finally:
+        blas.restore_original_limits()
         if helper is not None:
             stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
         if own:

@@ -18,6 +18,8 @@ takes (1.3 GB for a 256-cell bake's in-betweens).
 The helper dies with its parent: it watches a second pipe (a "lifeline") that
 only the parent holds, so a parent killed outright (a cancelled bake's worker)
 takes its helper with it. `Helper.close` ends it at once, finished or not.
+
+While a bake runs, BLAS keeps to one thread in each process (`one_blas_thread`).
 """
 
 from __future__ import annotations
@@ -27,7 +29,24 @@ import os
 import pickle
 import threading
 
-__all__ = ["Helper", "HelperError"]
+__all__ = ["Helper", "HelperError", "one_blas_thread"]
+
+
+def one_blas_thread():
+    """BLAS limited to one thread in this process (a `threadpoolctl.threadpool_limits`:
+    a context manager, or in force until its ``restore_original_limits``).
+
+    A bake's parallel work is its own: two processes (`Helper`), and in each the two maps
+    or the two transports in threads. BLAS's threads only compete with it for the same
+    cores: OpenBLAS starts one per core for a dot product of a few hundred thousand
+    entries (each CG step of a Gauss-Newton system) or the multigrid's coarse product, and
+    they spin while they wait for the next call. The limit covers the BLAS libraries
+    loaded when it is set, so scipy's own is loaded first.
+    """
+    import scipy.linalg  # noqa: F401  (loads scipy's BLAS, which numpy's limit would miss)
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 class HelperError(RuntimeError):
@@ -140,6 +159,7 @@ def _serve(conn, lifeline, preload):
     threading.Thread(target=_leave_with_parent, args=(lifeline,), daemon=True).start()
     for name in preload:
         __import__(name)
+    one_blas_thread()  # for the helper's life: it only ever runs a bake's half
     while True:
         try:
             fn, args, kwargs = receive(conn)

@@ -427,7 +427,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     from .chain import animate_chain
     from .quality import choose_output
     from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
-    from .parallel import Helper
+    from .parallel import Helper, one_blas_thread
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
@@ -472,6 +472,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
 
     helper = Helper() if opts.get("processes", 1) > 1 else None
+    blas = one_blas_thread()
     try:
         phis, stats["sdf"] = _distance_grids(keyframes, surfaces, grid, rep.sub(0.0, 0.15),
                                              cancel, helper)
@@ -482,6 +483,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
                               helper=helper, progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
     finally:
+        blas.restore_original_limits()
         if helper is not None:
             helper.close()
     _check_result(chain, grid, keyframes)

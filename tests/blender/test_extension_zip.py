@@ -169,6 +169,7 @@ def test_zip_manifest_and_contents(linux_zip):
     for dist in ("scipy", "scikit_image"):
         for tag in ("cp311", "cp313"):
             assert any(w.startswith(f"wheels/{dist}-") and f"-{tag}-" in w for w in wheels), (dist, tag, wheels)
+    assert [w for w in wheels if w.startswith("wheels/threadpoolctl-") and w.endswith("-none-any.whl")]
     assert not [w for w in wheels if w.startswith("wheels/numpy-")]
     # Every file of the package is in the zip, unchanged.
     _assert_zip_matches_checkout(zip_path)
@@ -178,7 +179,7 @@ def test_zip_installs_enables_and_runs_in_isolated_profile(linux_zip, tmp_path):
     zip_path = linux_zip
     tag = f"cp{sys.version_info[0]}{sys.version_info[1]}"
     hidden = _bundled_top_level_names(zip_path, tag)
-    assert {"scipy", "skimage"} <= set(hidden)
+    assert {"scipy", "skimage", "threadpoolctl"} <= set(hidden)
     profile = tmp_path / "profile"
     env = {k: v for k, v in os.environ.items() if not k.startswith("BLENDER_")}
     # The checkout must not be importable by the child: only the installed copy is.
@@ -203,7 +204,7 @@ def test_zip_installs_enables_and_runs_in_isolated_profile(linux_zip, tmp_path):
     assert "bl_ext.user_default.keyframe_implicit" in r["addons"], r
     assert r["package_file"].startswith(os.path.join(ext_dir, "user_default", "keyframe_implicit")), r
     assert r["checkout_importable"] is False, r
-    for mod in ("scipy", "skimage"):
+    for mod in ("scipy", "skimage", "threadpoolctl"):
         assert r["files"][mod].startswith(ext_dir), (mod, r["files"][mod])
     # The bundled wheels accept the numpy of the Blender they run in (numpy 2.x from 5.1).
     assert not [m for m in r["import_warnings"] if "numpy" in m.lower()], r
@@ -269,9 +270,11 @@ def _child(zip_path, result_file):  # pragma: no cover - runs in a subprocess
         import scipy.ndimage
         import skimage
         import skimage.measure
+        import threadpoolctl
     r["numpy"] = np.__version__
     r["import_warnings"] = [f"{w.category.__name__}: {w.message}" for w in caught]
-    r["files"] = {"scipy": scipy.__file__, "skimage": skimage.__file__}
+    r["files"] = {"scipy": scipy.__file__, "skimage": skimage.__file__,
+                  "threadpoolctl": threadpoolctl.__file__}
     mask = np.ones((9, 9, 9), bool)
     mask[4, 4, 4] = False
     r["edt_corner"] = float(scipy.ndimage.distance_transform_edt(mask)[0, 0, 0])

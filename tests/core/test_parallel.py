@@ -124,6 +124,39 @@ def test_a_bake_with_a_helper_process_is_the_bake_without_one():
             assert qa["coverage"] == pytest.approx(qb["coverage"], abs=1e-4)
 
 
+def _blas_threads():
+    from threadpoolctl import threadpool_info
+
+    return sorted({lib["filepath"]: lib["num_threads"] for lib in threadpool_info()
+                   if lib["user_api"] == "blas"}.items())
+
+
+def test_blas_keeps_to_one_thread_in_both_processes_of_a_bake_and_is_given_back():
+    """A bake's own two processes (and two threads in each) are its parallel work: BLAS's
+    threads would only compete for the same cores. Numpy's and scipy's BLAS both keep to
+    one thread in the helper and, while the bake runs, in this process; after it, this
+    process's limits are what they were."""
+    from threadpoolctl import threadpool_limits
+
+    kfs, feats = turning_sphere(n=16, last=7)
+    seen = []
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        assert {n for _, n in before} == {2} and len(before) == 2, before  # numpy's, scipy's
+        with Helper(preload=()) as helper:
+            helper.submit(_blas_threads)
+            in_helper = helper.result()
+        animate(kfs, feats, resolution=16, processes=2,
+                progress=lambda f, m: seen.append((f, _blas_threads())))
+        after = _blas_threads()
+    assert {n for _, n in in_helper} == {1} and len(in_helper) == 2, in_helper
+    # from the distance grids to the last frame; choosing the grid before and measuring the
+    # keyframes' frames after (from 0.98) are light
+    work = [threads for f, threads in seen if 0.0 < f < 0.98]
+    assert len(work) > 10 and all({n for _, n in t} == {1} for t in work), work
+    assert after == before
+
+
 def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
     import multiprocessing
     import threading
