@@ -228,7 +228,7 @@ class _FrameSplit:
     def start(self, inbetweens):
         """Submit the later half to the helper (``inbetweens`` an `Inbetween` or its recipe)."""
         if self.helper is not None and not self.started:
-            self.helper.submit(_frames, inbetweens, self.frames[self.half:], self.ends, self.k,
+            self.helper.submit(_half, inbetweens, self.frames[self.half:], self.ends, self.k,
                                self.template, self.what)
             self.started = True
 
@@ -238,11 +238,18 @@ class _FrameSplit:
             return _frames(inb, self.frames, self.ends, self.k, self.template, self.what, rep)
         self.start(inb)
         n, half = len(self.frames), self.half
-        first = _frames(inb, self.frames[:half], self.ends, self.k, self.template, self.what,
-                        rep.sub(0.0, half / n))
+        first = _half(inb, self.frames[:half], self.ends, self.k, self.template, self.what,
+                      rep.sub(0.0, half / n))
         rest = self.helper.result(check=rep.check)
         rep(1.0, f"frames {self.frames[half]}-{self.frames[-1]} (second process)")
         return first + rest
+
+
+def _half(inb, frames, ends, k, template, what, rep=None):
+    """`_frames` in one of the two processes that share a segment's frames: each has one
+    core, so its two transports carry one after the other (`Inbetween.threads`)."""
+    inb.threads = 1
+    return _frames(inb, frames, ends, k, template, what, rep)
 
 
 def _frames(inb, frames, ends, k, template, what, rep=None):

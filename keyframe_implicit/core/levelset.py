@@ -136,6 +136,11 @@ class Inbetween:
         Paths of A's nodes (A -> B); `trajectory` interpolates them.
     outside_value : float
         The value wherever no transport reaches (world units, > 0).
+    threads : int
+        2 (default): the two transports carry each level set in two threads, for a
+        process with two cores to itself; 1: one after the other, for a process that
+        shares the machine with another doing the same (`chain._FrameSplit`), where a
+        second thread only competes with it.
     stats : dict
         Figures of the maps (when solved here), the trajectories and the
         level sets (timings in seconds, coverage, map agreement).
@@ -160,6 +165,7 @@ class Inbetween:
         self.map_result = map_result
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
+        self.threads = 2
         self.stats = dict(stats or {})
         self.stats.setdefault("levelset_seconds", 0.0)
         self.stats.setdefault("levelset_calls", 0)
@@ -322,10 +328,14 @@ class Inbetween:
     def _two_sided(self, s):
         """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach."""
         w = self.outside_value
-        with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
-            back = pool.submit(self.backward.carry, 1.0 - s, other=self.forward)
+        if self.threads > 1:
+            with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
+                back = pool.submit(self.backward.carry, 1.0 - s, other=self.forward)
+                phi_s = self.forward.carry(s, other=self.backward)
+                psi_s = back.result()
+        else:
             phi_s = self.forward.carry(s, other=self.backward)
-            psi_s = back.result()
+            psi_s = self.backward.carry(1.0 - s, other=self.forward)
         self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
         field, other = (np.nan_to_num(a, copy=False, nan=w) for a in (phi_s, psi_s))
         field *= 1.0 - s  # in place: both are grid-sized and this call's own

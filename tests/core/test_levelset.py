@@ -48,6 +48,15 @@ def test_rigid_rotation_in_betweens_are_the_turned_solid(rigid):
         assert np.linalg.norm(mesh_centroid(V, F) - (cen_a + s * info["t"])) <= 0.2 * h
 
 
+def test_the_transports_carry_the_same_one_after_the_other_as_in_two_threads(rigid):
+    grid, phi_a, phi_b, mapped, info, _ = rigid
+    one, two = (Inbetween.from_map(phi_a, phi_b, grid, mapped) for _ in range(2))
+    one.threads = 1
+    assert one.backward is not None and two.threads == 2
+    for s in (0.3, 0.7):
+        np.testing.assert_array_equal(one.levelset(s), two.levelset(s))
+
+
 def test_plain_blend_of_distance_fields_shrinks_the_same_rotation(rigid):
     # the failure the method exists to avoid: the check above must be able to see it
     grid, phi_a, phi_b, mapped, info, ib = rigid

@@ -260,7 +260,7 @@ def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(
     helper = _OrderHelper(built)
     res = chain.animate_chain(phis, grid, feats, [1, 9], helper=helper, surfaces=False,
                               coverage=False)
-    assert [name for name, _ in helper.calls] == ["solve_map", "_frames"]
+    assert [name for name, _ in helper.calls] == ["solve_map", "_half"]
     assert helper.calls[1][1] == 0  # none built here yet when the frames went
     assert built[0] == 4  # two here, two from the recipe
     one = chain.animate_chain(phis, grid, feats, [1, 9], surfaces=False, coverage=False)
@@ -313,3 +313,32 @@ def test_frame_split_halves_the_inbetweens_not_the_frames(first, ends, mine):
     def inner(f):
         return int(np.count_nonzero((f > ends[0]) & (f < ends[1])))
     assert 0 <= inner(frames[:mine]) - inner(frames[mine:]) <= 1
+
+
+def test_both_halves_of_a_split_carry_their_transports_one_after_the_other(monkeypatch):
+    """With a helper, each process has one core: a second thread for the other transport
+    only competes with it (`Inbetween.threads` 1 in both halves; alone, it stays 2)."""
+    from types import SimpleNamespace
+
+    from keyframe_implicit.core import chain
+    from keyframe_implicit.core.progress import Reporter
+
+    class InTurn:  # a helper that runs the submitted call when its result is asked for
+        def submit(self, fn, *args):
+            self.call = (fn, args)
+
+        def result(self, check=None):
+            fn, args = self.call
+            return fn(*args)
+
+    seen = []
+    monkeypatch.setattr(chain, "_frames", lambda inb, frames, *rest: seen.append(
+        (inb.threads, frames.tolist())) or [None] * len(frames))
+    frames = np.arange(1, 10)
+    chain._FrameSplit(InTurn(), frames, (1, 9), 0, None, None).run(
+        SimpleNamespace(threads=2), Reporter())
+    assert seen == [(1, [1, 2, 3, 4, 5]), (1, [6, 7, 8, 9])]
+    seen.clear()
+    chain._FrameSplit(None, frames, (1, 9), 0, None, None).run(SimpleNamespace(threads=2),
+                                                              Reporter())
+    assert seen == [(2, list(range(1, 10)))]
