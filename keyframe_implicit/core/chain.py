@@ -156,10 +156,10 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     what = dict(coverage=coverage, per_frame=per_frame, levelsets=levelsets,
                 keyframe_meshes=keyframe_meshes)
     own = helper is None and processes > 1 and nk > 1
-    if own:
-        helper = Helper()
     blas = one_blas_thread()
     try:
+        if own:
+            helper = Helper()
         for k in range(nk - 1):  # loop over segments (keyframe pairs)
             seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
             f0, f1 = frames[k], frames[k + 1]
@@ -195,7 +195,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         blas.restore_original_limits()
         if helper is not None:
             stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
-        if own:
+        if own and helper is not None:
             helper.close()
     stats["seconds"] = time.perf_counter() - t0
     stats["vertices"] = int(len(verts))

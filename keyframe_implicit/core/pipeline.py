@@ -471,9 +471,9 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                 exc.required, max_bytes, best) from None
     stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
 
-    helper = Helper() if opts.get("processes", 1) > 1 else None
-    blas = one_blas_thread()
+    blas, helper = one_blas_thread(), None
     try:
+        helper = Helper() if opts.get("processes", 1) > 1 else None
         phis, stats["sdf"] = _distance_grids(keyframes, surfaces, grid, rep.sub(0.0, 0.15),
                                              cancel, helper)
         stats["sdf_seconds"] = time.perf_counter() - t0
