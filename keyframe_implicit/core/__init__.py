@@ -1,4 +1,5 @@
-"""Numerical core of keyframe_implicit: pure numpy / scipy / scikit-image, never bpy.
+"""Numerical core of keyframe_implicit: pure numpy / scipy / scikit-image (and threadpoolctl
+for BLAS's threads), never bpy.
 
 Pipeline (thesis "Keyframe Animation of Implicit Models", 2006), one module per stage:
 
