@@ -17,7 +17,9 @@ main loop's turns with a `bpy.app.timers` callback asking for a call every `TICK
 
 A gap's stall is the gap beyond the asked step. Printed per phase: the longest gap, its
 median and 99th percentile, and the gaps over 50 ms of stall; for ``running``, the longest
-gaps with the bake's stage at their start and the 3D view's drawing inside them; and the
+gaps with the bake's stage at their start and the 3D view's drawing inside them, the gaps
+without 3D view drawing split by whether the sidebar was drawn in them (a new progress
+text redraws it: Blender's drawing, not the bake's work) and when the 3D view drew; and the
 modal operator's own figure (the job's ``max_poll_gap`` beyond its timer step, which the
 output object keeps as ``kfi_main_loop_stall``). OUTDIR receives ``window_baking_<res>.png``,
 the window grabbed (by ``xwd`` in a process of its own) half-way through each bake; the gap
@@ -43,15 +45,17 @@ REDRAW = 0.1  # seconds between the 3D view's redraws in the ``redraws`` phase
 
 class Recorder:
     """When the main loop gave the recording timer a turn, what the bake was doing then,
-    and when the 3D view drew (its main region, from PRE_VIEW to POST_PIXEL)."""
+    when the 3D view drew (its main region, from PRE_VIEW to POST_PIXEL) and when the
+    sidebar finished drawing (its POST_PIXEL: the UI region has no PRE_VIEW)."""
 
     def __init__(self):
-        self.times, self.labels, self.draws = [], [], []
+        self.times, self.labels, self.draws, self.sidebar = [], [], [], []
         self.label = "idle"
         self._draw_start = None
         self._handles = [
-            bpy.types.SpaceView3D.draw_handler_add(self._drawing, (), "WINDOW", "PRE_VIEW"),
-            bpy.types.SpaceView3D.draw_handler_add(self._drawn, (), "WINDOW", "POST_PIXEL")]
+            (bpy.types.SpaceView3D.draw_handler_add(self._drawing, (), "WINDOW", "PRE_VIEW"), "WINDOW"),
+            (bpy.types.SpaceView3D.draw_handler_add(self._drawn, (), "WINDOW", "POST_PIXEL"), "WINDOW"),
+            (bpy.types.SpaceView3D.draw_handler_add(self._sidebar_drawn, (), "UI", "POST_PIXEL"), "UI")]
         self._timer = self._tick  # one bound method: unregister wants the registered object
         bpy.app.timers.register(self._timer, first_interval=TICK)
 
@@ -68,10 +72,17 @@ class Recorder:
             self.draws.append((self._draw_start, time.perf_counter()))
             self._draw_start = None
 
+    def _sidebar_drawn(self):
+        self.sidebar.append(time.perf_counter())
+
     def stop(self):
         bpy.app.timers.unregister(self._timer)
-        for h in self._handles:
-            bpy.types.SpaceView3D.draw_handler_remove(h, "WINDOW")
+        for h, region in self._handles:
+            bpy.types.SpaceView3D.draw_handler_remove(h, region)
+
+    def sidebar_drawn(self, a, b):
+        """Whether the sidebar finished drawing between ``a`` and ``b``."""
+        return any(a <= t <= b for t in self.sidebar)
 
     def gaps(self, keep):
         """(start, gap, label at the start) of the gaps that pass ``keep(start, end, label)``."""
@@ -171,8 +182,12 @@ def report(rec, job, marks, load):
         print(figures(rec, name, rec.gaps(lambda a, b, lab, n=name: lab == n)))
     print(figures(rec, "start", start) + f"  (invoke {1000 * (marks['invoked'] - marks['invoke']):.0f})")
     print(figures(rec, "running", running))
-    print(figures(rec, "  undrawn", [x for x in running if not rec.drawing(x[0], x[0] + x[1])])
-          + "  (gaps without 3D view drawing)")
+    undrawn = [x for x in running if not rec.drawing(x[0], x[0] + x[1])]
+    sidebar = [x for x in undrawn if rec.sidebar_drawn(x[0], x[0] + x[1])]
+    print(figures(rec, "  undrawn", undrawn) + "  (gaps without 3D view drawing)")
+    print(figures(rec, "    sidebar", sidebar) + "  (of those, the sidebar drawn in the gap)")
+    print(figures(rec, "    nothing", [x for x in undrawn if x not in sidebar])
+          + "  (nothing of the 3D view drawn: the bake's own share)")
     print(figures(rec, "  writing", [x for x in running if x[2].startswith("done")])
           + "  (the result written into the scene, a piece per turn)")
     print(figures(rec, "end", ending) + "  (the operator's last turn and the first redraw)")
@@ -181,14 +196,15 @@ def report(rec, job, marks, load):
     print("  longest gaps while running: " + "; ".join(
         f"{g * 1000:.0f} ms at {a - marks['invoke']:.1f} s ({lab}; 3D view drawing "
         f"{rec.drawing(a, a + g) * 1000:.0f} ms)" for a, g, lab in sorted(running, key=lambda x: -x[1])[:3]))
-    undrawn = [x for x in running if not rec.drawing(x[0], x[0] + x[1])]
     print("  longest gaps without 3D view drawing: " + "; ".join(
         f"{g * 1000:.0f} ms at {a - marks['invoke']:.1f} s ({lab})"
         for a, g, lab in sorted(undrawn, key=lambda x: -x[1])[:5]))
-    draws = [e - s for s, e in rec.draws if first <= s <= end]
+    draws = [(s, e - s) for s, e in rec.draws if first <= s <= end]
     if draws:
-        print(f"  3D view drawn {len(draws)} times while running, {np.median(draws) * 1000:.0f} ms "
-              f"median, {max(draws) * 1000:.0f} ms longest")
+        print(f"  3D view drawn {len(draws)} times while running, "
+              f"{np.median([d for _, d in draws]) * 1000:.0f} ms median, "
+              f"{max(d for _, d in draws) * 1000:.0f} ms longest; at (s after the invoke) "
+              + ", ".join(f"{s - marks['invoke']:.2f}" for s, _ in draws))
     kept = out.get("kfi_main_loop_stall") if out is not None else None
     print(f"  modal operator: timer step {job.poll_step * 1000:.0f} ms, longest gap between its polls "
           f"{job.max_poll_gap * 1000:.0f} ms, stall {job.stall * 1000:.0f} ms"
