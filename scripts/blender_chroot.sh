@@ -11,19 +11,17 @@
 #    separately; without a GL driver Workbench/EEVEE renders abort Blender).
 #    No scipy, scikit-image or threadpoolctl in the chroot: those come from the zip's wheels.
 # 2. Builds the linux-x64 zip (scripts/build_extension.py, with the project venv).
-#    Test-only requirements (requirements-dev.txt minus bpy/numpy/scipy/scikit-image/
-#    threadpoolctl/pytest)
-#    are installed as cp313 wheels into a directory of their own.
+#    Test-only requirements (requirements-dev.txt minus bpy, numpy, scipy, scikit-image,
+#    threadpoolctl and pytest) are installed as cp313 wheels into a directory of their own.
 # 3. Copies the checkout and the zip into the chroot, with a fresh HOME (an empty Blender
 #    profile), installs the zip with Blender's own
 #      blender --command extension install-file -r user_default -e ZIP
-#    and checks in a normal start-up that the add-on is enabled and scipy/scikit-image/
-#    threadpoolctl load
-#    from the unpacked cp313 wheels.
+#    and checks in a normal start-up that the add-on is enabled and that scipy,
+#    scikit-image and threadpoolctl load from the unpacked cp313 wheels.
 # 4. Runs the tests in that Blender through tests/blender_runner.py, with another fresh HOME;
-#    scipy and scikit-image come from a copy of the site-packages Blender unpacked from the
-#    zip's wheels in step 3 (KFI_TEST_SITE): Blender itself deletes its unpacked copy when the
-#    tests' factory resets leave the extension disabled.
+#    scipy, scikit-image and threadpoolctl come from a copy of the site-packages Blender
+#    unpacked from the zip's wheels in step 3 (KFI_TEST_SITE): Blender itself deletes its
+#    unpacked copy when the tests' factory resets leave the extension disabled.
 # Exit status: non-zero on any failure, else pytest's.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
