@@ -165,14 +165,17 @@ def _lookup_chunk(cnt, ext, lo, coef, Jinv, margin, newton_steps):
     res = np.full(cc.size, np.inf)
     a = coef[..., cc]
     for it in range(newton_steps + 1):
-        T, _ = _poly_eval(a, v[:, todo], jacobian=False)
+        # after the affine guess nearly every candidate needs a step: its Jacobian comes
+        # with the values (they share their partial sums); later only the live ones get one
+        T, J = _poly_eval(a, v[:, todo], jacobian=(it == 0 and newton_steps > 0))
         r = T - z[:, todo]
         res[todo] = np.einsum("dm,dm->m", r, r)
         live = res[todo] > _CONVERGED ** 2
         todo, r, a = todo[live], r[:, live], a[..., live]
         if it == newton_steps or todo.size == 0:
             break
-        _, J = _poly_eval(a, v[:, todo])  # a singular cell: no step
+        J = _poly_eval(a, v[:, todo])[1] if J is None else J[..., live]
+        # a singular cell: no step
         v[:, todo] = np.clip(v[:, todo] - _apply_small(_inverse_small(J, singular=0.0), r), -1.0, 1.0)
     inside = np.all(np.abs(v) <= 0.5 + _ON_FACE, axis=0) & (res < 1e-8)
     return cc[inside], z[:, inside].astype(np.int64), v[:, inside]
