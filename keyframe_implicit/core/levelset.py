@@ -506,10 +506,10 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     """
     rep = Reporter(progress, cancel)
     take_renamed(options, _RENAMED, "inbetween")
-    mine = {k: options.pop(k) for k in list(options) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
+    mine, options = split_options(options)
     parallel = options.pop("parallel", True)
     helper = options.pop("helper", None)
-    two_sided = mine.get("transport", "two-sided") == "two-sided"
+    two_sided = is_two_sided(mine)
     t0 = time.perf_counter()
     if helper is not None and two_sided:
         from .solver import solve_map
@@ -521,18 +521,39 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     else:
         res, back = _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided,
                                 parallel, rep.sub(0.0, 0.8), cancel, options)
-    st = {"map_seconds": time.perf_counter() - t0, "map": res.stats}
+    rep(0.8, "trajectories")
+    out = from_solved(phi_a, phi_b, grid, res, back, mine, time.perf_counter() - t0,
+                      on_maps=on_maps, cancel=cancel)
+    rep(1.0, "in-betweens ready")
+    return out
+
+
+def split_options(options):
+    """`inbetween`'s ``options`` as (those of `Inbetween.from_map`, the rest: `solve_map`'s,
+    ``parallel`` and ``helper``); ``options`` is left as it was."""
+    rest = dict(options)
+    mine = {k: rest.pop(k) for k in list(rest) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
+    return mine, rest
+
+
+def is_two_sided(mine):
+    """Whether `from_map` options ``mine`` ask for the two-sided transport (two maps)."""
+    return mine.get("transport", "two-sided") == "two-sided"
+
+
+def from_solved(phi_a, phi_b, grid, res, back, mine, seconds, on_maps=None, cancel=None):
+    """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
+    `solver.MapResult`; ``mine`` the `from_map` options (`split_options`); ``seconds`` the
+    time the maps took, for its stats. ``on_maps`` as in `inbetween`."""
+    st = {"map_seconds": seconds, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats
-    rep(0.8, "trajectories")
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
                   components=res.components, **mine)
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
-    out = Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,
-                             map_result_back=back, cancel=cancel, **inputs)
-    rep(1.0, "in-betweens ready")
-    return out
+    return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,
+                              map_result_back=back, cancel=cancel, **inputs)
 
 
 def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel, rep, cancel,

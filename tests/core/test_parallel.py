@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 
 import numpy as np
@@ -342,3 +343,100 @@ def test_both_halves_of_a_split_carry_their_transports_one_after_the_other(monke
     chain._FrameSplit(None, frames, (1, 9), 0, None, None).run(SimpleNamespace(threads=2),
                                                               Reporter())
     assert seen == [(2, list(range(1, 10)))]
+
+
+class _HeldHelper:
+    """Stands in for `Helper`: a call runs, here, only once ``release()`` is true; until
+    then `result` waits, calling ``check`` as the real one does. Records the calls."""
+
+    def __init__(self, release, fail=None):
+        self.release, self.fail, self.calls = release, fail, []
+
+    def submit(self, fn, *args, **kwargs):
+        self.calls.append(fn.__name__)
+        self._call = (fn, args, kwargs)
+
+    def result(self, check=None):
+        deadline = time.time() + 120
+        while not self.release():
+            assert time.time() < deadline, "the helper was never released"
+            if check is not None:
+                check()
+            time.sleep(0.01)
+        if self.fail is not None:
+            raise self.fail
+        fn, args, kwargs = self._call
+        return fn(*args, **kwargs)
+
+    def peak_rss_kib(self):
+        return 0
+
+
+def _two_segments():
+    """A sphere moving right, then up: a chain of three keyframes on a 20^3 grid, two
+    frames a segment (too few for the helper to take frames: only maps go to it)."""
+    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
+    P = grid.points()
+    centres = np.array([[0.4, 0.45, 0.5], [0.6, 0.45, 0.5], [0.6, 0.6, 0.5]])
+    phis = [np.linalg.norm(P - c, axis=-1) - 0.22 for c in centres]
+    feats = [(centres[k:k + 1], centres[k + 1:k + 2]) for k in range(2)]
+    return phis, grid, feats
+
+
+def test_a_free_process_takes_the_next_map_of_the_chain(monkeypatch):
+    """The maps of a window of segments are dealt as each process comes free: while the
+    helper is held on its first map (the first segment's B -> A), this process solves the
+    other three, and the chain is the one a single process makes."""
+    from keyframe_implicit.core import chain, solver
+
+    here = []
+    solve = solver.solve_map
+
+    def counting(*args, **kwargs):
+        here.append(threading.current_thread().name)
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(solver, "solve_map", counting)
+    phis, grid, feats = _two_segments()
+    helper = _HeldHelper(lambda: len(here) >= 3)  # released once this process has its three
+    res = chain.animate_chain(phis, grid, feats, [1, 3, 5], helper=helper, surfaces=False,
+                              coverage=False)
+    assert helper.calls == ["counting"]  # one map, the rest were here
+    assert len(here) == 4 and here.count("keyframe_implicit maps") == 1
+    one = chain.animate_chain(phis, grid, feats, [1, 3, 5], surfaces=False, coverage=False)
+    assert np.abs(res.vertices - one.vertices).max() <= 1e-4 * grid.spacing
+    seconds = [s["map_seconds"] for s in res.stats["segments"]]
+    assert seconds[0] > 0 and seconds[1] >= 0
+
+
+def test_cancel_while_waiting_for_the_helpers_map_ends_within_a_second():
+    from keyframe_implicit.core import chain
+
+    phis, grid, feats = _two_segments()
+    flipped = threading.Event()
+    helper = _HeldHelper(lambda: False)
+    started = time.perf_counter()
+    t_flip = {}
+
+    def cancel():  # flips once this process has had time for its three maps
+        if not flipped.is_set() and time.perf_counter() - started > 5.0:
+            t_flip["at"] = time.perf_counter()
+            flipped.set()
+        return flipped.is_set()
+
+    with pytest.raises(Cancelled):
+        chain.animate_chain(phis, grid, feats, [1, 3, 5], helper=helper, surfaces=False,
+                            coverage=False, cancel=cancel)
+    assert time.perf_counter() - t_flip["at"] < 1.0
+
+
+def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised():
+    from keyframe_implicit.core import chain
+
+    phis, grid, feats = _two_segments()
+    helper = _HeldHelper(lambda: True, fail=HelperError("the helper was killed (SIGKILL)"))
+    t0 = time.perf_counter()
+    with pytest.raises(HelperError, match="SIGKILL"):
+        chain.animate_chain(phis, grid, feats, [1, 3, 5], helper=helper, surfaces=False,
+                            coverage=False)
+    assert time.perf_counter() - t0 < 5.0
