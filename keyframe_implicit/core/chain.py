@@ -3,7 +3,9 @@
 Each adjacent pair (k, k+1) has its own feature points and its own map and
 in-betweens (`levelset.inbetween`). The maps of different pairs do not depend on
 each other: with a helper process they are solved two segments at a time
-(`_window_maps`). The template mesh is the surface of the
+(`levelset.solve_maps_shared`).
+
+The template mesh is the surface of the
 first keyframe; it is carried through segment 0, and its vertices on the last
 frame of segment k -- which lie on keyframe k+1's surface -- are the template
 of segment k+1. So the frame of keyframe k shows the template on keyframe k's
@@ -20,9 +22,7 @@ term, so velocities jump at every inner keyframe.
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -105,12 +105,11 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     processes : int
         1: everything in this process (the two maps, and the two transports of each
         frame, in two threads). 2 or more: one helper process (`parallel.Helper`)
-        shares the maps of every two segments with this process, each taking the next
-        when it is free (`_window_maps`), and makes the later half of each segment's
-        frames, for a machine with two free cores and a caller that may start
-        processes. Either way
-        BLAS keeps to one thread in this process while the chain runs
-        (`parallel.one_blas_thread`).
+        shares the maps of every two segments with this process, each taking the
+        next when it is free (`levelset.solve_maps_shared`), and makes the later half
+        of each segment's frames, for a machine with two free cores and a caller that
+        may start processes. Either way BLAS keeps to one thread in this process while
+        the chain runs (`parallel.one_blas_thread`).
     helper : `parallel.Helper`, optional
         The helper to use instead of starting one (its caller closes it).
     progress, cancel : callables, optional (`progress.Reporter`).
@@ -123,7 +122,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     ChainResult
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
-    from .levelset import _RENAMED, Inbetween, from_solved, inbetween, is_two_sided, split_options
+    from .levelset import (_RENAMED, Inbetween, from_solved, inbetween, is_two_sided,
+                           solve_maps_shared, split_options)
 
     rep = Reporter(progress, cancel)
     if not isinstance(grid, Grid):
@@ -166,7 +166,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     take_renamed(options, _RENAMED, "animate_chain")
     mine, solver_options = split_options(options)
     solver_options.pop("parallel", None)
-    solved = {}  # segment -> its maps, solved ahead in a window (`_window_maps`)
+    solved = {}  # segment -> its maps, solved ahead in a window (`solve_maps_shared`)
     blas = one_blas_thread()
     try:
         if own:
@@ -182,8 +182,9 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             elif helper is not None:
                 if k not in solved:
                     window = range(k, min(k + _MAP_WINDOW, nk - 1))
-                    solved.update(_window_maps(phis, grid, features, window, is_two_sided(mine),
-                                               helper, seg.sub(0.0, 0.4), cancel, solver_options))
+                    solved.update(solve_maps_shared(phis, grid, features, window,
+                                                    is_two_sided(mine), helper, seg.sub(0.0, 0.4),
+                                                    cancel, solver_options))
                 res, back, seconds = solved.pop(k)
                 seg(0.4, "trajectories")
                 inb = from_solved(phis[k], phis[k + 1], grid, res, back, mine, seconds,
@@ -192,7 +193,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             else:
                 fa, fb = features[k]
                 inb = inbetween(phis[k], phis[k + 1], grid, fa, fb, progress=seg.sub(0.0, 0.5),
-                                cancel=cancel, helper=helper, on_maps=split.start, **options)
+                                cancel=cancel, on_maps=split.start, **options)
             t_seg = time.perf_counter()
             records = split.run(inb, seg.sub(0.5, 1.0))
             for f, rec in zip(local, records):
@@ -224,92 +225,10 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)
 
 
-#: Segments whose maps are solved together when there is a helper (`_window_maps`). Each
-#: segment's maps are kept until its frames are made, so the window bounds how many are held.
+#: Segments whose maps are solved together when there is a helper
+#: (`levelset.solve_maps_shared`). Each segment's maps are kept until its frames are made,
+#: so the window bounds how many are held.
 _MAP_WINDOW = 2
-
-
-class _Stop(Exception):
-    """Ends the thread that feeds the helper (`_window_maps`) when this process stops."""
-
-
-def _window_maps(phis, grid, features, window, two_sided, helper, rep, cancel, options):
-    """The maps of the segments in ``window``, shared by this process and the ``helper``.
-
-    The maps (A -> B and, two-sided, B -> A of each segment) are independent jobs, and
-    one can take several times another (a merge seen backwards is a split). Two at a time,
-    one per process, the process with the short one waits; here each process takes the
-    next job when it is free. A thread of this process keeps the helper fed; this process
-    takes the first job and the helper the second, as `levelset.inbetween` deals them.
-
-    Returns {segment: (map A -> B, map B -> A or None, seconds)}: a segment's seconds run
-    from the end of the one before it (or the window's start) until both its maps are
-    solved, so they add up to the window's time.
-    """
-    from .solver import solve_map
-
-    t0 = time.perf_counter()
-    jobs = deque((k, side) for k in window for side in ((0, 1) if two_sided else (0,)))
-    n = len(jobs)
-    done, ends, errors = {}, {}, []
-    lock, failed = threading.Lock(), threading.Event()
-
-    def take():
-        with lock:
-            return jobs.popleft() if jobs and not failed.is_set() else None
-
-    def arguments(job):
-        k, side = job
-        (fa, fb), a, b = features[k], phis[k], phis[k + 1]
-        return (a, b, grid, fa, fb) if side == 0 else (b, a, grid, fb, fa)
-
-    def finished(job, result):
-        done[job] = result
-        ends[job] = time.perf_counter()
-
-    def stop_waiting():
-        if failed.is_set():
-            raise _Stop
-
-    def feed():
-        try:
-            while (job := take()) is not None:
-                helper.submit(solve_map, *arguments(job), **options)
-                finished(job, helper.result(check=stop_waiting))
-        except _Stop:
-            pass
-        except BaseException as exc:  # this process stops its own job and raises it
-            errors.append(exc)
-            failed.set()
-
-    def stopped():
-        return failed.is_set() or (cancel is not None and bool(cancel()))
-
-    job = take()
-    feeder = threading.Thread(target=feed, name="keyframe_implicit maps", daemon=True)
-    feeder.start()
-    try:
-        while job is not None:
-            part = rep.sub(len(done) / n, (len(done) + 1) / n)
-            finished(job, solve_map(*arguments(job), progress=part, cancel=stopped, **options))
-            job = take()
-        while feeder.is_alive():
-            feeder.join(0.05)
-            rep.check()
-    except BaseException:
-        failed.set()
-        feeder.join()
-        if errors:  # the helper's failure stopped this process's job: it is the cause
-            raise errors[0] from None
-        raise
-    if errors:
-        raise errors[0]
-    out, start = {}, t0
-    for k in window:
-        end = max([start] + [ends[(k, side)] for side in (0, 1) if (k, side) in ends])
-        out[k] = (done[(k, 0)], done.get((k, 1)), end - start)
-        start = end
-    return out
 
 
 class _FrameSplit:

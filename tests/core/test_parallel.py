@@ -440,3 +440,17 @@ def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised():
         chain.animate_chain(phis, grid, feats, [1, 3, 5], helper=helper, surfaces=False,
                             coverage=False)
     assert time.perf_counter() - t0 < 5.0
+
+
+def test_inbetween_with_a_helper_solves_the_map_b_to_a_there():
+    from keyframe_implicit.core.levelset import inbetween
+
+    phis, grid, feats = _two_segments()
+    helper = _HeldHelper(lambda: True)
+    shared = inbetween(phis[0], phis[1], grid, *feats[0], helper=helper)
+    alone = inbetween(phis[0], phis[1], grid, *feats[0])
+    assert helper.calls == ["solve_map"]
+    assert np.array_equal(shared.forward.trajectories.positions(1.0),
+                          alone.forward.trajectories.positions(1.0))
+    assert np.array_equal(shared.backward.trajectories.positions(1.0),
+                          alone.backward.trajectories.positions(1.0))
