@@ -5,11 +5,11 @@ in-betweens (`levelset.inbetween`). The maps of different pairs do not depend on
 each other: with a helper process they are solved two segments at a time
 (`levelset.solve_maps_shared`).
 
-The template mesh is the surface of the
-first keyframe; it is carried through segment 0, and its vertices on the last
-frame of segment k -- which lie on keyframe k+1's surface -- are the template
-of segment k+1. So the frame of keyframe k shows the template on keyframe k's
-surface, and vertex identity is kept across the whole animation.
+The template mesh is the surface of the first keyframe; it is carried through
+segment 0, and its vertices on the last frame of segment k -- which lie on
+keyframe k+1's surface -- are the template of segment k+1. So the frame of
+keyframe k shows the template on keyframe k's surface, and vertex identity is
+kept across the whole animation.
 
 Where topology changes one template cannot stay clean (PAPER-NOTES section
 9), so every frame's own surface is also kept, with the velocity of its
