@@ -676,7 +676,6 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     return out
 
 
-
 def _affine_fit_at(p, pos, val, w, h, ridge=1e-6):
     """Value at each point p (P, d) of the weighted least-squares affine fit of the values
     ``val`` (P, k, m) given at its k neighbours ``pos`` (P, k, d) with weights ``w`` (P, k),
