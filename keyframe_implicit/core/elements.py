@@ -74,8 +74,8 @@ def cells_within(grid, region):
     cell_shape = inside.shape
     lower = np.ravel_multi_index(np.unravel_index(np.flatnonzero(inside), cell_shape), grid.shape)
     corner_nodes = lower[:, None] + (corners(grid.dim) @ grid.strides)[None, :]
-    nodes, local = np.unique(corner_nodes, return_inverse=True)
-    return lower, nodes, local.reshape(corner_nodes.shape)
+    nodes, local = grid.unique_nodes(corner_nodes)
+    return lower, nodes, local
 
 
 def gradient_operator(d: int, xi, h: float) -> np.ndarray:

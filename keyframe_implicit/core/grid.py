@@ -108,6 +108,29 @@ class Grid:
         """World position of the nodes with the given flat indices, array (len(nodes), d)."""
         return self.to_world(np.stack(np.unravel_index(nodes, self.shape), axis=-1))
 
+    def unique_nodes(self, flat):
+        """The distinct nodes among flat node indices, sorted, and where each entry of
+        ``flat`` is among them: ``np.unique(flat, return_inverse=True)``, by marking the
+        span of nodes ``flat`` reaches instead of sorting (the nodes of points' cells
+        repeat eight times and lie in a band: a sort costs 20-30 times as much).
+
+        Returns
+        -------
+        nodes : (m,) int64, sorted
+        inverse : int32 array of ``flat``'s shape, ``nodes[inverse] == flat``
+        """
+        flat = np.asarray(flat, dtype=np.int64)
+        if flat.size == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(flat.shape, dtype=np.int32)
+        lo = int(flat.min())
+        rel = flat - lo
+        mark = np.zeros(int(rel.max()) + 1, dtype=bool)
+        mark[rel] = True
+        found = np.flatnonzero(mark)
+        position = np.empty(mark.size, dtype=np.int32)  # a grid has fewer than 2**31 nodes
+        position[found] = np.arange(found.size, dtype=np.int32)
+        return found + lo, position[rel]
+
     def to_index(self, points) -> np.ndarray:
         """Continuous (fractional) node index of world ``points`` (..., d)."""
         return (np.asarray(points, dtype=float) - self.origin) / self.spacing

@@ -532,6 +532,6 @@ class Trajectories:
             clamped = self.grid.to_world(np.clip(self.grid.to_index(p), 0, box))
             return p - clamped + sample(self.mapped, self.grid, p)
         flat, w = cell_weights(self.grid, p)
-        nodes, inv = np.unique(flat, return_inverse=True)
+        nodes, inv = self.grid.unique_nodes(flat)
         disp = self.node_positions(s, nodes) - self.grid.node_points(nodes)
-        return p + np.einsum("pk,pkd->pd", w, disp[inv.reshape(flat.shape)])
+        return p + np.einsum("pk,pkd->pd", w, disp[inv])

@@ -124,6 +124,20 @@ def test_distance_extension_gradient_outside_points_away_from_the_box():
     np.testing.assert_allclose(grad, [[1.0, 0.0], [-np.sqrt(0.5), -np.sqrt(0.5)]], atol=1e-12)
 
 
+@pytest.mark.parametrize("lo", [0, 700])
+def test_unique_nodes_are_numpys_unique(lo):
+    """Marking instead of sorting: the same sorted nodes, each entry found among them."""
+    g = Grid(origin=(0.0, 0.0, 0.0), spacing=1.0, shape=(10, 11, 12))
+    flat = np.random.default_rng(5).integers(lo, lo + 300, size=(400, 8))
+    nodes, inverse = g.unique_nodes(flat)
+    want, want_inverse = np.unique(flat, return_inverse=True)
+    np.testing.assert_array_equal(nodes, want)
+    assert inverse.shape == flat.shape
+    np.testing.assert_array_equal(inverse.reshape(-1), want_inverse.reshape(-1))
+    empty_nodes, empty_inverse = g.unique_nodes(np.zeros((0, 8), dtype=np.int64))
+    assert empty_nodes.size == 0 and empty_inverse.shape == (0, 8)
+
+
 @pytest.mark.parametrize("shape", [(6, 5), (5, 6, 4)])
 def test_cells_within_match_a_cell_by_cell_count(shape):
     """`elements.cells_within` and the transport's border against a loop over the cells."""
