@@ -115,9 +115,13 @@ def _within(points, vertices, faces, tol):
     from scipy.spatial import cKDTree
 
     a, b, c = (vertices[faces[:, i]] for i in range(3))
-    samples = np.concatenate([a, b, c, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a),
-                              (a + b + c) / 3.0])  # loose vertices reach nothing
-    d, _ = cKDTree(samples).query(points, distance_upper_bound=tol, workers=-1)
+    corner = np.zeros(len(vertices), dtype=bool)
+    corner[faces] = True  # loose vertices reach nothing
+    samples = np.concatenate([vertices[corner], 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a),
+                              (a + b + c) / 3.0])
+    # built once and queried once: an unbalanced tree builds in half the time
+    tree = cKDTree(samples, balanced_tree=False, compact_nodes=False)
+    d, _ = tree.query(points, distance_upper_bound=tol, workers=-1)
     near = d <= tol
     rest = np.flatnonzero(~near)
     near[rest] = mesh_distance(points[rest], vertices, faces) <= tol

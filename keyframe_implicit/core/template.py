@@ -164,8 +164,8 @@ def uncovered_area(levelset, grid, vertices, faces, tol=None, surface=None):
         size = np.linalg.norm(segs_b - segs_a, axis=1)
     if len(vertices) == 0:
         return float(size.sum()), float(size.sum())
-    tree = cKDTree(_template_samples(vertices, faces))
-    dist, _ = tree.query(centres, workers=-1)
+    tree = cKDTree(_template_samples(vertices, faces), balanced_tree=False, compact_nodes=False)
+    dist, _ = tree.query(centres, distance_upper_bound=tol, workers=-1)  # inf beyond tol
     return float(size[dist > tol].sum()), float(size.sum())
 
 
