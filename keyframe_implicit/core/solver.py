@@ -63,7 +63,10 @@ fold; at full weight the empty gap of a merge resists it.
 
 from __future__ import annotations
 
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,6 +90,9 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 #: rounding (1e-7 relative) is far below the loose CG tolerance it serves (``cg_tolerance``),
 #: and energy, gradient and line search stay in double precision (benchmarks/README.md).
 _HESSIAN_DTYPE = np.float32
+
+#: Levels of fewer active nodes multiply their Hessian in one thread (`_Level.product`).
+_SPLIT_PRODUCT_FROM = 4096
 
 #: Default options of `solve_map` (besides the term weights).
 DEFAULTS = dict(
@@ -347,11 +353,30 @@ class _Level:
             return np.zeros(0), np.zeros(0)
         return np.concatenate(mins), np.concatenate(centres)
 
-    def bsr(self, Hs):
-        d = self.d
-        data = Hs.reshape(-1, d, d)
-        return sp.bsr_matrix((data, self.bsr_indices, self.bsr_indptr), shape=(self.n * d, self.n * d),
-                             copy=False)
+    def bsr(self, Hs, lo=0, hi=None):
+        """Rows ``lo`` to ``hi`` (nodes; default all) of the Hessian of stencil blocks ``Hs``
+        (n, 3**d, d, d) as a BSR matrix, sharing ``Hs``'s memory."""
+        d, k = self.d, len(self.offsets)
+        hi = self.n if hi is None else hi
+        data = Hs.reshape(-1, d, d)[lo * k:hi * k]
+        return sp.bsr_matrix((data, self.bsr_indices[lo * k:hi * k], self.bsr_indptr[:hi - lo + 1]),
+                             shape=((hi - lo) * d, self.n * d), copy=False)
+
+    def product(self, Hs, pool=None):
+        """x -> H x for the stencil blocks ``Hs``. With a ``pool`` (one thread) the first
+        half of the rows is multiplied there: scipy's BSR product releases the GIL, so when
+        the bake's other process is idle (its map solved first) a product takes about 0.6
+        of the time, and when both are busy about the same (benchmarks/README.md)."""
+        if pool is None or self.n < _SPLIT_PRODUCT_FROM:
+            return self.bsr(Hs).dot
+        half = self.n // 2
+        first, second = self.bsr(Hs, 0, half), self.bsr(Hs, half)
+
+        def apply(x):
+            job = pool.submit(first.dot, x)
+            out = second.dot(x)
+            return np.concatenate([job.result(), out])
+        return apply
 
 
 def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
@@ -388,8 +413,10 @@ def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     return x, it
 
 
-def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep, timing):
-    """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history."""
+def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep, timing,
+                 pool=None):
+    """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history.
+    ``pool``: a one-thread executor for half of each Hessian product (`_Level.product`)."""
     cons = level.cons
     chunk = int(opts["chunk_elements"])
     t0 = time.perf_counter()
@@ -412,14 +439,14 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             diag = Hs[:, level.centre_off]
             mu = opts["damping"] * max(float(np.mean(np.trace(diag, axis1=1, axis2=2))) / d, 1e-300)
             Hs[:, level.centre_off] += mu * np.eye(d)
-            H = level.bsr(Hs)
+            H = level.product(Hs, pool)
             precond = cons.block_preconditioner(Hs[:, level.centre_off].astype(float))
             if coarse is not None:
                 precond = _with_correction(precond, coarse.correction(Hs), cons.n_free, d)
 
         def apply_A(z):  # the product in the Hessian's precision (a cast, not an upcast of H)
             Tz = cons.expand(z).reshape(-1).astype(_HESSIAN_DTYPE)
-            return cons.reduce((H @ Tz).reshape(-1, d).astype(float))
+            return cons.reduce(H(Tz).reshape(-1, d).astype(float))
 
         b = -cons.reduce(g)
         z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]),
@@ -455,6 +482,15 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms
+
+
+def _product_pool():
+    """A one-thread executor for half of each Hessian product (`_Level.product`), or a
+    context of None on a single core."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if (cores or 1) < 2:
+        return nullcontext(None)
+    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="keyframe_implicit product")
 
 
 def _coarse_space(level, opts):
@@ -707,23 +743,24 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
     corr = None
     level_stats = []
-    for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
-        t0 = time.perf_counter()
-        pa, pb, base = ((phi_a, phi_b, y0) if li == nlev - 1
-                        else _level_fields(phi_a, phi_b, disp0, grid, g))
-        if not np.any(pa < 0):
-            continue  # material too thin for this coarse level
-        level = _constrained_level(pa, pb, g, xa, yb, margin_cells, options, base)
-        y_start_full, y = _level_start(level, base, corr, options)
-        timing["setup"] += time.perf_counter() - t0
-        y, history, iters, cg_total, dets, terms = _solve_level(
-            level, y, weights, options, int(max_iterations), float(tolerance),
-            rep.sub(edges[li], edges[li + 1]), timing)
-        t0 = time.perf_counter()
-        corr = _correction(level, y, y_start_full, base, int(options["extension_passes"]))
-        timing["extension"] += time.perf_counter() - t0
-        level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
-                                iterations=iters, cg_iterations=cg_total, history=history))
+    with _product_pool() as pool:
+        for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
+            t0 = time.perf_counter()
+            pa, pb, base = ((phi_a, phi_b, y0) if li == nlev - 1
+                            else _level_fields(phi_a, phi_b, disp0, grid, g))
+            if not np.any(pa < 0):
+                continue  # material too thin for this coarse level
+            level = _constrained_level(pa, pb, g, xa, yb, margin_cells, options, base)
+            y_start_full, y = _level_start(level, base, corr, options)
+            timing["setup"] += time.perf_counter() - t0
+            y, history, iters, cg_total, dets, terms = _solve_level(
+                level, y, weights, options, int(max_iterations), float(tolerance),
+                rep.sub(edges[li], edges[li + 1]), timing, pool)
+            t0 = time.perf_counter()
+            corr = _correction(level, y, y_start_full, base, int(options["extension_passes"]))
+            timing["extension"] += time.perf_counter() - t0
+            level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
+                                    iterations=iters, cg_iterations=cg_total, history=history))
     rep(1.0, "Volume map done")
     stats = _map_stats(level, y, dets, terms, weights, level_stats, init)
     stats["seconds"] = dict(timing, total=time.perf_counter() - t_start)

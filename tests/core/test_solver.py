@@ -362,6 +362,27 @@ def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     np.linalg.cholesky(0.5 * (A + A.T) + 1e-5 * np.abs(A).max() * np.eye(len(A)))
 
 
+def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
+    """`_Level.product` with a thread for the first half of the rows gives H x bit for bit."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from keyframe_implicit.core import solver
+
+    g = _unit_grid(10, 3)
+    P = g.points()
+    L = solver._Level(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
+                      np.linalg.norm(P - 0.52, axis=-1) - 0.3, g, np.zeros((0, 3)),
+                      np.zeros((0, 3)), 3, 0.1, 0.0, patch_rigidity=10.0)
+    y = L.x + 0.02 * np.sin(7 * L.x)
+    Hs = L.evaluate(y, {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}, 97, True)[3]
+    x = np.random.default_rng(2).normal(size=L.n * 3).astype(Hs.dtype)
+    monkeypatch.setattr(solver, "_SPLIT_PRODUCT_FROM", 0)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        halves = L.product(Hs, pool)(x)
+    assert L.n > 2 and np.array_equal(halves, L.bsr(Hs) @ x)
+    assert np.array_equal(L.bsr(Hs, 0, 5).toarray(), L.bsr(Hs).toarray()[:15])
+
+
 def _bent_rod_half_lengths(**opts):
     """Rod bent 90 degrees at its middle (2D, n = 40), six features: relative length change of the
     rigid parts x in [-0.6, -0.2] and [0.2, 0.6] under the solved map."""
