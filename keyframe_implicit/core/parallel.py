@@ -37,7 +37,8 @@ def one_blas_thread():
     a context manager, or in force until its ``restore_original_limits``).
 
     A bake's parallel work is its own: two processes (`Helper`), and in each the two maps
-    or the two transports in threads. BLAS's threads only compete with it for the same
+    or the two transports in threads, and each Hessian product in two halves
+    (`solver._Level.product`). BLAS's threads only compete with it for the same
     cores: OpenBLAS starts one per core for a dot product of a few hundred thousand
     entries (each CG step of a Gauss-Newton system) or the multigrid's coarse product, and
     they spin while they wait for the next call. The limit covers the BLAS libraries

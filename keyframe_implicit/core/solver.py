@@ -25,7 +25,9 @@ Algorithm
   unpinned rigid modes stay bounded. A level of ``coarse_space_from``
   (120,000) unknowns or more adds a coarse correction (`coarse.CoarseSpace`,
   at most ``coarse_space_size`` = 9000 coarse unknowns): block Jacobi alone
-  needs iterations in proportion to the grid's resolution.
+  needs iterations in proportion to the grid's resolution. Each product with the
+  Hessian runs in two row halves, one in a second thread (`_Level.product`): it uses
+  the core the bake's other process leaves idle once its own map is solved.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
   energy (Armijo) that also refuses any step taking det F of the material
   (any quadrature point) below ``min_det`` (0.2), or below its current
