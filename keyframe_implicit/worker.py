@@ -39,6 +39,7 @@ import sys
 import threading
 import traceback
 
+from .core.parallel import Helper
 from .core.progress import Cancelled
 
 __all__ = ["Worker", "WorkerError"]
@@ -210,6 +211,8 @@ def main():
     """The worker: read the inputs from stdin, run `animate`, answer on stdout."""
     if hasattr(os, "nice"):
         os.nice(_NICENESS)
+    # the helper's interpreter loads while this one reads the inputs and imports the core
+    helper = Helper() if _PROCESSES > 1 else None
     answers = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # prints (Python's or a library's) go to stderr, never into the answers
     sys.stdout = sys.stderr
@@ -221,8 +224,12 @@ def main():
 
     mode = arguments.pop("output_mode", None)
     try:
-        result = pipeline.animate(**arguments, processes=_PROCESSES,
-                                  progress=lambda f, m: send(answers, ("progress", f, m)))
+        try:
+            result = pipeline.animate(**arguments, processes=_PROCESSES, helper=helper,
+                                      progress=lambda f, m: send(answers, ("progress", f, m)))
+        finally:  # before the output mesh: the helper's memory goes with it
+            if helper is not None:
+                helper.close()
         if mode is not None:  # the output's mesh, edges and all, made here, not in Blender
             send(answers, ("progress", 1.0, "Preparing the output mesh"))
             result.output_mesh(resolve_output(mode, result.stats)[0])

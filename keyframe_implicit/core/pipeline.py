@@ -383,7 +383,8 @@ def _notes(keyframes, loose, sdf_stats):
 
 
 def animate(keyframes, features, *, resolution=48, weights=None, progress=None, cancel=None,
-            padding_cells=4, max_bytes=None, feature_names=None, template="keyframe", **options):
+            padding_cells=4, max_bytes=None, feature_names=None, template="keyframe", helper=None,
+            **options):
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -410,7 +411,12 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         attributes and sub-cell detail, ending every segment on the next keyframe's mesh
         (`template.DetailTrack`; falls back to "grid" when it has loose vertices), or
         marching cubes of its distance grid, pulled onto every frame's zero set.
-    **options : passed to `chain.animate_chain` (solver, trajectory and level-set options).
+    helper : `parallel.Helper`, optional
+        A helper process already started (and left running): it takes the place of the
+        one ``processes=2`` starts here, whose interpreter then loads while this one
+        checks the keyframes (the worker process starts it before reading its inputs).
+    **options : passed to `chain.animate_chain` (solver, trajectory and level-set options;
+        ``processes``: 2 shares the bake with a helper process).
 
     Returns
     -------
@@ -471,9 +477,10 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                 exc.required, max_bytes, best) from None
     stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
 
-    blas, helper = one_blas_thread(), None
+    blas, given = one_blas_thread(), helper
     try:
-        helper = Helper() if opts.get("processes", 1) > 1 else None
+        if helper is None and opts.get("processes", 1) > 1:
+            helper = Helper()
         phis, stats["sdf"] = _distance_grids(keyframes, surfaces, grid, rep.sub(0.0, 0.15),
                                              cancel, helper)
         stats["sdf_seconds"] = time.perf_counter() - t0
@@ -484,7 +491,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                               helper=helper, progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
     finally:
         blas.restore_original_limits()
-        if helper is not None:
+        if helper is not None and helper is not given:
             helper.close()
     _check_result(chain, grid, keyframes)
     stats.update(chain.stats)

@@ -125,6 +125,22 @@ def test_a_bake_with_a_helper_process_is_the_bake_without_one():
             assert qa["coverage"] == pytest.approx(qb["coverage"], abs=1e-4)
 
 
+def test_a_bake_uses_a_helper_it_is_given_and_leaves_it_running(monkeypatch):
+    """`animate(helper=...)`: the worker starts its helper before reading its inputs; the
+    bake shares its work with that one, starts none of its own, and does not end it."""
+    from keyframe_implicit.core import parallel
+
+    kfs, feats = turning_sphere(n=16, last=5)
+    with Helper() as helper:
+        def no_second(*args, **kwargs):
+            raise AssertionError("the bake started a helper of its own")
+        monkeypatch.setattr(parallel, "Helper", no_second)
+        res = animate(kfs, feats, resolution=16, processes=2, helper=helper)
+        assert res.stats["helper_peak_rss_kib"] > 0
+        helper.submit(pow, 2, 5)
+        assert helper.result() == 32  # still running, still answering
+
+
 def _blas_threads():
     from threadpoolctl import threadpool_info
 
