@@ -15,6 +15,9 @@ everything into one bytes object first, and `recv` reads one back before
 unpickling: a copy of all the arrays on each side, for as long as the transfer
 takes (1.3 GB for a 256-cell bake's in-betweens).
 
+Its first message says it has started (`Helper.ready`): work that this process can
+do itself goes to the helper only once it is up (`pipeline._distance_grids`).
+
 The helper dies with its parent: it watches a second pipe (a "lifeline") that
 only the parent holds, so a parent killed outright (a cancelled bake's worker)
 takes its helper with it. `Helper.close` ends it at once, finished or not.
@@ -74,6 +77,20 @@ class Helper:
         self._proc.start()
         theirs.close()
         their_lifeline.close()
+        self._ready = False
+
+    def ready(self):
+        """Whether the helper has started (imported its ``preload``): it then takes a call
+        at once. Does not wait; not while another thread waits in `result`."""
+        if not self._ready and self._conn.poll():
+            self._take_ready()
+        return self._ready
+
+    def _take_ready(self):
+        ok, value = receive(self._conn)
+        if not (ok and isinstance(value, _Ready)):
+            raise HelperError(f"the helper's first message was {value!r}, not that it started")
+        self._ready = True
 
     def submit(self, fn, *args, **kwargs):
         """Start ``fn(*args, **kwargs)`` in the helper; `result` gives its value."""
@@ -91,6 +108,9 @@ class Helper:
             if not self._proc.is_alive() and not self._conn.poll():
                 raise HelperError(_ended(self._proc.exitcode))
         try:
+            if not self._ready:  # the message that it started comes first
+                self._take_ready()
+                return self.result(check, poll_seconds)
             ok, value = receive(self._conn)
         except (EOFError, ConnectionResetError):
             self._proc.join(1.0)
@@ -161,6 +181,7 @@ def _serve(conn, lifeline, preload):
     for name in preload:
         __import__(name)
     one_blas_thread()  # for the helper's life: it only ever runs a bake's half
+    send(conn, (True, _Ready()))
     while True:
         try:
             fn, args, kwargs = receive(conn)
@@ -176,6 +197,10 @@ def _serve(conn, lifeline, preload):
             send(conn, answer)
         except Exception as exc:  # pickling failed before anything was sent
             send(conn, (False, HelperError(f"the helper's answer could not be sent back: {exc!r}")))
+
+
+class _Ready:
+    """The helper's first message: it has started and waits for calls (`Helper.ready`)."""
 
 
 def _reraise(exc):

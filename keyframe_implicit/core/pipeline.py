@@ -8,7 +8,9 @@ of every adjacent pair, and tracks one template mesh through all frames.
 from __future__ import annotations
 
 import os
+import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -111,25 +113,86 @@ _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
                  "levelset": "levelset_weight"}
 
 
-#: Grids of fewer nodes than this are all made in this process even with a helper: the
-#: helper starts at the same time and is not ready (0.4-1 s) before a small grid is done.
-SHARED_DISTANCE_NODES = 64 ** 3
+#: Tests: this process first waits until the helper has started and taken the last
+#: keyframe's distance grid, so that the helper's part is exercised on small grids too.
+_HELPER_TAKES_FIRST = False
 
 
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
-    """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each; with a
-    ``helper`` process and a grid of `SHARED_DISTANCE_NODES` or more, it makes the later half
-    of them while this process makes the rest."""
+    """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each.
+
+    With a ``helper`` process, the two share them: this process takes the keyframes
+    from the first on, a thread here hands the helper the last one left whenever the
+    helper has started and is free. A process takes 0.5-1 s to start, more than a small
+    grid's distance grids take, so the helper only joins in where that pays.
+    """
     n = len(keyframes)
-    shared = helper is not None and grid.size >= SHARED_DISTANCE_NODES
-    half = (n + 1) // 2 if shared else n
-    if half < n:
-        helper.submit(_distance_grid_range, keyframes, surfaces, grid, range(half, n))
-    done = _distance_grid_range(keyframes, surfaces, grid, range(half), rep, cancel)
-    if half < n:
-        done += helper.result(check=rep.check)
-        rep(1.0, f"Distance grids of keyframes {half + 1}-{n} (second process)")
-    return [phi for phi, _ in done], [st for _, st in done]
+    left = deque(range(n))
+    done, errors, theirs = {}, [], []
+    lock, failed, handed = threading.Lock(), threading.Event(), threading.Event()
+
+    def take(first):
+        with lock:
+            return None if not left or failed.is_set() else (left.popleft() if first else left.pop())
+
+    def stopped():
+        return failed.is_set() or (cancel is not None and bool(cancel()))
+
+    def stop_waiting():
+        if failed.is_set():
+            raise _Stop
+
+    def feed():
+        try:
+            while left and not failed.is_set():
+                if not helper.ready():
+                    time.sleep(0.02)
+                    continue
+                k = take(first=False)
+                handed.set()
+                if k is not None:
+                    helper.submit(_distance_grid_range, keyframes, surfaces, grid, [k])
+                    done[k] = helper.result(check=stop_waiting)[0]
+                    theirs.append(k)  # reported by this process's thread (one sender)
+        except _Stop:
+            pass
+        except BaseException as exc:  # this process stops its own and raises it
+            errors.append(exc)
+            failed.set()
+        finally:
+            handed.set()
+
+    feeder = None
+    if helper is not None and n > 1:
+        feeder = threading.Thread(target=feed, name="keyframe_implicit distance grids",
+                                  daemon=True)
+        feeder.start()
+        if _HELPER_TAKES_FIRST:
+            handed.wait()
+    try:
+        while (k := take(first=True)) is not None:
+            done[k] = _distance_grid_range(keyframes, surfaces, grid, [k], rep, stopped)[0]
+        if feeder is not None:
+            while feeder.is_alive():
+                feeder.join(0.05)
+                rep.check()
+    except BaseException:
+        failed.set()
+        if feeder is not None:
+            feeder.join()
+        if errors:  # the helper's failure stopped this process's grid: it is the cause
+            raise errors[0] from None
+        raise
+    if errors:
+        raise errors[0]
+    if theirs:
+        rep(1.0, f"Distance grids of keyframes {', '.join(str(k + 1) for k in sorted(theirs))} "
+                 "(second process)")
+    return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
+
+
+class _Stop(Exception):
+    """Ends the thread that feeds the helper (`_distance_grids`) when this process stops."""
 
 
 def _distance_grid_range(keyframes, surfaces, grid, ks, rep=None, cancel=None):

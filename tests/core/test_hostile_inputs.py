@@ -90,10 +90,10 @@ def test_loose_far_vertex_is_ignored_and_counted():
 
 @pytest.fixture
 def shared_distance_grids(monkeypatch):
-    """The helper makes the later keyframes' distance grids even on these small grids."""
+    """The helper makes the last keyframe's distance grid even on these small grids."""
     from keyframe_implicit.core import pipeline
 
-    monkeypatch.setattr(pipeline, "SHARED_DISTANCE_NODES", 0)
+    monkeypatch.setattr(pipeline, "_HELPER_TAKES_FIRST", True)
 
 
 @pytest.mark.parametrize("processes", [1, 2])  # 2: keyframe 2's distance grid in the helper

@@ -125,6 +125,21 @@ def test_a_bake_with_a_helper_process_is_the_bake_without_one():
             assert qa["coverage"] == pytest.approx(qb["coverage"], abs=1e-4)
 
 
+def test_helper_says_when_it_has_started():
+    """`Helper.ready` turns True without a call, and the calls' answers come after it
+    whether or not anyone asked."""
+    with Helper(preload=()) as helper:
+        t0 = time.perf_counter()
+        while not helper.ready():
+            assert time.perf_counter() - t0 < 30, "the helper never said it had started"
+            time.sleep(0.01)
+        helper.submit(pow, 3, 2)
+        assert helper.ready() and helper.result() == 9
+    with Helper(preload=()) as helper:  # never asked: result() takes the message first
+        helper.submit(pow, 2, 3)
+        assert helper.result() == 8 and helper.ready()
+
+
 def test_a_bake_uses_a_helper_it_is_given_and_leaves_it_running(monkeypatch):
     """`animate(helper=...)`: the worker starts its helper before reading its inputs; the
     bake shares its work with that one, starts none of its own, and does not end it."""
@@ -204,10 +219,14 @@ def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
 
 
 class _CountingHelper:
-    """Stands in for `Helper` in `_distance_grids`: runs the call here and counts it."""
+    """Stands in for `Helper` in `_distance_grids`: started (``ready``) or not; runs each
+    call here, in the thread that feeds it, and counts it."""
 
-    def __init__(self):
-        self.calls = 0
+    def __init__(self, started):
+        self.started, self.calls = started, 0
+
+    def ready(self):
+        return self.started
 
     def submit(self, fn, *args, **kwargs):
         self.calls += 1
@@ -217,22 +236,25 @@ class _CountingHelper:
         return self._value
 
 
-@pytest.mark.parametrize("resolution, shared", [(20, False), (64, True)])
-def test_helper_makes_distance_grids_only_on_grids_worth_its_start(resolution, shared):
-    """On a small grid the helper is still starting when this process has made every
-    distance grid; handing it half of them made a 20-cell bake's grids 0.2 -> 0.5 s."""
+@pytest.mark.parametrize("started", [False, True])
+def test_helper_takes_a_distance_grid_only_once_it_has_started(started, monkeypatch):
+    """A process takes 0.5-1 s to start, longer than a small grid's distance grids: this
+    process does not wait for it, and hands it the last keyframe once it is up."""
     from keyframe_implicit.core import pipeline
     from keyframe_implicit.core.gridfit import fit_grid
     from keyframe_implicit.core.progress import Reporter
 
     kfs, _ = turning_sphere(n=16, last=11)
     surfaces = [pipeline._surface_vertices(k, kf) for k, kf in enumerate(kfs)]
-    grid = fit_grid([kf.vertices for kf in kfs], resolution)
-    helper = _CountingHelper()
+    grid = fit_grid([kf.vertices for kf in kfs], 20)
+    helper = _CountingHelper(started)
+    alone, _ = pipeline._distance_grids(kfs, surfaces, grid, Reporter())
+    # started: this process lets the helper's thread take its keyframe first, so that the
+    # count does not depend on which thread runs first
+    monkeypatch.setattr(pipeline, "_HELPER_TAKES_FIRST", started)
     phis, _ = pipeline._distance_grids(kfs, surfaces, grid, Reporter(), helper=helper)
-    assert (grid.size >= pipeline.SHARED_DISTANCE_NODES) == shared
-    assert helper.calls == int(shared)
-    assert len(phis) == len(kfs) and all(p.shape == grid.shape for p in phis)
+    assert helper.calls == (1 if started else 0)
+    assert len(phis) == len(kfs) and all(np.array_equal(a, b) for a, b in zip(phis, alone))
 
 
 class _OrderHelper:
