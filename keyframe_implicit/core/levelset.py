@@ -46,7 +46,6 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -591,10 +590,6 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
         return res, job.result()
 
 
-class _Stop(Exception):
-    """Ends the thread that feeds the helper (`solve_maps_shared`) when this process stops."""
-
-
 def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, cancel, options):
     """The maps of the segments in ``window`` of a chain (keyframe fields ``phis``, feature
     pairs ``features`` per segment), shared by this process and the ``helper``.
@@ -602,72 +597,35 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     The maps (A -> B and, two-sided, B -> A of each segment) are independent jobs, and
     one can take several times another (a merge seen backwards is a split). Two at a time,
     one per process, the process with the short one would wait; here each process takes
-    the next job when it is free. A thread of this process keeps the helper fed; this
-    process takes the first job (a segment's A -> B) and the helper the second. With one
-    segment (`inbetween`'s ``helper``) that is one map each.
+    the next job when it is free (`parallel.share`): this process the first (a segment's
+    A -> B), the helper the second. With one segment (`inbetween`'s ``helper``) that is
+    one map each.
 
     Returns {segment: (map A -> B, map B -> A or None, seconds)}: a segment's seconds run
     from the end of the one before it (or the window's start) until both its maps are
     solved, so they add up to the window's time.
     """
+    from .parallel import share
     from .solver import solve_map
 
     t0 = time.perf_counter()
-    jobs = deque((k, side) for k in window for side in ((0, 1) if two_sided else (0,)))
-    n = len(jobs)
-    done, ends, errors = {}, {}, []
-    lock, failed = threading.Lock(), threading.Event()
-
-    def take():
-        with lock:
-            return jobs.popleft() if jobs and not failed.is_set() else None
+    jobs = [(k, side) for k in window for side in ((0, 1) if two_sided else (0,))]
+    mine = []
 
     def arguments(job):
         k, side = job
         (fa, fb), a, b = features[k], phis[k], phis[k + 1]
         return (a, b, grid, fa, fb) if side == 0 else (b, a, grid, fb, fa)
 
-    def finished(job, result):
-        done[job] = result
-        ends[job] = time.perf_counter()
+    def here(job, stop):
+        mine.append(job)
+        part = rep.sub((len(mine) - 1) / len(jobs), len(mine) / len(jobs))
+        return solve_map(*arguments(job), progress=part, cancel=stop, **options)
 
-    def stop_waiting():
-        if failed.is_set():
-            raise _Stop
+    def there(job):
+        return solve_map, arguments(job), options
 
-    def feed():
-        try:
-            while (job := take()) is not None:
-                helper.submit(solve_map, *arguments(job), **options)
-                finished(job, helper.result(check=stop_waiting))
-        except _Stop:
-            pass
-        except BaseException as exc:  # this process stops its own job and raises it
-            errors.append(exc)
-            failed.set()
-
-    def stopped():
-        return failed.is_set() or (cancel is not None and bool(cancel()))
-
-    job = take()
-    feeder = threading.Thread(target=feed, name="keyframe_implicit maps", daemon=True)
-    feeder.start()
-    try:
-        while job is not None:
-            part = rep.sub(len(done) / n, (len(done) + 1) / n)
-            finished(job, solve_map(*arguments(job), progress=part, cancel=stopped, **options))
-            job = take()
-        while feeder.is_alive():
-            feeder.join(0.05)
-            rep.check()
-    except BaseException:
-        failed.set()
-        feeder.join()
-        if errors:  # the helper's failure stopped this process's job: it is the cause
-            raise errors[0] from None
-        raise
-    if errors:
-        raise errors[0]
+    done, ends, _ = share(jobs, here, there, helper, check=rep.check, cancel=cancel)
     out, start = {}, t0
     for k in window:
         end = max([start] + [ends[(k, side)] for side in (0, 1) if (k, side) in ends])

@@ -31,8 +31,10 @@ import multiprocessing
 import os
 import pickle
 import threading
+import time
+from collections import deque
 
-__all__ = ["Helper", "HelperError", "one_blas_thread"]
+__all__ = ["Helper", "HelperError", "one_blas_thread", "share"]
 
 
 def one_blas_thread():
@@ -143,6 +145,85 @@ class Helper:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def share(jobs, here, there, helper, check=None, cancel=None, last_first=False,
+          when_started=False):
+    """Run ``jobs`` in this process and in ``helper``, each taking the next job when free.
+
+    This process runs ``here(job, stop)`` (``stop()`` is true once the helper has failed
+    or ``cancel()`` is; pass it on as the job's cancel). A thread of this process hands
+    the helper ``there(job)`` = (fn, args, kwargs): the next job from the front, or with
+    ``last_first`` the last one left; with ``when_started`` only once the helper is up
+    (`Helper.ready`), so that this process does not wait for its start. ``check`` is
+    called while this process waits for the helper's last job (a cancel).
+
+    Returns ({job: result}, {job: when it ended, `time.perf_counter`}, the jobs the helper
+    ran). A failure in the helper stops this process's job and is raised; one here stops
+    the helper's thread (the caller closes the helper).
+    """
+    left = deque(jobs)
+    done, ends, errors, theirs = {}, {}, [], []
+    lock, failed = threading.Lock(), threading.Event()
+
+    def take(front):
+        with lock:
+            if not left or failed.is_set():
+                return None
+            return left.popleft() if front else left.pop()
+
+    def stop():
+        return failed.is_set() or (cancel is not None and bool(cancel()))
+
+    def stop_waiting():
+        if failed.is_set():
+            raise _Stop
+
+    def feed():
+        try:
+            while left and not failed.is_set():
+                if when_started and not helper.ready():
+                    time.sleep(0.02)
+                    continue
+                job = take(front=not last_first)
+                if job is None:
+                    return
+                fn, args, kwargs = there(job)
+                helper.submit(fn, *args, **kwargs)
+                done[job] = helper.result(check=stop_waiting)
+                ends[job] = time.perf_counter()
+                theirs.append(job)
+        except _Stop:
+            pass
+        except BaseException as exc:  # this process stops its own job and raises it
+            errors.append(exc)
+            failed.set()
+
+    feeder = threading.Thread(target=feed, name="keyframe_implicit helper feed", daemon=True)
+    job = take(front=True)  # this process's first job before the thread can take it
+    feeder.start()
+    try:
+        while job is not None:
+            done[job] = here(job, stop)
+            ends[job] = time.perf_counter()
+            job = take(front=True)
+        while feeder.is_alive():
+            feeder.join(0.05)
+            if check is not None:
+                check()
+    except BaseException:
+        failed.set()
+        feeder.join()
+        if errors:  # the helper's failure stopped this process's job: it is the cause
+            raise errors[0] from None
+        raise
+    if errors:
+        raise errors[0]
+    return done, ends, theirs
+
+
+class _Stop(Exception):
+    """Ends the thread that feeds the helper (`share`) when this process stops."""
 
 
 def send(conn, obj):

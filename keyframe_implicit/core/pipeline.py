@@ -8,9 +8,7 @@ of every adjacent pair, and tracks one template mesh through all frames.
 from __future__ import annotations
 
 import os
-import threading
 import time
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -113,107 +111,60 @@ _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
                  "levelset": "levelset_weight"}
 
 
-#: Tests: this process first waits until the helper has started and taken the last
-#: keyframe's distance grid, so that the helper's part is exercised on small grids too.
-_HELPER_TAKES_FIRST = False
+#: Tests: wait until the helper has started, so that it makes the last keyframe's distance
+#: grid even on small grids.
+_WAIT_FOR_HELPER = False
 
 
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each.
 
-    With a ``helper`` process, the two share them: this process takes the keyframes
-    from the first on, a thread here hands the helper the last one left whenever the
-    helper has started and is free. A process takes 0.5-1 s to start, more than a small
-    grid's distance grids take, so the helper only joins in where that pays.
+    With a ``helper`` process the two share them (`parallel.share`): this process takes
+    the keyframes from the first on, the helper the last one left once it has started.
+    A process takes 0.5-1 s to start, more than a small grid's distance grids take, so
+    the helper only joins in where that pays.
     """
+    from .parallel import share
+
     n = len(keyframes)
-    left = deque(range(n))
-    done, errors, theirs = {}, [], []
-    lock, failed, handed = threading.Lock(), threading.Event(), threading.Event()
+    if helper is None or n < 2:
+        done = dict(enumerate(_distance_grid(keyframes, surfaces, grid, k, rep, cancel)
+                              for k in range(n)))
+    else:
+        if _WAIT_FOR_HELPER:
+            while not helper.ready():
+                time.sleep(0.01)
 
-    def take(first):
-        with lock:
-            return None if not left or failed.is_set() else (left.popleft() if first else left.pop())
+        def here(k, stop):
+            return _distance_grid(keyframes, surfaces, grid, k, rep, stop)
 
-    def stopped():
-        return failed.is_set() or (cancel is not None and bool(cancel()))
+        def there(k):
+            return _distance_grid, (keyframes, surfaces, grid, k), {}
 
-    def stop_waiting():
-        if failed.is_set():
-            raise _Stop
-
-    def feed():
-        try:
-            while left and not failed.is_set():
-                if not helper.ready():
-                    time.sleep(0.02)
-                    continue
-                k = take(first=False)
-                handed.set()
-                if k is not None:
-                    helper.submit(_distance_grid_range, keyframes, surfaces, grid, [k])
-                    done[k] = helper.result(check=stop_waiting)[0]
-                    theirs.append(k)  # reported by this process's thread (one sender)
-        except _Stop:
-            pass
-        except BaseException as exc:  # this process stops its own and raises it
-            errors.append(exc)
-            failed.set()
-        finally:
-            handed.set()
-
-    feeder = None
-    if helper is not None and n > 1:
-        feeder = threading.Thread(target=feed, name="keyframe_implicit distance grids",
-                                  daemon=True)
-        feeder.start()
-        if _HELPER_TAKES_FIRST:
-            handed.wait()
-    try:
-        while (k := take(first=True)) is not None:
-            done[k] = _distance_grid_range(keyframes, surfaces, grid, [k], rep, stopped)[0]
-        if feeder is not None:
-            while feeder.is_alive():
-                feeder.join(0.05)
-                rep.check()
-    except BaseException:
-        failed.set()
-        if feeder is not None:
-            feeder.join()
-        if errors:  # the helper's failure stopped this process's grid: it is the cause
-            raise errors[0] from None
-        raise
-    if errors:
-        raise errors[0]
-    if theirs:
-        rep(1.0, f"Distance grids of keyframes {', '.join(str(k + 1) for k in sorted(theirs))} "
-                 "(second process)")
+        done, _, theirs = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
+                                last_first=True, when_started=True)
+        if theirs:
+            rep(1.0, "Distance grids of keyframes "
+                     f"{', '.join(str(k + 1) for k in sorted(theirs))} (second process)")
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
-class _Stop(Exception):
-    """Ends the thread that feeds the helper (`_distance_grids`) when this process stops."""
-
-
-def _distance_grid_range(keyframes, surfaces, grid, ks, rep=None, cancel=None):
-    """(field, figures) of keyframes ``ks``; ValueError naming the keyframe on bad input."""
+def _distance_grid(keyframes, surfaces, grid, k, rep=None, cancel=None):
+    """(field, figures) of keyframe ``k``; ValueError naming the keyframe on bad input."""
     from .sdf import mesh_to_sdf
 
-    rep = rep or Reporter()
-    n, out = len(keyframes), []
-    for k in ks:
-        sub = rep.sub(k / n, (k + 1) / n)
-        sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
-        kf, (v, tris) = keyframes[k], surfaces[k][:2]
-        figures = {}
-        try:
-            phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
-        except ValueError as exc:
-            raise ValueError(f"{_keyframe_label(k, kf)}: {exc}") from exc
-        if not np.any(phi < 0):
-            raise ValueError(_no_volume_message(k, kf, v, tris, grid))
-        out.append((phi, figures))
-    return out
+    n = len(keyframes)
+    sub = (rep or Reporter()).sub(k / n, (k + 1) / n)
+    sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
+    kf, (v, tris) = keyframes[k], surfaces[k][:2]
+    figures = {}
+    try:
+        phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
+    except ValueError as exc:
+        raise ValueError(f"{_keyframe_label(k, kf)}: {exc}") from exc
+    if not np.any(phi < 0):
+        raise ValueError(_no_volume_message(k, kf, v, tris, grid))
+    return phi, figures
 
 
 def _physical_memory():

@@ -93,7 +93,7 @@ def shared_distance_grids(monkeypatch):
     """The helper makes the last keyframe's distance grid even on these small grids."""
     from keyframe_implicit.core import pipeline
 
-    monkeypatch.setattr(pipeline, "_HELPER_TAKES_FIRST", True)
+    monkeypatch.setattr(pipeline, "_WAIT_FOR_HELPER", True)
 
 
 @pytest.mark.parametrize("processes", [1, 2])  # 2: keyframe 2's distance grid in the helper
