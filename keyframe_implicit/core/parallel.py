@@ -89,7 +89,11 @@ class Helper:
         return self._ready
 
     def _take_ready(self):
-        ok, value = receive(self._conn)
+        try:
+            ok, value = receive(self._conn)
+        except (EOFError, ConnectionResetError):  # it died before it had started
+            self._proc.join(1.0)
+            raise HelperError(_ended(self._proc.exitcode)) from None
         if not (ok and isinstance(value, _Ready)):
             raise HelperError(f"the helper's first message was {value!r}, not that it started")
         self._ready = True

@@ -140,6 +140,17 @@ def test_helper_says_when_it_has_started():
         assert helper.result() == 8 and helper.ready()
 
 
+def test_a_helper_that_dies_before_it_has_started_says_so():
+    """A helper whose start fails (here: a module it cannot import) ends before its first
+    message: `ready` raises `HelperError` with its exit, not an EOFError."""
+    with Helper(preload=("keyframe_implicit_no_such_module",)) as helper:
+        t0 = time.perf_counter()
+        with pytest.raises(HelperError, match="exited with code 1"):
+            while not helper.ready():
+                assert time.perf_counter() - t0 < 30, "the helper neither started nor ended"
+                time.sleep(0.01)
+
+
 def test_a_bake_uses_a_helper_it_is_given_and_leaves_it_running(monkeypatch):
     """`animate(helper=...)`: the worker starts its helper before reading its inputs; the
     bake shares its work with that one, starts none of its own, and does not end it."""
