@@ -39,7 +39,7 @@ import sys
 import threading
 import traceback
 
-from .core.parallel import Helper
+from .core.parallel import Helper, cores
 from .core.progress import Cancelled
 
 __all__ = ["Worker", "WorkerError"]
@@ -51,7 +51,7 @@ WORKER_ROOT = os.path.basename(os.path.dirname(os.path.abspath(__file__)))
 _NEEDS = ("numpy", "scipy", "skimage", "threadpoolctl")
 #: Processes the bake uses (`chain.animate_chain`'s ``processes``): the worker and, on a
 #: machine with two cores or more, one helper it starts for the second core.
-_PROCESSES = 2 if (os.cpu_count() or 1) >= 2 else 1
+_PROCESSES = 2 if cores() >= 2 else 1
 #: How far below Blender's own the worker's scheduling priority is (a POSIX nice increment;
 #: on Windows the worker starts in the below-normal class): when the bake and Blender's main
 #: loop want the same cores, the main loop and its drawing go first. The worker's helper

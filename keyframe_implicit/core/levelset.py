@@ -43,7 +43,6 @@ benchmarks/README.md.
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -54,6 +53,7 @@ from scipy import ndimage
 from .elements import cofactor, determinant
 from .grid import Grid
 from .isovolume import volume_offset
+from .parallel import cores
 from .progress import Reporter
 from .renamed import take_renamed
 from .surface import enclosed_volume
@@ -567,7 +567,7 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
     if not two_sided:
         return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
                          cancel=cancel, **options), None
-    if not (parallel and (os.cpu_count() or 1) >= 2):
+    if not (parallel and cores() >= 2):
         res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
                         cancel=cancel, **options)
         back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),

@@ -34,7 +34,13 @@ import threading
 import time
 from collections import deque
 
-__all__ = ["Helper", "HelperError", "one_blas_thread", "share"]
+__all__ = ["Helper", "HelperError", "cores", "one_blas_thread", "share"]
+
+
+def cores():
+    """The machine's cores (`os.cpu_count`; 1 when unknown): whether a second process, a
+    second thread for the other map, or half of each Hessian product has a core of its own."""
+    return os.cpu_count() or 1
 
 
 def one_blas_thread():

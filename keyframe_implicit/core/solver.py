@@ -65,7 +65,6 @@ fold; at full weight the empty gap of a merge resists it.
 
 from __future__ import annotations
 
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
@@ -79,6 +78,7 @@ from . import elements
 from .coarse import CoarseSpace
 from .constraints import FeatureConstraints
 from .grid import Grid
+from .parallel import cores
 from .progress import Reporter
 from .rbf import initial_map
 from .renamed import take_renamed
@@ -489,8 +489,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
 def _product_pool():
     """A one-thread executor for half of each Hessian product (`_Level.product`), or a
     context of None on a single core."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if (cores or 1) < 2:
+    if cores() < 2:
         return nullcontext(None)
     return ThreadPoolExecutor(max_workers=1, thread_name_prefix="keyframe_implicit product")
 
