@@ -165,21 +165,42 @@ def _edge_operators(lc, weight, n, d):
     h F_c(s)[:, a]. Its least-squares term adds w (e_i - e_j)(e_i - e_j)^T to the
     weighted graph Laplacian L (n, n) and w (e_j - e_i) to column (c, a) of B
     (n, nc d), so that the right-hand side is B T with T's row (c, a) the target.
-    (L = D^T W D and B = D^T W E, D the edge differences and E the edges' targets; summed
-    edge by edge here, so that no edge-sized matrix is kept.)
+
+    L = D^T W D and B = D^T W E (D the edge differences, E the edges' targets), built
+    without an edge-sized matrix: a lattice edge is shared by up to 2^(d-1) cells, so
+    its weight is summed per lower node and axis first (L then has one entry per node
+    and neighbour); B's column (c, a) holds each of the cell's 2^d corners once, so B
+    is made column by column (CSC, which is also the faster layout for B T).
     """
     nc = len(lc)
-    L = sp.csr_matrix((n, n))
-    B = sp.csr_matrix((n, nc * d))
-    for a, k, hi in _edge_pairs(d):  # 2^(d-1) d edges per cell
-        i, j = lc[:, k], lc[:, hi]
-        L = L + sp.csr_matrix((np.concatenate([weight, weight, -weight, -weight]),
-                               (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
-                              shape=(n, n))
-        col = np.arange(nc) * d + a
-        B = B + sp.csr_matrix((np.concatenate([-weight, weight]),
-                               (np.concatenate([i, j]), np.concatenate([col, col]))),
-                              shape=(n, nc * d))
+    pairs = _edge_pairs(d)
+    # the corners at the lower and upper ends of the cell's 2^(d-1) edges along each axis
+    lower = np.array([[k for a, k, _ in pairs if a == axis] for axis in range(d)])
+    upper = np.array([[hi for a, _, hi in pairs if a == axis] for axis in range(d)])
+    rows, cols, vals = [], [], []
+    diag = np.zeros(n)
+    for a in range(d):  # the lattice edges along axis a, one per lower node
+        i, j = lc[:, lower[a]].reshape(-1), lc[:, upper[a]].reshape(-1)
+        w_edge = np.bincount(i, np.repeat(weight, lower.shape[1]), minlength=n)
+        neighbour = np.zeros(n, dtype=np.int64)
+        neighbour[i] = j
+        i = np.flatnonzero(w_edge)
+        j, w = neighbour[i], w_edge[i]
+        rows += [i, j]
+        cols += [j, i]
+        vals += [-w, -w]
+        diag += np.bincount(i, w, minlength=n) + np.bincount(j, w, minlength=n)
+    rows.append(np.arange(n))
+    cols.append(np.arange(n))
+    vals.append(diag)
+    L = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(n, n))
+    # column (c, a) of B: -w at the lower ends of the cell's edges along a, +w at the upper
+    corner_rows = np.concatenate([lc[:, lower], lc[:, upper]], axis=2)  # (nc, d, 2^d)
+    signs = np.repeat([-1.0, 1.0], lower.shape[1])
+    values = np.broadcast_to(weight[:, None, None] * signs, corner_rows.shape)
+    B = sp.csc_matrix((values.reshape(-1), corner_rows.reshape(-1),
+                       np.arange(0, corner_rows.size + 1, 2 ** d)), shape=(n, nc * d))
     return L, B
 
 
@@ -404,9 +425,10 @@ class Trajectories:
         self.stats["active_cells"] = int(nc)
         self.stats["active_components"] = int(ncomp)
 
-        # residual so that x(1) = y exactly
+        # residual so that x(1) = y exactly; the map itself starts CG (it differs from Y(1)
+        # by that residual and a translation)
         self._check()
-        self._resid = ya - self._poisson(1.0)
+        self._resid = ya - self._poisson(1.0, start=ya)
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
 
         # blend of the Poisson paths with the body formula over the outer half of the margin
@@ -429,13 +451,15 @@ class Trajectories:
         d = self.dim
         return rotation_exp(s * self._cell_rv, d) @ ((1.0 - s) * np.eye(d) + s * self._cell_S)
 
-    def _poisson(self, s):
-        """Poisson positions Y(s) of the active nodes (before the residual)."""
+    def _poisson(self, s, start=None):
+        """Poisson positions Y(s) of the active nodes (before the residual); CG starts from
+        ``start``, by default from the last solutions (`_start`)."""
         d = self.dim
         Fs = self._cell_targets(s)
         T = self.grid.spacing * np.swapaxes(Fs, 1, 2).reshape(-1, d)  # row (cell, a) = h F[:, a]
         rhs = self._B @ T
-        Y, its = block_pcg(self._L, rhs, self._mg, self._start(s), tol=self.tolerance,
+        start = self._start(s) if start is None else start
+        Y, its = block_pcg(self._L, rhs, self._mg, start, tol=self.tolerance,
                            check=self._check)
         kept = [(t, Yt) for t, Yt in self._solved if t != s]
         self._solved = kept[1 - _EXTRAPOLATED:] + [(s, Y.copy())]

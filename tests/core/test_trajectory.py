@@ -25,6 +25,35 @@ def test_polar_decomposition_and_rotation_log_roundtrip():
     np.testing.assert_allclose(rotation_log(rotation_exp(ang, 2)), ang, atol=1e-12)
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
+    """L = D^T W D and B = D^T W E, with one row of D per edge of every cell (shared
+    edges once per cell), as the docstring defines them."""
+    from keyframe_implicit.core import elements
+    from keyframe_implicit.core.trajectory import _edge_operators, _edge_pairs
+
+    grid = Grid((0.0,) * d, 1.0, (5,) * d)
+    region = np.zeros(grid.shape, dtype=bool)
+    region[(slice(1, 4),) * d] = True
+    region[(0,) * d] = True  # a lone corner: no cell of its own
+    _, nodes, lc = elements.cells_within(grid, region.reshape(-1))
+    weight = np.linspace(0.1, 1.0, len(lc))
+    L, B = _edge_operators(lc, weight, nodes.size, d)
+    rows_D, rows_E, w = [], [], []
+    for c in range(len(lc)):
+        for a, k, hi in _edge_pairs(d):
+            r = np.zeros(nodes.size)
+            r[lc[c, hi]], r[lc[c, k]] = 1.0, -1.0
+            e = np.zeros(len(lc) * d)
+            e[c * d + a] = 1.0
+            rows_D.append(r)
+            rows_E.append(e)
+            w.append(weight[c])
+    D, E, W = np.array(rows_D), np.array(rows_E), np.diag(w)
+    np.testing.assert_allclose(L.toarray(), D.T @ W @ D, atol=1e-14)
+    np.testing.assert_allclose(B.toarray(), D.T @ W @ E, atol=1e-14)
+
+
 @pytest.mark.parametrize("method", ["global", "local"])
 def test_rigid_map_gives_exact_circular_arcs(method):
     grid, phi_a, _, mapped, info = rigid_case(n=20)
