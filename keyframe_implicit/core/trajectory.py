@@ -69,7 +69,7 @@ from .multigrid import BlockMultigrid, block_pcg
 from .progress import Reporter
 from .sampling import cell_weights, sample
 
-__all__ = ["Trajectories", "polar", "rigid_fit", "rotation_log", "rotation_exp"]
+__all__ = ["Trajectories", "cofactors", "polar", "rigid_fit", "rotation_log", "rotation_exp"]
 
 
 # ----------------------------------------------------------------------------
@@ -80,7 +80,8 @@ def polar(F):
 
     R is a proper rotation (det R = +1) and S = R^T F is symmetric. For
     reflecting F (det F < 0) the closest rotation is taken and S gets one
-    negative eigenvalue.
+    negative eigenvalue. 3 x 3 matrices with det F > 0 take a Newton iteration
+    (`_newton_rotation`), the rest the SVD.
 
     Parameters
     ----------
@@ -91,14 +92,75 @@ def polar(F):
     R, S : ndarrays, shape (..., d, d)
     """
     F = np.asarray(F, dtype=float)
-    U, sig, Vt = np.linalg.svd(F)
-    det = np.linalg.det(U @ Vt)
-    U = U.copy()
-    U[..., :, -1] *= np.where(det < 0, -1.0, 1.0)[..., None]
-    R = U @ Vt
+    d = F.shape[-1]
+    flat = F.reshape(-1, d, d)
+    R = np.empty_like(flat)
+    newton = np.zeros(len(flat), dtype=bool)
+    if d == 3 and len(flat):
+        scale = (np.einsum("mij,mij->m", flat, flat) / 3.0) ** 1.5
+        newton = np.linalg.det(flat) > _NEWTON_MIN_DET * scale
+        R[newton], converged = _newton_rotation(flat[newton])
+        newton[np.flatnonzero(newton)[~converged]] = False
+    R[~newton] = _svd_rotation(flat[~newton])
+    R = R.reshape(F.shape)
     S = np.swapaxes(R, -1, -2) @ F
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
     return R, S
+
+
+#: Relative det F below which `polar` takes the SVD: folded (det <= 0) or nearly flat
+#: matrices, whose rotation the Newton iteration would not give (or only slowly).
+_NEWTON_MIN_DET = 1e-6
+
+
+def _svd_rotation(F):
+    """The closest rotation (M, d, d) to each matrix of F (M, d, d), by the SVD."""
+    U, _, Vt = np.linalg.svd(F)
+    U[..., :, -1] *= np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)[..., None]
+    return U @ Vt
+
+
+def _newton_rotation(F, iterations=30, tol=1e-14):
+    """Rotation factors (M, 3, 3) of 3 x 3 matrices with det F > 0 by the scaled Newton
+    iteration X <- (g X + X^-T / g) / 2 (Higham; g the Frobenius-norm scaling for the
+    first steps), and whether each converged to ``tol``. Elementwise on arrays of the
+    matrices' entries: faster than a batched SVD, to ~1e-15 of it."""
+    X = np.ascontiguousarray(np.moveaxis(F, 0, -1))  # (3, 3, M)
+    change = np.zeros(F.shape[0])
+    for it in range(iterations if F.shape[0] else 0):
+        step = _inverse_transpose_3(X)
+        if it < 3:
+            g = np.sqrt(np.sqrt(np.einsum("ijm,ijm->m", step, step)
+                                / np.einsum("ijm,ijm->m", X, X)))
+            X *= g
+            step /= g
+        step += X
+        step *= 0.5
+        X -= step
+        change = np.abs(X).max(axis=(0, 1))
+        X = step
+        if change.max() < tol:
+            break
+    return np.moveaxis(X, -1, 0), change < tol
+
+
+def _inverse_transpose_3(X):
+    """X^-T (3, 3, M) of 3 x 3 matrices (3, 3, M): their cofactors over their determinants."""
+    cof = cofactors(X)
+    return cof / np.einsum("jm,jm->m", X[0], cof[0])
+
+
+def cofactors(X):
+    """Cofactor matrices C (3, 3, M) of 3 x 3 matrices X (3, 3, M), batch axis last:
+    X^-1 = C^T / det X, det X = sum_j X[0, j] C[0, j]. Nine products of entry arrays:
+    several times faster than the same from `numpy.cross`."""
+    cof = np.empty_like(X)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            cof[i, j] = X[i1, j1] * X[i2, j2] - X[i1, j2] * X[i2, j1]
+    return cof
 
 
 def rotation_log(R):

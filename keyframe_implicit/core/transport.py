@@ -31,6 +31,7 @@ from . import elements
 from .grid import Grid
 from .progress import Reporter
 from .sampling import sample
+from .trajectory import cofactors
 
 __all__ = ["Transport", "inverse_lookup"]
 
@@ -257,10 +258,9 @@ def _inverse_small(J, singular=1.0):
         det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
         adj = np.array([[J[1, 1], -J[0, 1]], [-J[1, 0], J[0, 0]]])
     else:
-        c0, c1, c2 = J[:, 0], J[:, 1], J[:, 2]  # columns; the adjugate's rows are their crosses
-        adj = np.stack([np.cross(c1, c2, axis=0), np.cross(c2, c0, axis=0),
-                        np.cross(c0, c1, axis=0)])
-        det = np.einsum("dm,dm->m", c0, adj[0])
+        cof = cofactors(J)
+        adj = cof.swapaxes(0, 1)
+        det = np.einsum("dm,dm->m", J[0], cof[0])
     ok = np.abs(det) > 1e-12
     out = adj / np.where(ok, det, 1.0)
     out[:, :, ~ok] = singular * np.eye(d)[:, :, None]

@@ -25,6 +25,28 @@ def test_polar_decomposition_and_rotation_log_roundtrip():
     np.testing.assert_allclose(rotation_log(rotation_exp(ang, 2)), ang, atol=1e-12)
 
 
+def test_polar_by_newton_is_the_closest_rotation_of_the_svd():
+    """`polar` takes the Newton iteration for 3 x 3 matrices with det F > 0 and the SVD for
+    folded or flat ones: both give the closest proper rotation (the SVD's, with the sign on
+    the smallest singular value), whichever way a matrix went."""
+    from keyframe_implicit.core.trajectory import _svd_rotation
+
+    rng = np.random.default_rng(3)
+    F = rng.normal(size=(400, 3, 3))
+    F[:100] = Rotation.from_rotvec(rng.normal(size=(100, 3))).as_matrix() \
+        @ (np.eye(3) + 0.3 * rng.normal(size=(100, 3, 3)))  # stretched rotations
+    F[100:110] = Rotation.from_rotvec([np.pi - 1e-4, 0, 0]).as_matrix()  # near a half turn
+    F[110:115] = np.diag([1.0, 1.0, 0.0])  # flat
+    F[115:120] = np.diag([-1.0, 2.0, 0.5])  # folded
+    R, S = polar(F)
+    np.testing.assert_allclose(R, _svd_rotation(F.copy()), atol=1e-12)
+    np.testing.assert_allclose(R @ S, F, atol=1e-12)
+    assert np.all(np.abs(np.linalg.det(R) - 1.0) < 1e-12)
+    assert np.all(np.linalg.eigvalsh(S[115:120])[:, 0] < 0)  # the fold stays in S
+    assert polar(np.eye(3))[0].shape == (3, 3) and polar(np.zeros((0, 3, 3)))[0].shape == (0, 3, 3)
+    np.testing.assert_allclose(polar(F[115:120])[0], R[115:120], atol=0)  # none by Newton
+
+
 @pytest.mark.parametrize("d", [2, 3])
 def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
     """L = D^T W D and B = D^T W E, with one row of D per edge of every cell (shared

@@ -22,6 +22,21 @@ def bent_cells(d, n=9, jitter=0.2, seed=3):
 
 
 @pytest.mark.parametrize("d", [2, 3])
+def test_small_inverses_and_the_singular_fallback(d):
+    """`_inverse_small` (3D by `trajectory.cofactors`) inverts each matrix of a batch, and
+    gives ``singular`` times the identity for a singular one."""
+    rng = np.random.default_rng(1)
+    J = rng.normal(size=(d, d, 50)) + 2.0 * np.eye(d)[:, :, None]
+    J[..., 0] = 0.0
+    J[0, :, 1] = J[1, :, 1]  # two equal rows
+    inv = transport._inverse_small(J, singular=0.5)
+    np.testing.assert_allclose(np.einsum("ijm,jkm->ikm", inv[..., 2:], J[..., 2:]),
+                               np.broadcast_to(np.eye(d)[:, :, None], (d, d, 48)), atol=1e-10)
+    np.testing.assert_array_equal(inv[..., :2], np.broadcast_to(0.5 * np.eye(d)[:, :, None],
+                                                                (d, d, 2)))
+
+
+@pytest.mark.parametrize("d", [2, 3])
 def test_affine_guess_stays_within_its_margin(d):
     grid, P, cells, _ = bent_cells(d)
     coef = transport._centred_coefficients(grid.to_index(P).transpose(1, 2, 0))
