@@ -37,6 +37,26 @@ def test_small_inverses_and_the_singular_fallback(d):
 
 
 @pytest.mark.parametrize("d", [2, 3])
+def test_bounding_boxes_hold_each_moved_cell(d):
+    """Each moved cell's node box: from its corners' lowest and highest coordinates
+    (`_corner_extremes`, pairwise over halves of the corners), rounded inwards and
+    clipped to the grid; empty boxes have extent 0."""
+    grid, P, cells, _ = bent_cells(d)
+    P = P.copy()
+    P[0] += 50.0  # one cell moved off the grid
+    low, high = transport._corner_extremes(P)
+    np.testing.assert_array_equal(low, P.min(axis=1))
+    np.testing.assert_array_equal(high, P.max(axis=1))
+    lo, ext = transport._bounding_boxes(grid, P, 1e-6)
+    u_low, u_high = grid.to_index(P.min(axis=1)).T, grid.to_index(P.max(axis=1)).T
+    top = np.asarray(grid.shape)[:, None] - 1
+    np.testing.assert_array_equal(lo, np.maximum(np.ceil(u_low - 1e-6), 0))
+    np.testing.assert_array_equal(ext, np.maximum(np.minimum(np.floor(u_high + 1e-6), top)
+                                                  - lo + 1, 0))
+    assert ext[:, 0].min() == 0 and ext.dtype == lo.dtype == np.int64
+
+
+@pytest.mark.parametrize("d", [2, 3])
 def test_affine_guess_stays_within_its_margin(d):
     grid, P, cells, _ = bent_cells(d)
     coef = transport._centred_coefficients(grid.to_index(P).transpose(1, 2, 0))
