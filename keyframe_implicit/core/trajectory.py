@@ -301,8 +301,8 @@ class Trajectories:
         Weight of margin cells (cells that do not touch the material), in (0, 1].
     tolerance : float
         Global method: CG stops when the residual of every coordinate is below
-        ``tolerance`` times its right-hand side's norm (the default moves positions
-        by about 1e-6 cells from the exact solve; benchmarks/README.md, "Scale").
+        ``tolerance`` times its right-hand side's norm (the default keeps positions
+        within about 1e-4 cells of the exact solve; benchmarks/README.md, "Trajectories").
     cancel : callable() -> bool, optional
         Polled during the setup and every CG iteration; `progress.Cancelled`
         is raised once it returns True.
@@ -316,7 +316,7 @@ class Trajectories:
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
-                 margin_cells=4.0, margin_weight=0.1, tolerance=1e-6, cancel=None):
+                 margin_cells=4.0, margin_weight=0.1, tolerance=1e-5, cancel=None):
         import time
 
         if not isinstance(grid, Grid):
