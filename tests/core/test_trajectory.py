@@ -29,7 +29,7 @@ def test_polar_by_newton_is_the_closest_rotation_of_the_svd():
     """`polar` takes the Newton iteration for 3 x 3 matrices with det F > 0 and the SVD for
     folded or flat ones: both give the closest proper rotation (the SVD's, with the sign on
     the smallest singular value), whichever way a matrix went."""
-    from keyframe_implicit.core.trajectory import _svd_rotation
+    from keyframe_implicit.core.trajectory import _newton_rotation, _svd_rotation
 
     rng = np.random.default_rng(3)
     F = rng.normal(size=(400, 3, 3))
@@ -38,6 +38,11 @@ def test_polar_by_newton_is_the_closest_rotation_of_the_svd():
     F[100:110] = Rotation.from_rotvec([np.pi - 1e-4, 0, 0]).as_matrix()  # near a half turn
     F[110:115] = np.diag([1.0, 1.0, 0.0])  # flat
     F[115:120] = np.diag([-1.0, 2.0, 0.5])  # folded
+    positive = np.linalg.det(F) > 1e-3
+    assert positive[100:110].all() and positive.sum() > 150
+    by_newton, converged = _newton_rotation(F[positive])  # the path taken, on its own
+    assert converged.all()
+    np.testing.assert_allclose(by_newton, _svd_rotation(F[positive].copy()), atol=1e-12)
     R, S = polar(F)
     np.testing.assert_allclose(R, _svd_rotation(F.copy()), atol=1e-12)
     np.testing.assert_allclose(R @ S, F, atol=1e-12)
@@ -55,9 +60,9 @@ def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
     from keyframe_implicit.core.trajectory import _edge_operators, _edge_pairs
 
     grid = Grid((0.0,) * d, 1.0, (5,) * d)
-    region = np.zeros(grid.shape, dtype=bool)
+    region = np.zeros(grid.shape, dtype=bool)  # two overlapping boxes: a ragged band
     region[(slice(1, 4),) * d] = True
-    region[(0,) * d] = True  # a lone corner: no cell of its own
+    region[(slice(3, 5), slice(0, 3)) + (slice(2, 4),) * (d - 2)] = True
     _, nodes, lc = elements.cells_within(grid, region.reshape(-1))
     weight = np.linspace(0.1, 1.0, len(lc))
     L, B = _edge_operators(lc, weight, nodes.size, d)

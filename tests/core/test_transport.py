@@ -41,9 +41,11 @@ def test_bounding_boxes_hold_each_moved_cell(d):
     """Each moved cell's node box: from its corners' lowest and highest coordinates
     (`_corner_extremes`, pairwise over halves of the corners), rounded inwards and
     clipped to the grid; empty boxes have extent 0."""
-    grid, P, cells, _ = bent_cells(d)
+    _, P, cells, _ = bent_cells(d)
+    grid = Grid(np.full(d, -0.3), 0.7, (13,) * d)  # the cells seen on another lattice
     P = P.copy()
-    P[0] += 50.0  # one cell moved off the grid
+    P[0] += 50.0  # moved off the grid, above and below
+    P[1] -= 50.0
     low, high = transport._corner_extremes(P)
     np.testing.assert_array_equal(low, P.min(axis=1))
     np.testing.assert_array_equal(high, P.max(axis=1))
@@ -53,7 +55,8 @@ def test_bounding_boxes_hold_each_moved_cell(d):
     np.testing.assert_array_equal(lo, np.maximum(np.ceil(u_low - 1e-6), 0))
     np.testing.assert_array_equal(ext, np.maximum(np.minimum(np.floor(u_high + 1e-6), top)
                                                   - lo + 1, 0))
-    assert ext[:, 0].min() == 0 and ext.dtype == lo.dtype == np.int64
+    assert ext[:, 0].min() == 0 and ext[:, 1].min() == 0 and ext[:, 2:].any()
+    assert ext.dtype == lo.dtype == np.int64
 
 
 @pytest.mark.parametrize("d", [2, 3])
