@@ -64,7 +64,7 @@ from .renamed import take_renamed
 
 __all__ = ["mesh_to_sdf", "orient_faces", "polygon_to_sdf", "triangulate", "winding_number"]
 
-_CHUNK = 1 << 16          # nodes per vectorised chunk (bounds temporary memory)
+_CHUNK = 1 << 14          # nodes per vectorised chunk (bounds temporary memory)
 _SAMPLE_RADIUS = 0.7      # triangle points lie within this many cells of a sample
 _WORKERS = -1             # cKDTree query threads (all cores)
 _K = 32                   # nearest samples fetched per shell node (more on demand)
