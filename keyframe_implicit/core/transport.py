@@ -33,7 +33,7 @@ from .progress import Reporter
 from .sampling import sample
 from .trajectory import cofactors
 
-__all__ = ["Transport", "inverse_lookup"]
+__all__ = ["Transport", "inverse_lookup", "multilinear_in_cells"]
 
 
 _CONVERGED = 1e-7  # cells: a source point this close reads the field to ~1e-7 h
@@ -78,9 +78,26 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     source : ndarray, shape (M, d)
         Its source point x in continuous node-index coordinates.
     """
+    target, cell, local = _lookup_in_cells(grid, corner_positions, cells, newton_steps=newton_steps,
+                                           tol=tol, max_candidates=max_candidates, check=check)
+    return target, _index_coordinates(grid, cells, cell, local)
+
+
+def _index_coordinates(grid, cells, cell, local):
+    """Source points (M, d) in continuous node-index coordinates from their cells (indices
+    into ``cells``) and local coordinates about the cell centres (d, M)."""
+    base = np.stack(np.unravel_index(cells[cell], grid.shape), axis=-1)
+    return base + 0.5 + local.T
+
+
+def _lookup_in_cells(grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
+                     max_candidates=65_536, check=None):
+    """`inverse_lookup`'s nodes found (M,), each with its cell (an index into ``cells``) and
+    its local coordinates about the cell's centre (d, M): what a multilinear read of node
+    values at the source points needs (`multilinear_in_cells`)."""
     d = grid.dim
     if len(cells) == 0:  # an empty region: nothing moves, nothing is found
-        return np.zeros(0, np.int64), np.zeros((0, d))
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((d, 0))
     corner_positions = np.asarray(corner_positions, dtype=float)
     lo, ext = _bounding_boxes(grid, corner_positions, tol)
     cnt = np.prod(ext, axis=0)
@@ -99,10 +116,38 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
                                    newton_steps)
         found.append((cell + c0, z))
         local.append(v)
-    cc_all, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
-    target = np.ravel_multi_index(tuple(zi), grid.shape)
-    base = np.stack(np.unravel_index(cells[cc_all], grid.shape), axis=-1)
-    return target, base + 0.5 + np.concatenate(local, axis=1).T
+    cell, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
+    return np.ravel_multi_index(tuple(zi), grid.shape), cell, np.concatenate(local, axis=1)
+
+
+def multilinear_in_cells(values, corner_index, cell, local):
+    """Multilinear interpolation of node values at points given by their cells.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N, m)
+        Values at N nodes.
+    corner_index : ndarray of int, shape (C, 2^d)
+        Each cell's corners as rows of ``values`` (`elements.corners` order).
+    cell : ndarray of int, shape (M,)
+        The cell of each point.
+    local : ndarray, shape (d, M)
+        Each point's coordinates about its cell's centre (the cell is |v_a| <= 1/2).
+
+    Returns
+    -------
+    ndarray, shape (M, m): what `sampling.sample` reads at those points, without finding
+    their cells again.
+    """
+    d = local.shape[0]
+    ends = (0.5 - local, 0.5 + local)  # each axis's weight of the corner with bit 0, bit 1
+    out = np.zeros((cell.size, values.shape[1]))
+    for c, bits in enumerate(elements.corners(d)):  # loop over the 2^d corners
+        w = ends[bits[0]][0].copy()
+        for a in range(1, d):
+            w *= ends[bits[a]][a]
+        out += w[:, None] * values[corner_index[cell, c]]
+    return out
 
 
 def _bounding_boxes(grid, corner_positions, tol):
@@ -324,6 +369,7 @@ class Transport:
             grid, trajectories.region_nodes())
         self.border_value = float(self.field.reshape(-1)[border].min()) if border.size else np.inf
         self.truncation = self.border_value if truncation is None else float(truncation)
+        self._corner_mapped = None  # the map at the corner nodes (`_mapped_at`)
 
     def read(self, field, u, coef=None):
         """A field's value at continuous node-index coordinates u (M, d).
@@ -343,9 +389,14 @@ class Transport:
 
     def sources(self, t):
         """Inverse lookup at time t: (target node, source point in index coordinates) pairs."""
+        target, cell, local = self._sources_in_cells(t)
+        return target, _index_coordinates(self.grid, self._cells, cell, local)
+
+    def _sources_in_cells(self, t):
+        """`sources` as (target node, source cell, local coordinates (d, M)) (`_lookup_in_cells`)."""
         pos = self.trajectories.node_positions(t, self._corner_nodes)
-        return inverse_lookup(self.grid, pos[self._cnodes_local], self._cells,
-                              newton_steps=self.newton_steps, check=self._check)
+        return _lookup_in_cells(self.grid, pos[self._cnodes_local], self._cells,
+                                newton_steps=self.newton_steps, check=self._check)
 
     def value_at(self, points):
         """The keyframe's own field at world points (P, d)."""
@@ -367,19 +418,31 @@ class Transport:
         both. Values are truncated at ``truncation``; overlaps keep the
         smallest.
         """
-        target, source = self.sources(t)
+        target, cell, local = self._sources_in_cells(t)
+        source = _index_coordinates(self.grid, self._cells, cell, local)
         if values is not None:
             vals = values(source)
         else:
             vals = self.read(self.field, source, self._coef)
             if other is not None and t > 0:
-                y = self.trajectories(self.grid.to_world(source), 1.0)
+                y = self._mapped_at(cell, local)
                 vals = (1.0 - t) * vals + t * np.maximum(vals, other.value_at(y))
         out = np.full(self.grid.size, np.inf)
         np.minimum.at(out, target, np.minimum(vals, self.truncation))
         out[np.isinf(out)] = np.nan
         return out
 
+
+    def _mapped_at(self, cell, local):
+        """The map y(x) at source points given by their region cells and local coordinates:
+        multilinear in the cell, as the trajectories read it (`Trajectories.__call__` at
+        t = 1), from the map's values at the region's corner nodes, kept once made. The
+        lookup has found each point's cell, so it is not searched for again; a point up to
+        `_ON_FACE` outside its cell reads that cell's polynomial, not the next cell's."""
+        if self._corner_mapped is None:
+            d = self.grid.dim
+            self._corner_mapped = self.trajectories.mapped.reshape(-1, d)[self._corner_nodes]
+        return multilinear_in_cells(self._corner_mapped, self._cnodes_local, cell, local)
 
     def surface_motion(self, t, near, dt=1e-3):
         """The nodes within ``near`` (world units) of the keyframe's surface at time t:

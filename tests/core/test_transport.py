@@ -123,3 +123,27 @@ def test_corner_extremes_are_every_cells_lowest_and_highest_corner(d):
     low, high = transport._corner_extremes(P)
     np.testing.assert_array_equal(low, P.min(axis=1))
     np.testing.assert_array_equal(high, P.max(axis=1))
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_values_read_in_the_cells_the_lookup_found_are_a_multilinear_sample(d):
+    # the lookup's cells and local coordinates give the sources it returns, and node values
+    # read there (the map, in `Transport.carry`) are what `sample` reads at those sources
+    grid, P, cells, moved = bent_cells(d)
+    target, source = transport.inverse_lookup(grid, P, cells)
+    t2, cell, local = transport._lookup_in_cells(grid, P, cells)
+    np.testing.assert_array_equal(t2, target)
+    np.testing.assert_array_equal(transport._index_coordinates(grid, cells, cell, local), source)
+    corner_index = cells[:, None] + elements.corners(d) @ grid.strides
+    read = transport.multilinear_in_cells(moved, corner_index, cell, local)
+    at = grid.to_world(source)
+    expected = np.stack([sample(moved[:, a].reshape(grid.shape), grid, at) for a in range(d)], -1)
+    inside = np.all(np.abs(local) <= 0.5, axis=0)  # on a face, sample reads the next cell
+    assert inside.mean() > 0.9
+    np.testing.assert_allclose(read[inside], expected[inside], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(read, expected, rtol=0, atol=1e-3)
+    # and the corners themselves: a point at a corner reads that corner's value
+    for c, bits in enumerate(elements.corners(d)):
+        at_corner = np.repeat((bits - 0.5)[:, None], 4, axis=1)
+        got = transport.multilinear_in_cells(moved, corner_index, np.arange(4), at_corner)
+        np.testing.assert_allclose(got, moved[corner_index[:4, c]], atol=1e-12)
