@@ -432,7 +432,6 @@ class Transport:
         out[np.isinf(out)] = np.nan
         return out
 
-
     def _mapped_at(self, cell, local):
         """The map y(x) at source points given by their region cells and local coordinates:
         multilinear in the cell, as the trajectories read it (`Trajectories.__call__` at
