@@ -17,7 +17,8 @@ import numpy as np
 from .elements import corners
 from .grid import Grid
 
-__all__ = ["cell_weights", "central_differences", "sample", "sample_with_gradient"]
+__all__ = ["cell_weights", "central_differences", "multilinear_in_cells", "sample",
+           "sample_with_gradient"]
 
 
 def cell_weights(grid: Grid, points):
@@ -50,6 +51,32 @@ def _corner_products(lo, hi):
     out = pairs[:, 0]
     for a in range(1, lo.shape[1]):
         out = (out[:, :, None] * pairs[:, a, None, :]).reshape(lo.shape[0], -1)
+    return out
+
+
+def multilinear_in_cells(values, corner_index, cell, local):
+    """Multilinear interpolation of node values at points given by their cells.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N, m)
+        Values at N nodes.
+    corner_index : ndarray of int, shape (C, 2^d)
+        Each cell's corners as rows of ``values`` (`elements.corners` order).
+    cell : ndarray of int, shape (M,)
+        The cell of each point.
+    local : ndarray, shape (d, M)
+        Each point's coordinates about its cell's centre (the cell is |v_a| <= 1/2).
+
+    Returns
+    -------
+    ndarray, shape (M, m): what `sample` reads at those points, without finding
+    their cells again.
+    """
+    w = _corner_products((0.5 - local).T, (0.5 + local).T)
+    out = np.zeros((cell.size, values.shape[1]))
+    for c in range(w.shape[1]):  # loop over the 2^d corners
+        out += w[:, c, None] * values[corner_index[cell, c]]
     return out
 
 

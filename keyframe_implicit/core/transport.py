@@ -30,10 +30,10 @@ from scipy import ndimage
 from . import elements
 from .grid import Grid
 from .progress import Reporter
-from .sampling import sample
+from .sampling import multilinear_in_cells, sample
 from .trajectory import cofactors
 
-__all__ = ["Transport", "inverse_lookup", "multilinear_in_cells"]
+__all__ = ["Transport", "inverse_lookup"]
 
 
 _CONVERGED = 1e-7  # cells: a source point this close reads the field to ~1e-7 h
@@ -118,36 +118,6 @@ def _lookup_in_cells(grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
         local.append(v)
     cell, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
     return np.ravel_multi_index(tuple(zi), grid.shape), cell, np.concatenate(local, axis=1)
-
-
-def multilinear_in_cells(values, corner_index, cell, local):
-    """Multilinear interpolation of node values at points given by their cells.
-
-    Parameters
-    ----------
-    values : ndarray, shape (N, m)
-        Values at N nodes.
-    corner_index : ndarray of int, shape (C, 2^d)
-        Each cell's corners as rows of ``values`` (`elements.corners` order).
-    cell : ndarray of int, shape (M,)
-        The cell of each point.
-    local : ndarray, shape (d, M)
-        Each point's coordinates about its cell's centre (the cell is |v_a| <= 1/2).
-
-    Returns
-    -------
-    ndarray, shape (M, m): what `sampling.sample` reads at those points, without finding
-    their cells again.
-    """
-    d = local.shape[0]
-    ends = (0.5 - local, 0.5 + local)  # each axis's weight of the corner with bit 0, bit 1
-    out = np.zeros((cell.size, values.shape[1]))
-    for c, bits in enumerate(elements.corners(d)):  # loop over the 2^d corners
-        w = ends[bits[0]][0].copy()
-        for a in range(1, d):
-            w *= ends[bits[a]][a]
-        out += w[:, None] * values[corner_index[cell, c]]
-    return out
 
 
 def _bounding_boxes(grid, corner_positions, tol):

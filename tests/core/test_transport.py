@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import elements, transport
+from keyframe_implicit.core import elements, sampling, transport
 from keyframe_implicit.core.grid import Grid
 from keyframe_implicit.core.sampling import sample
 
@@ -135,7 +135,7 @@ def test_values_read_in_the_cells_the_lookup_found_are_a_multilinear_sample(d):
     np.testing.assert_array_equal(t2, target)
     np.testing.assert_array_equal(transport._index_coordinates(grid, cells, cell, local), source)
     corner_index = cells[:, None] + elements.corners(d) @ grid.strides
-    read = transport.multilinear_in_cells(moved, corner_index, cell, local)
+    read = sampling.multilinear_in_cells(moved, corner_index, cell, local)
     at = grid.to_world(source)
     expected = np.stack([sample(moved[:, a].reshape(grid.shape), grid, at) for a in range(d)], -1)
     inside = np.all(np.abs(local) <= 0.5, axis=0)  # on a face, sample reads the next cell
@@ -145,5 +145,5 @@ def test_values_read_in_the_cells_the_lookup_found_are_a_multilinear_sample(d):
     # and the corners themselves: a point at a corner reads that corner's value
     for c, bits in enumerate(elements.corners(d)):
         at_corner = np.repeat((bits - 0.5)[:, None], 4, axis=1)
-        got = transport.multilinear_in_cells(moved, corner_index, np.arange(4), at_corner)
+        got = sampling.multilinear_in_cells(moved, corner_index, np.arange(4), at_corner)
         np.testing.assert_allclose(got, moved[corner_index[:4, c]], atol=1e-12)
