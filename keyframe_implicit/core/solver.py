@@ -273,44 +273,34 @@ class _Level:
         return self.term_weight.get(name, self.cell_weight)
 
     # -- energy ----------------------------------------------------------------
-    def evaluate(self, y, weights, chunk, hessian=True, check=None):
+    def evaluate(self, y, weights, chunk, hessian=True, check=None, pool=None):
         """Total energy, per-term energies, node gradient (n, d), stencil Hessian.
 
         ``check`` (optional) is called before every chunk of elements (cancellation).
+        With a ``pool`` (one thread) the element terms run in two halves at once
+        (`_element_halves`), as the Hessian product does (`product`).
         """
-        d, K = self.d, self.elem.shape[1]
-        energies = {}
+        d = self.d
         grad = np.zeros((self.n, d))
         Hs = np.zeros((self.n, len(self.offsets), d, d), _HESSIAN_DTYPE) if hessian else None
-        el_terms = [t for t in TERMS if t.kind == "element"]
-        for t in TERMS:
-            energies[t.name] = 0.0
-        for s in range(0, len(self.elem), chunk):
-            if check is not None:
-                check()
-            el = self.elem[s:s + chunk]
-            Y = y[el]
-            g_sum, h_sum = None, None
-            for t in el_terms:
-                w = weights[t.name]
-                if w == 0:
-                    continue
-                # the user weight rides on the cell weights: the term returns weighted values
-                batch = ElementBatch(Y, w * self.cell_weights_of(t.name)[s:s + chunk], self.gauss, self.centre)
-                tv = t.function(batch, hessian=hessian)
-                energies[t.name] += tv.energy
-                if g_sum is None:
-                    g_sum, h_sum = tv.grad, tv.hess
-                else:
-                    g_sum += tv.grad
-                    if hessian:
-                        h_sum += tv.hess
-            if g_sum is None:
-                continue
-            for c in range(K):
-                grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
-            if hessian:
-                self._add_blocks(Hs, el, h_sum)
+        energies = dict.fromkeys((t.name for t in TERMS), 0.0)
+
+        def run(lo, hi):
+            return self._element_terms(lo, hi, y, weights, chunk, grad, Hs, check)
+        parts = self._element_halves(chunk) if pool is not None else None
+        if parts is None:
+            found = [run(0, len(self.elem))]
+        else:  # two halves that touch no common node at once, then the elements between
+            (a, b), (c, e), (m, m2) = parts
+            job = pool.submit(run, c, e)
+            try:
+                found = [run(a, b)]
+            finally:
+                found.append(job.result())
+            found.append(run(m, m2))
+        for part in found:
+            for name, value in part.items():
+                energies[name] += value
         for t in TERMS:
             if t.kind != "node" or weights[t.name] == 0:
                 continue
@@ -322,6 +312,59 @@ class _Level:
             if hessian:
                 Hs[:, self.centre_off] += w * tv.hess
         return sum(energies.values()), energies, grad, Hs
+
+    def _element_terms(self, lo, hi, y, weights, chunk, grad, Hs, check=None):
+        """Add the element terms of elements ``lo`` to ``hi`` into ``grad`` and ``Hs`` (None:
+        no Hessian), ``chunk`` elements at a time; their energies, by term name."""
+        K = self.elem.shape[1]
+        energies = {}
+        for s in range(lo, hi, chunk):
+            if check is not None:
+                check()
+            e = min(s + chunk, hi)
+            el = self.elem[s:e]
+            Y = y[el]
+            g_sum, h_sum = None, None
+            for t in TERMS:
+                w = weights[t.name]
+                if t.kind != "element" or w == 0:
+                    continue
+                # the user weight rides on the cell weights: the term returns weighted values
+                batch = ElementBatch(Y, w * self.cell_weights_of(t.name)[s:e], self.gauss, self.centre)
+                tv = t.function(batch, hessian=Hs is not None)
+                energies[t.name] = energies.get(t.name, 0.0) + tv.energy
+                if g_sum is None:
+                    g_sum, h_sum = tv.grad, tv.hess
+                else:
+                    g_sum += tv.grad
+                    if Hs is not None:
+                        h_sum += tv.hess
+            if g_sum is None:
+                continue
+            for c in range(K):
+                grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
+            if Hs is not None:
+                self._add_blocks(Hs, el, h_sum)
+        return energies
+
+    def _element_halves(self, chunk):
+        """((lo, hi) of the first half, (lo, hi) of the second, (lo, hi) of the elements
+        between) or None when the level is too small to split (`_SPLIT_PRODUCT_FROM`).
+
+        Elements are in the order of their first corner, and so of their last; an
+        element writes gradient and Hessian rows of its corners only. The second half
+        starts after every element sharing a corner with the first half: the two halves
+        write disjoint rows and run in two threads without locks, and the elements between
+        (about one slab of cells) run after them.
+        """
+        E = len(self.elem)
+        if self.n < _SPLIT_PRODUCT_FROM or E < 4 * chunk:
+            return None
+        m = E // 2
+        m2 = int(np.searchsorted(self.elem[:, 0], self.elem[m - 1, -1], side="right"))
+        if m2 >= E:
+            return None
+        return (0, m), (m2, E), (m, m2)
 
     def _add_blocks(self, Hs, el, hess):
         """Add the element Hessian blocks ``hess`` (E, K, K, d, d) of elements ``el`` into ``Hs``.
@@ -422,7 +465,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     cons = level.cons
     chunk = int(opts["chunk_elements"])
     t0 = time.perf_counter()
-    E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check)
+    E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check, pool=pool)
     timing["assembly"] += time.perf_counter() - t0
     dets = level.det_stats(y, chunk)
     floor = _det_floor(dets, opts["min_det"])
@@ -461,7 +504,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             break
         t0 = time.perf_counter()
         step = _line_search(level, y, dy, E, slope, floor, weights, chunk, opts["min_det"],
-                            rep.check)
+                            rep.check, pool)
         timing["line search"] += time.perf_counter() - t0
         if step is None:
             break
@@ -480,7 +523,8 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
             continue
         t0 = time.perf_counter()
         H = Hs = precond = None  # the old Hessian goes before the new one is assembled
-        E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check)
+        E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check,
+                                         pool=pool)
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, terms
@@ -517,7 +561,7 @@ def _with_correction(precond, correction, n_free, d):
     return apply
 
 
-def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check):
+def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, pool=None):
     """Backtracking from the full step: the first of 1, 1/2, 1/4, ... (down to 1e-4) that
     keeps det F of the material at or above ``floor`` (`_det_floor`) and lowers the
     energy by the Armijo fraction 1e-4 of ``slope``. The det F test is tried first: it
@@ -532,7 +576,7 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check):
         dets_new = level.det_stats(y_new, chunk)
         if _det_floor(dets_new, min_det) >= floor:
             E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
-                                                        check=check)
+                                                        check=check, pool=pool)
             if E_new <= E + 1e-4 * alpha * slope:
                 return alpha, y_new, E_new, terms_new, g_new, dets_new
         alpha *= 0.5

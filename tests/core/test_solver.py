@@ -383,6 +383,37 @@ def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
     assert np.array_equal(L.bsr(Hs, 0, 5).toarray(), L.bsr(Hs).toarray()[:15])
 
 
+def test_energy_in_two_element_halves_is_the_whole_energy(monkeypatch):
+    """`_Level.evaluate` with a thread for half of the elements: the halves write no common
+    row (so they need no lock), the three ranges cover every element once, and energy,
+    gradient and Hessian are those of one thread (up to the order of the sums)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from keyframe_implicit.core import solver
+
+    g = _unit_grid(12, 3)
+    P = g.points()
+    fa = np.array([[0.5, 0.5, 0.5], [0.75, 0.5, 0.5]])
+    L = solver._Level(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
+                      np.linalg.norm(P - 0.52, axis=-1) - 0.3, g, fa, fa + 0.02, 3, 0.1, 0.1,
+                      patch_rigidity=10.0)
+    y = L.x + 0.02 * np.sin(7 * L.x)
+    w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
+    monkeypatch.setattr(solver, "_SPLIT_PRODUCT_FROM", 0)
+    (a, b), (c, e), (m, m2) = L._element_halves(37)
+    assert (a, b, m2, e) == (0, m, c, len(L.elem)) and a < b < m2 < e
+    assert not np.intersect1d(L.elem[a:b], L.elem[c:e]).size
+    one = L.evaluate(y, w, 37, True)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        two = L.evaluate(y, w, 37, True, pool=pool)
+        no_hessian = L.evaluate(y, w, 37, False, pool=pool)
+    assert np.isclose(two[0], one[0], rtol=1e-12, atol=0)
+    assert all(np.isclose(two[1][k], one[1][k], rtol=1e-12, atol=0) for k in one[1])
+    assert np.allclose(two[2], one[2], rtol=0, atol=1e-12 * np.abs(one[2]).max())
+    assert np.allclose(two[3], one[3], rtol=0, atol=1e-6 * np.abs(one[3]).max())
+    assert no_hessian[3] is None and np.array_equal(no_hessian[2], two[2])
+
+
 def _bent_rod_half_lengths(**opts):
     """Rod bent 90 degrees at its middle (2D, n = 40), six features: relative length change of the
     rigid parts x in [-0.6, -0.2] and [0.2, 0.6] under the solved map."""
