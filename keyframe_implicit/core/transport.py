@@ -78,8 +78,9 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     source : ndarray, shape (M, d)
         Its source point x in continuous node-index coordinates.
     """
-    target, cell, local = _lookup_in_cells(grid, corner_positions, cells, newton_steps=newton_steps,
-                                           tol=tol, max_candidates=max_candidates, check=check)
+    target, cell, local = _lookup_in_cells(grid, _index_corners(grid, corner_positions), cells,
+                                           newton_steps=newton_steps, tol=tol,
+                                           max_candidates=max_candidates, check=check)
     return target, _index_coordinates(grid, cells, cell, local)
 
 
@@ -90,16 +91,16 @@ def _index_coordinates(grid, cells, cell, local):
     return base + 0.5 + local.T
 
 
-def _lookup_in_cells(grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
-                     max_candidates=65_536, check=None):
+def _lookup_in_cells(grid, corners, cells, *, newton_steps=6, tol=1e-6, max_candidates=65_536,
+                     check=None):
     """`inverse_lookup`'s nodes found (M,), each with its cell (an index into ``cells``) and
     its local coordinates about the cell's centre (d, M): what a multilinear read of node
-    values at the source points needs (`multilinear_in_cells`)."""
+    values at the source points needs (`multilinear_in_cells`). ``corners``: the moved
+    cells' corners in index units, corner-major (2^d, d, C) (`_index_corners`)."""
     d = grid.dim
     if len(cells) == 0:  # an empty region: nothing moves, nothing is found
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((d, 0))
-    corner_positions = np.asarray(corner_positions, dtype=float)
-    lo, ext = _bounding_boxes(grid, corner_positions, tol)
+    lo, ext = _bounding_boxes(grid, corners, tol)
     cnt = np.prod(ext, axis=0)
     # cells in chunks of at most ``max_candidates`` bounding-box nodes: every per-cell and
     # per-candidate array lives for one chunk only (bounded memory, even where a bad map
@@ -111,7 +112,7 @@ def _lookup_in_cells(grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
     for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over the chunks
         if check is not None:
             check()
-        coef, Jinv, margin = _cell_maps(grid, corner_positions[c0:c1], tol)
+        coef, Jinv, margin = _cell_maps(corners[..., c0:c1], tol)
         cell, z, v = _lookup_chunk(cnt[c0:c1], ext[:, c0:c1], lo[:, c0:c1], coef, Jinv, margin,
                                    newton_steps)
         found.append((cell + c0, z))
@@ -120,43 +121,47 @@ def _lookup_in_cells(grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
     return np.ravel_multi_index(tuple(zi), grid.shape), cell, np.concatenate(local, axis=1)
 
 
-def _bounding_boxes(grid, corner_positions, tol):
-    """The grid nodes' index box of every moved cell (corners (C, 2^d, d), world units):
+def _index_corners(grid, corner_positions):
+    """Moved corners (C, 2^d, d) in world units as the lookup takes them: in index units,
+    corner-major (2^d, d, C), contiguous."""
+    u = grid.to_index(np.asarray(corner_positions, dtype=float))
+    return np.ascontiguousarray(u.transpose(1, 2, 0))
+
+
+def _gather_corners(grid, node_positions, corner_of_cell):
+    """`_index_corners` of cells whose corners are nodes: ``node_positions`` (N, d) in world
+    units, ``corner_of_cell`` (C, 2^d) rows into it. The nodes go to index units once, then
+    each coordinate is gathered into its own rows: five times faster than gathering the
+    cells' corners (C, 2^d, d) and laying them out again."""
+    u = np.ascontiguousarray(grid.to_index(node_positions).T)  # (d, N)
+    index = corner_of_cell.T
+    out = np.empty((index.shape[0], u.shape[0], index.shape[1]))
+    for a in range(u.shape[0]):
+        np.take(u[a], index, out=out[:, a])
+    return out
+
+
+def _bounding_boxes(grid, corners, tol):
+    """The grid nodes' index box of every moved cell (corners (2^d, d, C), index units):
     its lowest node (d, C) and its extent in nodes (d, C), 0 where it holds none."""
-    low, high = _corner_extremes(corner_positions)  # (C, d), this call's own arrays
-    for x, rounding, slack in ((low, np.ceil, -tol), (high, np.floor, tol)):
-        x -= grid.origin
-        x *= 1.0 / grid.spacing
-        x += slack
-        rounding(x, out=x)
+    low, high = corners.min(axis=0), corners.max(axis=0)  # (d, C), this call's own arrays
+    low -= tol
+    np.ceil(low, out=low)
+    high += tol
+    np.floor(high, out=high)
     np.maximum(low, 0, out=low)
-    np.minimum(high, np.asarray(grid.shape) - 1, out=high)
+    np.minimum(high, np.asarray(grid.shape)[:, None] - 1, out=high)
     high -= low
     high += 1
     np.maximum(high, 0, out=high)
-    return (np.ascontiguousarray(x.T, dtype=np.int64) for x in (low, high))
+    return low.astype(np.int64), high.astype(np.int64)
 
 
-def _corner_extremes(corner_positions):
-    """Lowest and highest corner coordinates (C, d) of every cell (corners (C, 2^d, d)):
-    pairwise over halves of the corners (2^d -> 2^(d-1) -> ... -> 1), each pass on
-    contiguous blocks; a reduction over the middle axis takes four times as long."""
-    low = high = corner_positions
-    while low.shape[1] > 1:
-        half = low.shape[1] // 2
-        low = np.minimum(low[:, :half], low[:, half:])
-        high = np.maximum(high[:, :half], high[:, half:])
-    return low[:, 0], high[:, 0]
-
-
-def _cell_maps(grid, corner_positions, tol):
-    """The moved cells' multilinear maps in index units, batch axis last: centred
-    coefficients (2^d, d, C), inverse Jacobians at the centres (d, d, C) and how far
-    outside the unit cell an affine guess may fall (d, C; `_affine_margin`)."""
-    # component-major layout: a contiguous copy (a transposed view would stride every
-    # operation after it)
-    coef = _centred_coefficients(np.ascontiguousarray(
-        grid.to_index(corner_positions).transpose(1, 2, 0)))
+def _cell_maps(corners, tol):
+    """The moved cells' multilinear maps (corners (2^d, d, C), index units), batch axis
+    last: centred coefficients (2^d, d, C), inverse Jacobians at the centres (d, d, C) and
+    how far outside the unit cell an affine guess may fall (d, C; `_affine_margin`)."""
+    coef = _centred_coefficients(corners)
     Jinv = _inverse_small(_centre_jacobian(coef))
     return coef, Jinv, np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
 
@@ -209,18 +214,20 @@ def _centred_coefficients(P):
 
     A cell's map is T(0.5 + v) = sum_S c_S prod_{a in S} v_a over the subsets S
     of the axes (S <-> the corner with bits S, `elements.corners` order): c_{} is
-    the centre's image, c_{a} the Jacobian's column a there. From the corners
-    ``P`` (2^d, d, C), one pass per axis: along axis a, values p0, p1 at its two
-    ends give (p0 + p1) / 2 + v_a (p1 - p0).
+    the centre's image, c_{a} the Jacobian's column a there. Along axis a, values
+    p0, p1 at its two ends give (p0 + p1) / 2 + v_a (p1 - p0); over all axes that is
+    the corners ``P`` (2^d, d, C) times the Kronecker product of d copies of
+    [[1/2, 1/2], [-1, 1]], one matrix product over the corner axis.
     """
-    d = P.shape[1]
-    c = P.reshape((2,) * d + P.shape[1:]).copy()
-    for a in range(d):
-        at = (slice(None),) * a
-        p0, p1 = c[at + (0,)].copy(), c[at + (1,)]
-        c[at + (0,)] = 0.5 * (p0 + p1)
-        c[at + (1,)] = p1 - p0
-    return c.reshape(P.shape)
+    return np.tensordot(_centring_matrix(P.shape[1]), P, axes=(1, 0))
+
+
+def _centring_matrix(d):
+    """The (2^d, 2^d) matrix of `_centred_coefficients`."""
+    m = np.ones((1, 1))
+    for _ in range(d):
+        m = np.kron(m, [[0.5, 0.5], [-1.0, 1.0]])
+    return m
 
 
 def _centre_jacobian(coef):
@@ -365,8 +372,8 @@ class Transport:
     def _sources_in_cells(self, t):
         """`sources` as (target node, source cell, local coordinates (d, M)) (`_lookup_in_cells`)."""
         pos = self.trajectories.node_positions(t, self._corner_nodes)
-        return _lookup_in_cells(self.grid, pos[self._cnodes_local], self._cells,
-                                newton_steps=self.newton_steps, check=self._check)
+        return _lookup_in_cells(self.grid, _gather_corners(self.grid, pos, self._cnodes_local),
+                                self._cells, newton_steps=self.newton_steps, check=self._check)
 
     def value_at(self, points):
         """The keyframe's own field at world points (P, d)."""

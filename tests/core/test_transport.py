@@ -38,18 +38,14 @@ def test_small_inverses_and_the_singular_fallback(d):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_bounding_boxes_hold_each_moved_cell(d):
-    """Each moved cell's node box: from its corners' lowest and highest coordinates
-    (`_corner_extremes`, pairwise over halves of the corners), rounded inwards and
-    clipped to the grid; empty boxes have extent 0."""
+    """Each moved cell's node box: from its corners' lowest and highest coordinates,
+    rounded inwards and clipped to the grid; empty boxes have extent 0."""
     _, P, cells, _ = bent_cells(d)
     grid = Grid(np.full(d, -0.3), 0.7, (13,) * d)  # the cells seen on another lattice
     P = P.copy()
     P[0] += 50.0  # moved off the grid, above and below
     P[1] -= 50.0
-    low, high = transport._corner_extremes(P)
-    np.testing.assert_array_equal(low, P.min(axis=1))
-    np.testing.assert_array_equal(high, P.max(axis=1))
-    lo, ext = transport._bounding_boxes(grid, P, 1e-6)
+    lo, ext = transport._bounding_boxes(grid, transport._index_corners(grid, P), 1e-6)
     u_low, u_high = grid.to_index(P.min(axis=1)).T, grid.to_index(P.max(axis=1)).T
     top = np.asarray(grid.shape)[:, None] - 1
     np.testing.assert_array_equal(lo, np.maximum(np.ceil(u_low - 1e-6), 0))
@@ -57,6 +53,21 @@ def test_bounding_boxes_hold_each_moved_cell(d):
                                                   - lo + 1, 0))
     assert ext[:, 0].min() == 0 and ext[:, 1].min() == 0 and ext[:, 2:].any()
     assert ext.dtype == lo.dtype == np.int64
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_corners_gathered_from_nodes_are_the_cells_corners_in_index_units(d):
+    """`_gather_corners` (the nodes' coordinates gathered one axis at a time) gives what
+    `_index_corners` makes of the cells' corners: corner-major (2^d, d, C), index units."""
+    _, _, cells, moved = bent_cells(d)
+    grid = Grid(np.full(d, -0.3), 0.7, (13,) * d)
+    corner_of_cell = cells[:, None] + elements.corners(d) @ Grid(np.zeros(d), 1.0, (9,) * d).strides
+    got = transport._gather_corners(grid, moved, corner_of_cell)
+    expected = transport._index_corners(grid, moved[corner_of_cell])
+    assert got.shape == (2 ** d, d, cells.size) and expected.flags.c_contiguous
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_allclose(got[:, :, 5].T, (moved[corner_of_cell[5]] + 0.3).T / 0.7,
+                               rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -118,20 +129,12 @@ def test_inverse_lookup_of_no_cells_finds_nothing():
 
 
 @pytest.mark.parametrize("d", [2, 3])
-def test_corner_extremes_are_every_cells_lowest_and_highest_corner(d):
-    _, P, _, _ = bent_cells(d)
-    low, high = transport._corner_extremes(P)
-    np.testing.assert_array_equal(low, P.min(axis=1))
-    np.testing.assert_array_equal(high, P.max(axis=1))
-
-
-@pytest.mark.parametrize("d", [2, 3])
 def test_values_read_in_the_cells_the_lookup_found_are_a_multilinear_sample(d):
     # the lookup's cells and local coordinates give the sources it returns, and node values
     # read there (the map, in `Transport.carry`) are what `sample` reads at those sources
     grid, P, cells, moved = bent_cells(d)
     target, source = transport.inverse_lookup(grid, P, cells)
-    t2, cell, local = transport._lookup_in_cells(grid, P, cells)
+    t2, cell, local = transport._lookup_in_cells(grid, transport._index_corners(grid, P), cells)
     np.testing.assert_array_equal(t2, target)
     np.testing.assert_array_equal(transport._index_coordinates(grid, cells, cell, local), source)
     corner_index = cells[:, None] + elements.corners(d) @ grid.strides
