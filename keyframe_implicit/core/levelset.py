@@ -439,7 +439,10 @@ class Inbetween:
         if p.shape[0] == 0 or pos.shape[0] == 0:
             return np.zeros_like(p)
         k = min(int(neighbours), pos.shape[0])
-        dist, idx = cKDTree(pos).query(p, k=k, workers=-1)
+        # built once per frame and queried once: the unbalanced, uncompacted tree builds in
+        # under half the time and answers the same neighbours
+        tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)
+        dist, idx = tree.query(p, k=k, workers=-1)
         dist, idx = dist.reshape(len(p), k), idx.reshape(len(p), k)
         w = weight[idx] / (dist ** 2 + (0.5 * h) ** 2)
         return _affine_fit_at(p, pos[idx], vel[idx], w, h)
