@@ -93,8 +93,9 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 #: and energy, gradient and line search stay in double precision (benchmarks/README.md).
 _HESSIAN_DTYPE = np.float32
 
-#: Levels of fewer active nodes multiply their Hessian in one thread (`_Level.product`).
-_SPLIT_PRODUCT_FROM = 4096
+#: Levels of fewer active nodes assemble and multiply their Hessian in one thread
+#: (`_Level._element_halves`, `_Level.product`).
+_SPLIT_FROM = 4096
 
 #: Default options of `solve_map` (besides the term weights).
 DEFAULTS = dict(
@@ -349,7 +350,7 @@ class _Level:
 
     def _element_halves(self, chunk):
         """((lo, hi) of the first half, (lo, hi) of the second, (lo, hi) of the elements
-        between) or None when the level is too small to split (`_SPLIT_PRODUCT_FROM`).
+        between) or None when the level is too small to split (`_SPLIT_FROM`).
 
         Elements are in the order of their first corner, and so of their last; an
         element writes gradient and Hessian rows of its corners only. The second half
@@ -358,7 +359,7 @@ class _Level:
         (about one slab of cells) run after them.
         """
         E = len(self.elem)
-        if self.n < _SPLIT_PRODUCT_FROM or E < 4 * chunk:
+        if self.n < _SPLIT_FROM or E < 4 * chunk:
             return None
         m = E // 2
         m2 = int(np.searchsorted(self.elem[:, 0], self.elem[m - 1, -1], side="right"))
@@ -412,7 +413,7 @@ class _Level:
         half of the rows is multiplied there: scipy's BSR product releases the GIL, so when
         the bake's other process is idle (its map solved first) a product takes about 0.6
         of the time, and when both are busy about the same (benchmarks/README.md)."""
-        if pool is None or self.n < _SPLIT_PRODUCT_FROM:
+        if pool is None or self.n < _SPLIT_FROM:
             return self.bsr(Hs).dot
         half = self.n // 2
         first, second = self.bsr(Hs, 0, half), self.bsr(Hs, half)
@@ -461,7 +462,8 @@ def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
 def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep, timing,
                  pool=None):
     """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history.
-    ``pool``: a one-thread executor for half of each Hessian product (`_Level.product`)."""
+    ``pool``: a one-thread executor for half of each assembly and Hessian product
+    (`_Level.evaluate`, `_Level.product`)."""
     cons = level.cons
     chunk = int(opts["chunk_elements"])
     t0 = time.perf_counter()
@@ -530,12 +532,12 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
     return y, history, len(history) - 1, cg_total, dets, terms
 
 
-def _product_pool():
-    """A one-thread executor for half of each Hessian product (`_Level.product`), or a
-    context of None on a single core."""
+def _second_thread():
+    """A one-thread executor for half of each assembly and Hessian product
+    (`_Level.evaluate`, `_Level.product`), or a context of None on a single core."""
     if cores() < 2:
         return nullcontext(None)
-    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="keyframe_implicit product")
+    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="keyframe_implicit solver")
 
 
 def _coarse_space(level, opts):
@@ -788,7 +790,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
     corr = None
     level_stats = []
-    with _product_pool() as pool:
+    with _second_thread() as pool:
         for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
             t0 = time.perf_counter()
             pa, pb, base = ((phi_a, phi_b, y0) if li == nlev - 1

@@ -131,8 +131,9 @@ def _index_corners(grid, corner_positions):
 def _gather_corners(grid, node_positions, corner_of_cell):
     """`_index_corners` of cells whose corners are nodes: ``node_positions`` (N, d) in world
     units, ``corner_of_cell`` (C, 2^d) rows into it. The nodes go to index units once, then
-    each coordinate is gathered into its own rows: five times faster than gathering the
-    cells' corners (C, 2^d, d) and laying them out again."""
+    each coordinate is gathered into its own rows, rather than gathering the cells' corners
+    (C, 2^d, d) and laying them out again (benchmarks/README.md, "The idle core in
+    Gauss-Newton's assembly")."""
     u = np.ascontiguousarray(grid.to_index(node_positions).T)  # (d, N)
     index = corner_of_cell.T
     out = np.empty((index.shape[0], u.shape[0], index.shape[1]))

@@ -376,7 +376,7 @@ def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
     y = L.x + 0.02 * np.sin(7 * L.x)
     Hs = L.evaluate(y, {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}, 97, True)[3]
     x = np.random.default_rng(2).normal(size=L.n * 3).astype(Hs.dtype)
-    monkeypatch.setattr(solver, "_SPLIT_PRODUCT_FROM", 0)
+    monkeypatch.setattr(solver, "_SPLIT_FROM", 0)
     with ThreadPoolExecutor(max_workers=1) as pool:
         halves = L.product(Hs, pool)(x)
     assert L.n > 2 and np.array_equal(halves, L.bsr(Hs) @ x)
@@ -399,7 +399,7 @@ def test_energy_in_two_element_halves_is_the_whole_energy(monkeypatch):
                       patch_rigidity=10.0)
     y = L.x + 0.02 * np.sin(7 * L.x)
     w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
-    monkeypatch.setattr(solver, "_SPLIT_PRODUCT_FROM", 0)
+    monkeypatch.setattr(solver, "_SPLIT_FROM", 0)
     (a, b), (c, e), (m, m2) = L._element_halves(37)
     assert (a, b, m2, e) == (0, m, c, len(L.elem)) and a < b < m2 < e
     assert not np.intersect1d(L.elem[a:b], L.elem[c:e]).size
