@@ -44,7 +44,7 @@ from typing import Callable
 
 import numpy as np
 
-from .elements import Quadrature, cofactor, deformation_gradient, determinant
+from .elements import Quadrature, cofactor, deformation_gradient, determinant, gram
 from .sampling import sample_with_gradient
 
 __all__ = ["TermValue", "ElementBatch", "NodeBatch", "Term", "TERMS", "heaviside",
@@ -162,7 +162,7 @@ def rigidity_term(batch: ElementBatch, hessian: bool = True) -> TermValue:
     F = deformation_gradient(batch.Y, G)  # (E, Q, d, d)
     E, Q, d = F.shape[0], F.shape[1], F.shape[-1]
     nK = G.shape[2]
-    FFt = F @ F.swapaxes(-1, -2)
+    FFt = gram(F)
     M = FFt - np.eye(d)  # same Frobenius norm as R = F^T F - I, and F R = M F
     w = batch.weight[:, None] * qw[None, :]  # (E, Q)
     energy = float(np.sum(w * np.sum(M * M, axis=(-1, -2))))

@@ -39,6 +39,24 @@ def test_gradient_operator_reproduces_affine_maps():
             assert np.isclose(q.weights.sum(), h ** d)
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_deformation_gradient_and_gram_match_their_definitions(d):
+    """F[e, q, i, a] = sum_c Y[e, c, i] G[q, a, c] for every rule and spacing (the operator
+    is made once per G: a second spacing must not reuse the first one's), and gram(F) is
+    F F^T, for random, non-affine cells."""
+    rng = np.random.default_rng(10 + d)
+    for h in (0.37, 0.05):
+        Y = _cells(d, h, 50, rng, scale=0.4)
+        for G in (elements.quadrature(d, h, "gauss").G, elements.quadrature(d, h, "centre").G,
+                  np.concatenate([elements.quadrature(d, h, r).G for r in ("gauss", "centre")])):
+            F = elements.deformation_gradient(Y, G)
+            assert F.shape == (50, len(G), d, d) and F.flags.c_contiguous
+            assert np.allclose(F, np.einsum("eci,qac->eqia", Y, G), rtol=1e-12, atol=1e-12)
+            FFt = elements.gram(F)
+            assert np.allclose(FFt, F @ F.swapaxes(-1, -2), rtol=1e-12, atol=1e-12)
+            assert np.array_equal(FFt, FFt.swapaxes(-1, -2))
+
+
 def test_heaviside_matches_eq_2_7_and_its_derivative():
     eps = 0.3
     assert terms.heaviside(-eps - 1e-9, eps) == 0.0
