@@ -147,7 +147,7 @@ def deformation_gradient(Y: np.ndarray, G: np.ndarray) -> np.ndarray:
 
     One matrix product of the corners as rows (E, 2**d d) with the constant operator of
     `_corner_operator`: a single BLAS call, where a stack of E Q small products costs
-    5-10 times as much (benchmarks/README.md, "F in one matrix product").
+    several times as much (benchmarks/README.md, "F in one matrix product").
     """
     E, K, d = Y.shape
     return (Y.reshape(E, K * d) @ _corner_operator(G)).reshape(E, len(G), d, d)
@@ -184,8 +184,7 @@ def gram(F: np.ndarray) -> np.ndarray:
     """F F^T for stacks of 2x2 or 3x3 matrices (..., d, d), symmetric by construction.
 
     Its d (d + 1) / 2 distinct entries are sums of d products of F's entries, taken over
-    the whole stack at once: a stack of thousands of 3 x 3 products costs ``np.matmul``
-    about three times as much.
+    the whole stack at once, rather than one small product per matrix (``np.matmul``).
     """
     d = F.shape[-1]
     out = np.empty(F.shape[:-2] + (d, d), dtype=F.dtype)
