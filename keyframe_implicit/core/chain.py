@@ -122,10 +122,54 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     ChainResult
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
-    from .levelset import (_RENAMED, Inbetween, from_solved, inbetween, is_two_sided,
-                           solve_maps_shared, split_options)
+    from .levelset import _RENAMED
 
     rep = Reporter(progress, cancel)
+    phis, frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
+    nk = len(phis)
+    t0 = time.perf_counter()
+    if template is None:
+        verts, faces = _initial_template(phis[0], grid)
+    else:
+        verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
+    per_frame = surfaces and grid.dim == 3
+    what = dict(coverage=coverage, per_frame=per_frame, levelsets=levelsets,
+                keyframe_meshes=keyframe_meshes)
+    kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, what)
+    own = helper is None and processes > 1
+    take_renamed(options, _RENAMED, "animate_chain")
+    segments = _Inbetweens(phis, grid, features, maps, options, cancel)
+    blas = one_blas_thread()
+    try:
+        if own:
+            helper = Helper()
+        for k in range(nk - 1):  # loop over segments (keyframe pairs)
+            seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
+            f0, f1 = frames[k], frames[k + 1]
+            local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
+            split = _FrameSplit(helper, local, (f0, f1), k, (verts, faces), what)
+            inb = segments.make(k, helper, split, seg)
+            t_seg = time.perf_counter()
+            kept.add(local - frames[0], split.run(inb, seg.sub(0.5, 1.0)))
+            verts = kept.vertices[local[-1] - frames[0]]
+            kept.stats["segments"].append(dict(inb.stats,
+                                               template_seconds=time.perf_counter() - t_seg))
+            del inb
+    finally:
+        blas.restore_original_limits()
+        if helper is not None:
+            kept.stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
+        if own and helper is not None:
+            helper.close()
+    kept.stats.update(seconds=time.perf_counter() - t0, vertices=int(len(verts)),
+                      faces=int(len(faces)))
+    return ChainResult(kept.frames, kept.vertices, faces, kept.stats, kept.meshes,
+                       kept.velocities, kept.fields)
+
+
+def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
+    """`animate_chain`'s keyframe fields (checked against ``grid``) and frames (int64), or
+    ValueError saying which input to fix."""
     if not isinstance(grid, Grid):
         raise ValueError("grid must be a keyframe_implicit.core.Grid.")
     phis = [grid.check_field(p, f"phis[{k}]") for k, p in enumerate(phis)]
@@ -144,85 +188,82 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     elif features is None or len(features) != nk - 1:
         raise ValueError(f"features must hold one (points_a, points_b) pair per segment "
                          f"({nk - 1}); got {0 if features is None else len(features)}.")
-
-    t0 = time.perf_counter()
-    all_frames = np.arange(frames[0], frames[-1] + 1)
-    if template is None:
-        verts, faces = _initial_template(phis[0], grid)
-    else:
-        verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
     if keyframe_meshes is not None and len(keyframe_meshes) != nk:
         raise ValueError(f"keyframe_meshes must hold one mesh per keyframe ({nk}), "
                          f"got {len(keyframe_meshes)}.")
-    out = np.empty((all_frames.size,) + verts.shape)
-    stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [], "uncovered_fraction": []}
-    per_frame = surfaces and grid.dim == 3
-    if per_frame:
-        stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
-    meshes, velocities, fields = [], [], []
-    what = dict(coverage=coverage, per_frame=per_frame, levelsets=levelsets,
-                keyframe_meshes=keyframe_meshes)
-    own = helper is None and processes > 1 and nk > 1
-    take_renamed(options, _RENAMED, "animate_chain")
-    mine, solver_options = split_options(options)
-    solver_options.pop("parallel", None)
-    solved = {}  # segment -> its maps, solved ahead in a window (`solve_maps_shared`)
-    blas = one_blas_thread()
-    try:
-        if own:
-            helper = Helper()
-        for k in range(nk - 1):  # loop over segments (keyframe pairs)
-            seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
-            f0, f1 = frames[k], frames[k + 1]
-            local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
-            split = _FrameSplit(helper, local, (f0, f1), k, (verts, faces), what)
-            if maps is not None:
-                inb = Inbetween.from_map(phis[k], phis[k + 1], grid, maps[k], cancel=cancel,
-                                         **options)
-            elif helper is not None:
-                if k not in solved:
-                    window = range(k, min(k + _MAP_WINDOW, nk - 1))
-                    solved.update(solve_maps_shared(phis, grid, features, window,
-                                                    is_two_sided(mine), helper, seg.sub(0.0, 0.4),
-                                                    cancel, solver_options))
-                res, back, seconds = solved.pop(k)
-                seg(0.4, "trajectories")
-                inb = from_solved(phis[k], phis[k + 1], grid, res, back, mine, seconds,
-                                  on_maps=split.start, cancel=cancel)
-                seg(0.5, "in-betweens ready")
-            else:
-                fa, fb = features[k]
-                inb = inbetween(phis[k], phis[k + 1], grid, fa, fb, progress=seg.sub(0.0, 0.5),
-                                cancel=cancel, on_maps=split.start, **options)
-            t_seg = time.perf_counter()
-            records = split.run(inb, seg.sub(0.5, 1.0))
-            for f, rec in zip(local, records):
-                out[f - frames[0]] = rec["vertices"]
-                stats["max_abs_phi"].append(rec["max_abs_phi"])
-                if levelsets:
-                    fields.append(rec["levelset"])
-                if coverage:
-                    stats["uncovered_area"].append(rec["uncovered"][0])
-                    stats["uncovered_fraction"].append(rec["uncovered"][1])
-                if per_frame:
-                    for name in ("shape_keys", "mesh_sequence"):
-                        stats["quality"][name].append(rec[name])
-                    meshes.append(rec["mesh"])
-                    velocities.append(rec["velocity"])
-            verts = out[local[-1] - frames[0]]
-            stats["segments"].append(dict(inb.stats,
-                                          template_seconds=time.perf_counter() - t_seg))
-            del inb
-    finally:
-        blas.restore_original_limits()
-        if helper is not None:
-            stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
-        if own and helper is not None:
-            helper.close()
-    stats["seconds"] = time.perf_counter() - t0
-    stats["vertices"] = int(len(verts))
-    stats["faces"] = int(len(faces))
-    return ChainResult(all_frames, out, faces, stats, meshes, velocities, fields)
+    return phis, frames
+
+
+class _Inbetweens:
+    """Each segment's `levelset.Inbetween`, as `animate_chain` gets its maps: given
+    (``maps``), solved with a helper a window of segments at a time
+    (`levelset.solve_maps_shared`), or solved in this process (`levelset.inbetween`)."""
+
+    def __init__(self, phis, grid, features, maps, options, cancel):
+        from .levelset import split_options
+
+        self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
+        self.options, self.cancel = options, cancel
+        self.mine, self.solver_options = split_options(options)
+        self.solver_options.pop("parallel", None)
+        self._solved = {}  # segment -> its maps, solved ahead in a window
+
+    def make(self, k, helper, split, rep):
+        """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
+        their recipe is known; progress to 0.5 of ``rep``."""
+        from .levelset import Inbetween, from_solved, inbetween, is_two_sided, solve_maps_shared
+
+        a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
+        if self.maps is not None:
+            return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
+                                      **self.options)
+        if helper is None:
+            fa, fb = self.features[k]
+            return inbetween(a, b, self.grid, fa, fb, progress=rep.sub(0.0, 0.5), cancel=cancel,
+                             on_maps=split.start, **self.options)
+        if k not in self._solved:
+            window = range(k, min(k + _MAP_WINDOW, len(self.phis) - 1))
+            self._solved.update(solve_maps_shared(
+                self.phis, self.grid, self.features, window, is_two_sided(self.mine), helper,
+                rep.sub(0.0, 0.4), cancel, self.solver_options))
+        res, back, seconds = self._solved.pop(k)
+        rep(0.4, "trajectories")
+        inb = from_solved(a, b, self.grid, res, back, self.mine, seconds, on_maps=split.start,
+                          cancel=cancel)
+        rep(0.5, "in-betweens ready")
+        return inb
+
+
+class _Kept:
+    """What `animate_chain` keeps of every frame's record (`_frames`): the template's
+    vertices, the per-frame figures in ``stats``, and as ``what`` asks the level sets, the
+    frames' own meshes and their velocities."""
+
+    def __init__(self, frames, template_shape, what):
+        self.frames, self.what = frames, what
+        self.vertices = np.empty((frames.size,) + tuple(template_shape))
+        self.stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [],
+                      "uncovered_fraction": []}
+        if what["per_frame"]:
+            self.stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
+        self.meshes, self.velocities, self.fields = [], [], []
+
+    def add(self, rows, records):
+        """Keep ``records``, those of the frames at ``rows`` of ``frames``, in order."""
+        what, st = self.what, self.stats
+        for row, rec in zip(rows, records):
+            self.vertices[row] = rec["vertices"]
+            st["max_abs_phi"].append(rec["max_abs_phi"])
+            if what["levelsets"]:
+                self.fields.append(rec["levelset"])
+            if what["coverage"]:
+                st["uncovered_area"].append(rec["uncovered"][0])
+                st["uncovered_fraction"].append(rec["uncovered"][1])
+            if what["per_frame"]:
+                for name in ("shape_keys", "mesh_sequence"):
+                    st["quality"][name].append(rec[name])
+                self.meshes.append(rec["mesh"])
+                self.velocities.append(rec["velocity"])
 
 
 #: Segments whose maps are solved together when there is a helper
