@@ -445,8 +445,6 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         When ``cancel()`` returned True.
     """
     from .chain import animate_chain
-    from .quality import choose_output
-    from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
     from .parallel import Helper, one_blas_thread
 
     t0 = time.perf_counter()
@@ -463,32 +461,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
 
     rep(0.0, "Choosing the grid")
     surfaces = [_surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
-    pts = [s[3] for s in surfaces]  # the box holds the faces; loose vertices are ignored
-    lo = np.min([p.min(axis=0) for p in pts], axis=0)
-    hi = np.max([p.max(axis=0) for p in pts], axis=0)
-    _check_feature_reach(features, lo, hi, feature_names)
-    extra = [np.concatenate(pair) for pair in features] + _rigid_sweep(pts, features)
-    extra = np.concatenate(extra) if extra else None
-    grid = fit_grid(pts, resolution, padding_cells=padding_cells, extra_points=extra)
-    _check_feature_spacing(features, grid.spacing, feature_names)
-    if max_bytes is not None:
-        # refuse before any work; the largest keyframe's share of the box sets the solver's
-        # and the trajectories' size (estimate_memory's model)
-        mem = dict(n_keyframes=len(keyframes),
-                   material_fraction=max(_material_fraction(kf, grid) for kf in keyframes))
-        try:
-            check_memory(grid, max_bytes, **mem)
-        except MemoryLimitError as exc:
-            def fits(r):
-                g = fit_grid(pts, r, padding_cells=padding_cells, extra_points=extra)
-                return estimate_memory(g, **mem)["peak"] <= max_bytes
-            best = max((r for r in range(4, int(resolution)) if fits(r)), default=None)
-            hint = (f"lower the resolution to {best} or less" if best else
-                    "even the smallest grid does not fit: free memory or simplify the keyframes")
-            raise MemoryLimitError(
-                f"Resolution {resolution} would need about {exc.required / 2**20:,.0f} MB but "
-                f"the limit is {max_bytes / 2**20:,.0f} MB: {hint}.",
-                exc.required, max_bytes, best) from None
+    grid = _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding_cells,
+                      max_bytes)
     stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
 
     blas, given = one_blas_thread(), helper
@@ -512,15 +486,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     stats["loose_vertices"] = [s[2] for s in surfaces]
     stats["notes"] = _notes(keyframes, stats["loose_vertices"], stats["sdf"])
     if "quality" in stats:
-        if artist is not None:
-            _relative_to_keyframes(stats["quality"]["shape_keys"], chain.frames,
-                                   [kf.frame for kf in keyframes])
-            _keyframes_are_reference(stats["quality"]["mesh_sequence"], chain.frames,
-                                     [kf.frame for kf in keyframes])
         rep(0.98, "Measuring the keyframe frames")
-        measured = ["shape_keys"] if artist is not None else ["shape_keys", "mesh_sequence"]
-        _measure_keyframes(stats["quality"], keyframes, chain, grid.spacing, measured)
-        stats["output"], stats["output_reason"] = choose_output(chain.frames, stats["quality"])
+        _choose_output(stats, keyframes, chain, grid.spacing, artist is not None)
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return Animation(frames=np.asarray(chain.frames, dtype=np.int64),
@@ -530,6 +497,62 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
                      levelsets=chain.levelsets, attributes=None if artist is None else artist[2],
                      keyframe_attributes={} if artist is None else
                      _keyframe_attributes(keyframes, surfaces, artist[2]))
+
+
+def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding_cells,
+               max_bytes):
+    """The one grid of the bake (`gridfit.fit_grid`): it holds every keyframe's faces (loose
+    vertices are ignored), every feature point and the rigid sweeps between them. Refused
+    before any work, with the resolution that would fit, when `gridfit.estimate_memory`
+    puts it over ``max_bytes`` (None: no limit)."""
+    from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
+
+    pts = [s[3] for s in surfaces]
+    lo = np.min([p.min(axis=0) for p in pts], axis=0)
+    hi = np.max([p.max(axis=0) for p in pts], axis=0)
+    _check_feature_reach(features, lo, hi, feature_names)
+    extra = [np.concatenate(pair) for pair in features] + _rigid_sweep(pts, features)
+    extra = np.concatenate(extra) if extra else None
+
+    def fitted(r):
+        return fit_grid(pts, r, padding_cells=padding_cells, extra_points=extra)
+
+    grid = fitted(resolution)
+    _check_feature_spacing(features, grid.spacing, feature_names)
+    if max_bytes is None:
+        return grid
+    # the largest keyframe's share of the box sets the solver's and the trajectories' size
+    mem = dict(n_keyframes=len(keyframes),
+               material_fraction=max(_material_fraction(kf, grid) for kf in keyframes))
+    try:
+        check_memory(grid, max_bytes, **mem)
+    except MemoryLimitError as exc:
+        best = max((r for r in range(4, int(resolution))
+                    if estimate_memory(fitted(r), **mem)["peak"] <= max_bytes), default=None)
+        hint = (f"lower the resolution to {best} or less" if best else
+                "even the smallest grid does not fit: free memory or simplify the keyframes")
+        raise MemoryLimitError(
+            f"Resolution {resolution} would need about {exc.required / 2**20:,.0f} MB but "
+            f"the limit is {max_bytes / 2**20:,.0f} MB: {hint}.",
+            exc.required, max_bytes, best) from None
+    return grid
+
+
+def _choose_output(stats, keyframes, chain, spacing, artist):
+    """Both outputs measured on the keyframes' frames too (against the keyframes' own
+    meshes), then the output chosen (`quality.choose_output`), into ``stats``. With the
+    artist's mesh as the template (``artist``) its shape keys are judged relative to the
+    keyframes' own figures, and the mesh sequence is the keyframes' meshes there."""
+    from .quality import choose_output
+
+    quality = stats["quality"]
+    key_frames = [kf.frame for kf in keyframes]
+    if artist:
+        _relative_to_keyframes(quality["shape_keys"], chain.frames, key_frames)
+        _keyframes_are_reference(quality["mesh_sequence"], chain.frames, key_frames)
+    measured = ["shape_keys"] if artist else ["shape_keys", "mesh_sequence"]
+    _measure_keyframes(quality, keyframes, chain, spacing, measured)
+    stats["output"], stats["output_reason"] = choose_output(chain.frames, quality)
 
 
 def _artist_template(keyframe, surface, template):
