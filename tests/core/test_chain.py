@@ -62,3 +62,12 @@ def test_chain_refuses_bad_frames_and_missing_features():
         animate_chain([phi, phi], grid, None, [1, 5])
     with pytest.raises(ValueError, match="two keyframes"):
         animate_chain([phi], grid, None, [1])
+    with pytest.raises(ValueError, match="integers"):
+        animate_chain([phi, phi], grid, None, [1, 2.5], maps=[grid.points()])
+    with pytest.raises(ValueError, match=r"one map per segment \(1\), got 2"):
+        animate_chain([phi, phi], grid, None, [1, 5], maps=[grid.points()] * 2)
+    with pytest.raises(ValueError, match=r"one mesh per keyframe \(2\), got 1"):
+        animate_chain([phi, phi], grid, None, [1, 5], maps=[grid.points()],
+                      keyframe_meshes=[(np.zeros((3, 3)), np.zeros((1, 3), int))])
+    with pytest.raises(ValueError, match="Grid"):
+        animate_chain([phi, phi], grid.points(), None, [1, 5], maps=[grid.points()])
