@@ -7,19 +7,25 @@ parts and contain degenerate faces, so the two halves of the job are done by
 methods that do not assume a clean closed manifold:
 
 Magnitude (`mesh_to_sdf`, steps 1-3)
-    1. Every triangle is covered by sample points no farther than ``delta`` from
-       any of its points (barycentric lattices). The grid nodes near a sample are
-       the exact *shell*: every node within ``exact_cells * h`` of the surface is in it.
-    2. Shell nodes get the exact point-triangle distance. Candidate triangles come
-       from a `scipy.spatial.cKDTree` over the samples: if ``d0`` is the exact
-       distance to the triangle of the nearest sample, the closest triangle owns
-       a sample within ``d0 + delta``, so querying that radius is exact.
+    1. Every node within ``exact_cells * h`` of a triangle lies in the triangle's
+       bounding box grown by ``exact_cells * h``: the (node, triangle) pairs of all
+       boxes are enumerated, a cache-sized chunk at a time, and each gets the exact
+       point-triangle distance. Triangles much smaller than a cell would make
+       thousands of pairs per node; they are found through points sampled on them
+       instead, every triangle point no farther than ``delta`` from a sample
+       (barycentric lattices), with a `scipy.spatial.cKDTree` over the samples: if
+       ``d0`` is the exact distance to the triangle of the nearest sample, the
+       closest triangle owns a sample within ``d0 + delta``, so querying that radius
+       is exact.
+    2. The nodes whose smallest distance is within ``exact_cells * h`` are the exact
+       *shell*, each with its closest triangle.
     3. Nodes outside the shell get ``|x - c(b)|``, ``b`` the nearest shell node
        (`scipy.ndimage.distance_transform_edt`) and ``c(b)`` its closest surface
        point: an upper bound on the true distance, exact whenever x and b share
        their closest point, and never above ``|x - b| + d(b)``. Where the surface
        leaves the grid (no shell nodes there) the distance to the triangle of the
-       nearest sample is used too; with no shell node at all, it alone.
+       nearest sample on any triangle is used too; with no shell node at all, it
+       alone.
 
 Sign (steps 4-5)
     0. First every connected part's faces are made to agree (`orient_faces`): the
@@ -65,9 +71,11 @@ from .renamed import take_renamed
 __all__ = ["mesh_to_sdf", "orient_faces", "polygon_to_sdf", "triangulate", "winding_number"]
 
 _CHUNK = 1 << 14          # nodes per vectorised chunk (bounds temporary memory)
+_PAIRS = 1 << 15          # (node, triangle) pairs per chunk of the exact shell (in cache)
 _SAMPLE_RADIUS = 0.7      # triangle points lie within this many cells of a sample
 _WORKERS = -1             # cKDTree query threads (all cores)
 _K = 32                   # nearest samples fetched per shell node (more on demand)
+_BOXED_RADIUS = 0.4       # corner radius (cells) from which a triangle is measured over its box
 _MAX_LATTICE = 256        # subdivisions per triangle edge at most (delta grows beyond)
 
 
@@ -267,6 +275,14 @@ def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+def _corner_radius(a, b, c):
+    """Per triangle (corners a, b, c, each (T, 3)), the largest corner distance from the
+    centroid: the triangle lies in the disc of that radius around it."""
+    cen = (a + b + c) / 3.0
+    return np.sqrt(np.maximum.reduce([_dot(a - cen, a - cen), _dot(b - cen, b - cen),
+                                      _dot(c - cen, c - cen)]))
+
+
 class _Triangles:
     """Per-triangle constants for the vectorised distance kernel (component arrays)."""
 
@@ -280,7 +296,6 @@ class _Triangles:
             # "inside" test is then False and `distance` measures it by its edges
             n /= np.linalg.norm(n, axis=1)[:, None]
             self.inv = 1.0 / (_dot(e0, e0) * _dot(e1, e1) - _dot(e0, e1) ** 2)
-        self.n_tri = len(tris)
         self.a = [np.ascontiguousarray(a[:, i]) for i in range(3)]
         self.e0 = [np.ascontiguousarray(e0[:, i]) for i in range(3)]
         self.e1 = [np.ascontiguousarray(e1[:, i]) for i in range(3)]
@@ -292,8 +307,7 @@ class _Triangles:
         self.e02 = _dot(e0, e2)
         cen = (a + b + c) / 3.0
         self.cen = [np.ascontiguousarray(cen[:, i]) for i in range(3)]
-        self.rad = np.sqrt(np.maximum.reduce([_dot(a - cen, a - cen), _dot(b - cen, b - cen),
-                                              _dot(c - cen, c - cen)]))
+        self.rad = _corner_radius(a, b, c)
 
     def lower_bound(self, p, t):
         """Cheap lower bound of the distance from p (P, 3) to triangles t (P,).
@@ -311,30 +325,37 @@ class _Triangles:
         return np.sqrt(pn2 + lat * lat)
 
     def distance(self, p, t):
-        """Exact distance from points p (P, 3) to triangles t (P,) (Ericson-style regions).
+        """Exact distance from points p (P, 3) to triangles t (P,)."""
+        return self._distance(p[:, 0], p[:, 1], p[:, 2], lambda q: q[t])
 
-        The projection onto the plane has barycentric coordinates (u, w) from the Gram
-        system of the edges; inside the triangle the distance is the plane distance,
-        outside it is the smallest distance to the three edge segments.
-        """
-        vx = p[:, 0] - self.a[0][t]
-        vy = p[:, 1] - self.a[1][t]
-        vz = p[:, 2] - self.a[2][t]
-        dv0 = vx * self.e0[0][t] + vy * self.e0[1][t] + vz * self.e0[2][t]
-        dv1 = vx * self.e1[0][t] + vy * self.e1[1][t] + vz * self.e1[2][t]
-        d00, d01, d11, d22 = self.d00[t], self.d01[t], self.d11[t], self.d22[t]
-        inv = self.inv[t]
+    def box_distance(self, px, py, pz, triangles, counts):
+        """Exact distance of pairs ordered by triangle: ``counts[i]`` points (coordinate
+        arrays px, py, pz) for each triangle of the slice ``triangles``."""
+        return self._distance(px, py, pz, lambda q: np.repeat(q[triangles], counts))
+
+    def _distance(self, px, py, pz, per_pair):
+        """Ericson-style regions: the projection onto the plane has barycentric
+        coordinates (u, w) from the Gram system of the edges; inside the triangle the
+        distance is the plane distance, outside it is the smallest distance to the three
+        edge segments. ``per_pair`` turns a per-triangle array into one per point."""
+        vx = px - per_pair(self.a[0])
+        vy = py - per_pair(self.a[1])
+        vz = pz - per_pair(self.a[2])
+        dv0 = vx * per_pair(self.e0[0]) + vy * per_pair(self.e0[1]) + vz * per_pair(self.e0[2])
+        dv1 = vx * per_pair(self.e1[0]) + vy * per_pair(self.e1[1]) + vz * per_pair(self.e1[2])
+        d00, d01, d11, d22 = (per_pair(q) for q in (self.d00, self.d01, self.d11, self.d22))
+        inv = per_pair(self.inv)
         with np.errstate(invalid="ignore"):  # NaN on degenerate triangles: not inside
             u = (d11 * dv0 - d01 * dv1) * inv
             w = (d00 * dv1 - d01 * dv0) * inv
             inside = (u >= 0) & (w >= 0) & (u + w <= 1)
-        pn = vx * self.n[0][t] + vy * self.n[1][t] + vz * self.n[2][t]
+        pn = vx * per_pair(self.n[0]) + vy * per_pair(self.n[1]) + vz * per_pair(self.n[2])
         vv = vx * vx + vy * vy + vz * vz
         t0 = np.clip(dv0 / d00, 0.0, 1.0)
         dist2 = vv - t0 * (2.0 * dv0 - t0 * d00)                 # edge a-b
         t1 = np.clip(dv1 / d11, 0.0, 1.0)
         np.minimum(dist2, vv - t1 * (2.0 * dv1 - t1 * d11), out=dist2)   # edge a-c
-        dv2 = (dv1 - dv0) - self.e02[t]                          # (p - b).(c - b)
+        dv2 = (dv1 - dv0) - per_pair(self.e02)                   # (p - b).(c - b)
         wb = vv - 2.0 * dv0 + d00                                # |p - b|^2
         t2 = np.clip(dv2 / d22, 0.0, 1.0)
         np.minimum(dist2, wb - t2 * (2.0 * dv2 - t2 * d22), out=dist2)   # edge b-c
@@ -549,18 +570,21 @@ def winding_number(vertices, faces, points, *, beta=2.0):
 
 
 # ---------------------------------------------------------------------------
-# exact shell: triangle samples and exact distances
+# triangle samples and the distances found through them
 # ---------------------------------------------------------------------------
 class _Samples:
-    """Step 1: points on every triangle, every triangle point within ``delta`` of one of
-    them, with a `cKDTree` over them.
+    """Steps 1 and 3: points on the triangles, every triangle point within ``delta`` of
+    one of them, with a `cKDTree` over them.
 
     Attributes: ``points`` (S, 3), ``triangle`` (S,) the triangle of each, ``delta`` (T,)
-    per triangle, ``tree``.
+    per triangle (0 for those not sampled), ``tree``. Only the triangles from ``first``
+    on are sampled.
     """
 
-    def __init__(self, v, tris, delta_target):
-        self.points, self.triangle, self.delta = _triangle_samples(v, tris, delta_target)
+    def __init__(self, v, tris, delta_target, first=0):
+        self.points, self.triangle, delta = _triangle_samples(v, tris[first:], delta_target)
+        self.triangle += first
+        self.delta = np.concatenate([np.zeros(first), delta])
         self.tree = cKDTree(self.points)
 
 
@@ -574,9 +598,7 @@ def _triangle_samples(v, tris, delta_target):
     delta per triangle).
     """
     a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
-    cen = (a + b + c) / 3.0
-    rad = np.sqrt(np.maximum.reduce([_dot(a - cen, a - cen), _dot(b - cen, b - cen),
-                                     _dot(c - cen, c - cen)]))
+    rad = _corner_radius(a, b, c)
     n = np.clip(np.ceil(rad / delta_target).astype(np.int64), 1, _MAX_LATTICE)
     pts, ids = [], []
     for k in np.unique(n):  # one lattice per subdivision count (a handful)
@@ -639,16 +661,6 @@ def _refine(best, best_t, rows_of, X, ok, ii, tri, sample_tri):
         best[un[better]] = m[better]
 
 
-def _nearest_sample_distance(out, nodes, grid, samples, tri, keep_min=False):
-    """out[nodes] = distance to the triangle of the nearest sample (an upper bound)."""
-    for s in range(0, len(nodes), 8 * _CHUNK):
-        o = nodes[s:s + 8 * _CHUNK]
-        x = grid.node_points(o)
-        _, si = samples.tree.query(x, workers=_WORKERS)
-        d = tri.distance(x, samples.triangle[si])
-        out[o] = np.minimum(out[o], d) if keep_min else d
-
-
 def _shell_distance(X, tri, tree, sample_tri, tri_delta, shell_r, k=_K):
     """Exact unsigned distance for the points X within ``shell_r`` of the surface.
 
@@ -691,6 +703,18 @@ def _shell_distance(X, tri, tree, sample_tri, tri_delta, shell_r, k=_K):
     return keep, best, best_t
 
 
+def _nearest_sample_distance(out, nodes, grid, v, tris, tri, keep_min=False):
+    """out[nodes] = distance to the triangle of the nearest sample (an upper bound, at
+    most ``_SAMPLE_RADIUS`` cells above the true distance)."""
+    samples = _Samples(v, tris, _SAMPLE_RADIUS * grid.spacing)
+    for s in range(0, len(nodes), 8 * _CHUNK):
+        o = nodes[s:s + 8 * _CHUNK]
+        x = grid.node_points(o)
+        _, si = samples.tree.query(x, workers=_WORKERS)
+        d = tri.distance(x, samples.triangle[si])
+        out[o] = np.minimum(out[o], d) if keep_min else d
+
+
 # ---------------------------------------------------------------------------
 # public: meshes
 # ---------------------------------------------------------------------------
@@ -714,8 +738,8 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
         See `keyframe_implicit.core.progress`.
     stats : dict, optional
         Filled with counts (triangles, degenerate_triangles, reoriented_faces,
-        non_orientable_faces, samples, shell_nodes, winding_nodes, leaky_regions) and
-        seconds per step.
+        non_orientable_faces, boxed_triangles, shell_nodes, winding_nodes,
+        leaky_regions) and seconds per step.
     beta : float
         Opening criterion of the fast winding number (see `winding_number`).
 
@@ -740,20 +764,17 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
     tris = _clean_triangles(v, triangulate(faces, len(v)), st)
     tris, st["reoriented_faces"], st["non_orientable_faces"] = orient_faces(v, tris)
     h = grid.spacing
-    rep(0.02, "triangle samples")
-    samples = _Samples(v, tris, _SAMPLE_RADIUS * h)  # step 1
-    st["samples"] = len(samples.points)
-    cand = _shell_candidates(grid, samples.points, exact_cells + 0.5 * np.sqrt(3.0)
-                             + samples.delta.max() / h + 1e-6)
-    t1 = _lap(st, "seconds_shell", t0)
-    rep(0.1, "exact distance near the surface")
-    tri = _Triangles(v, tris)
-    shell, dist_shell, tri_shell = _exact_shell(grid, cand, tri, samples, exact_cells * h,
-                                                rep.sub(0.1, 0.45))  # step 2
+    rep(0.02, "exact distance near the surface")
+    small = _corner_radius(*v[tris].transpose(1, 0, 2)) < _BOXED_RADIUS * h
+    by_size = tris[np.argsort(small, kind="stable")]  # the ones measured over boxes first
+    tri = _Triangles(v, by_size)
+    st["boxed_triangles"] = len(tris) - int(small.sum())
+    shell, dist_shell, tri_shell = _exact_shell(grid, v, by_size, tri, st["boxed_triangles"],
+                                                exact_cells * h, rep.sub(0.02, 0.45))  # 1-2
     st["shell_nodes"] = len(shell)
-    t2 = _lap(st, "seconds_exact", t1)
+    t2 = _lap(st, "seconds_exact", t0)
     rep(0.5, "far field")
-    unsigned, shell_mask = _far_field(grid, shell, dist_shell, tri_shell, tri, samples,
+    unsigned, shell_mask = _far_field(grid, shell, dist_shell, tri_shell, v, by_size, tri,
                                       exact_cells * h)  # step 3
     t3 = _lap(st, "seconds_far", t2)
     rep(0.6, "inside/outside (winding numbers)")
@@ -799,25 +820,101 @@ def _lap(stats, key, since):
     return now
 
 
-def _exact_shell(grid, cand, tri, samples, shell_r, rep):
-    """Step 2: the candidate nodes within ``shell_r`` of the surface, their exact
-    distance and their closest triangle, a chunk of candidates at a time."""
-    keep = np.zeros(len(cand), dtype=bool)
-    dist = np.empty(len(cand))
-    near = np.empty(len(cand), dtype=np.int64)
+def _exact_shell(grid, v, tris, tri, n_boxed, shell_r, rep):
+    """Steps 1-2: every node within ``shell_r`` of the surface, its exact distance and
+    its closest triangle, as (shell, dist, tri) sorted by node.
+
+    The first ``n_boxed`` triangles (the larger ones) are measured over their boxes
+    (`_boxed_distances`), the others through points sampled on them
+    (`_sampled_distances`, cheaper for triangles much smaller than a cell); each node
+    keeps its smallest distance.
+    """
+    best = np.full(grid.size, np.inf)
+    best_t = np.zeros(grid.size, dtype=np.int32)
+    part = n_boxed / len(tris)
+    if n_boxed:
+        _boxed_distances(best, best_t, grid, v, tris[:n_boxed], tri, shell_r, rep.sub(0, part))
+    if n_boxed < len(tris):
+        _sampled_distances(best, best_t, grid, v, tris, n_boxed, tri, shell_r, rep.sub(part, 1))
+    shell = np.flatnonzero(best <= shell_r)
+    return shell, best[shell], best_t[shell]
+
+
+def _boxed_distances(best, best_t, grid, v, tris, tri, shell_r, rep):
+    """Lower ``best`` (per node) to the exact distance to ``tris`` (the first of ``tri``'s
+    triangles) within ``shell_r``; ``best_t`` follows the closest (the last of exact ties).
+
+    A node within ``shell_r`` of a triangle lies in the triangle's bounding box grown
+    by ``shell_r``: the boxes' (node, triangle) pairs are measured ``_PAIRS`` at a time.
+    """
+    lo, size = _node_boxes(grid, v[tris], shell_r)
+    count = size.prod(axis=1)
+    ends = np.cumsum(count)
+    starts, total = ends - count, int(ends[-1])
+    for g0 in range(0, total, _PAIRS):
+        g1 = min(g0 + _PAIRS, total)
+        part = slice(np.searchsorted(ends, g0, side="right"),
+                     np.searchsorted(ends, g1 - 1, side="right") + 1)
+        skip = np.maximum(starts[part], g0) - starts[part]  # a box begun in the last chunk
+        cnt = np.minimum(ends[part], g1) - starts[part] - skip
+        node, x = _box_nodes(grid, lo[part], size[part], skip, cnt)
+        d = tri.box_distance(*x, part, cnt)
+        near = np.flatnonzero(d <= np.minimum(best[node], shell_r))
+        node, d = node[near], d[near]
+        t = np.repeat(np.arange(part.start, part.stop, dtype=np.int32), cnt)[near]
+        np.minimum.at(best, node, d)
+        hit = d == best[node]
+        best_t[node[hit]] = t[hit]
+        if g1 == total or g0 // _PAIRS % 32 == 31:  # about 0.1 s
+            rep(g1 / total, "exact distance near the surface")
+
+
+def _sampled_distances(best, best_t, grid, v, tris, first, tri, shell_r, rep):
+    """Lower ``best`` (per node) to the exact distance to the triangles from ``first`` on
+    within ``shell_r`` (`_shell_distance`: candidates through samples on them); ``best_t``
+    follows the closest."""
+    h = grid.spacing
+    samples = _Samples(v, tris, _SAMPLE_RADIUS * h, first)
+    cand = _shell_candidates(grid, samples.points, shell_r / h + 0.5 * np.sqrt(3.0)
+                             + samples.delta.max() / h + 1e-6)
     for s in range(0, len(cand), _CHUNK):
-        part = slice(s, s + _CHUNK)
-        kp, d, t = _shell_distance(grid.node_points(cand[part]), tri, samples.tree,
-                                   samples.triangle, samples.delta, shell_r)
-        keep[part] = kp
-        dist[part][kp] = d
-        near[part][kp] = t
-        rep(min(1.0, (s + _CHUNK) / max(len(cand), 1)), "exact distance near the surface")
-    keep[keep] = dist[keep] <= shell_r
-    return cand[keep], dist[keep], near[keep]
+        nodes = cand[s:s + _CHUNK]
+        keep, d, t = _shell_distance(grid.node_points(nodes), tri, samples.tree,
+                                     samples.triangle, samples.delta, shell_r)
+        nodes = nodes[keep]
+        lower = d < best[nodes]
+        best[nodes[lower]] = d[lower]
+        best_t[nodes[lower]] = t[lower]
+        rep(min(1.0, (s + _CHUNK) / len(cand)), "exact distance near the surface")
 
 
-def _far_field(grid, shell, dist_shell, tri_shell, tri, samples, shell_r):
+def _node_boxes(grid, corners, reach):
+    """First node (T, 3) and node counts (T, 3) of each triangle's bounding box grown
+    by ``reach``, clipped to the grid (counts 0 for a box outside it); ``corners`` (T, 3, 3)."""
+    shape = np.asarray(grid.shape)
+    lo = (corners.min(axis=1) - reach - grid.origin) / grid.spacing
+    hi = (corners.max(axis=1) + reach - grid.origin) / grid.spacing
+    first = np.clip(np.ceil(lo - 1e-9), 0, shape).astype(np.int64)
+    last = np.clip(np.floor(hi + 1e-9), -1, shape - 1).astype(np.int64)
+    return first, np.maximum(last - first + 1, 0)
+
+
+def _box_nodes(grid, first, size, skip, count):
+    """Flat indices and coordinate arrays (x, y, z) of nodes ``skip[i]`` to ``skip[i] +
+    count[i] - 1`` of box i (first node ``first[i]``, ``size[i]`` nodes along each axis),
+    in C order, box after box."""
+    at = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count - skip, count)
+    rest, k = np.divmod(at, np.repeat(size[:, 2], count))
+    i, j = np.divmod(rest, np.repeat(size[:, 1], count))
+    i += np.repeat(first[:, 0], count)
+    j += np.repeat(first[:, 1], count)
+    k += np.repeat(first[:, 2], count)
+    _, ny, nz = grid.shape
+    o, h = grid.origin, grid.spacing
+    return (i * ny + j) * nz + k, (o[0] + h * i, o[1] + h * j, o[2] + h * k)
+
+
+def _far_field(grid, shell, dist_shell, tri_shell, v, tris, tri, shell_r):
     """Step 3: the unsigned distance of every node (exact on the ``shell``, the bound
     ``|x - c(b)|`` elsewhere) and the shell as a mask over the nodes."""
     unsigned = np.empty(grid.size)
@@ -827,7 +924,7 @@ def _far_field(grid, shell, dist_shell, tri_shell, tri, samples, shell_r):
     if len(shell) == 0:
         # surface entirely away from the grid: distance to the triangle of the
         # nearest sample (an upper bound, at most delta above the true distance)
-        _nearest_sample_distance(unsigned, np.arange(grid.size), grid, samples, tri)
+        _nearest_sample_distance(unsigned, np.arange(grid.size), grid, v, tris, tri)
         return unsigned, shell_mask
     if shell_mask.all():
         return unsigned, shell_mask
@@ -844,9 +941,9 @@ def _far_field(grid, shell, dist_shell, tri_shell, tri, samples, shell_r):
         c = cp[np.searchsorted(need, nb[o])]
         unsigned[o] = np.sqrt(np.sum((grid.node_points(o) - c) ** 2, axis=1))
     del nb
-    if np.any(~grid.contains(samples.points, margin=shell_r)):
+    if np.any(~grid.contains(v[np.unique(tris)], margin=shell_r)):
         # surface beyond the grid has no shell nodes: bound through its samples too
-        _nearest_sample_distance(unsigned, off, grid, samples, tri, keep_min=True)
+        _nearest_sample_distance(unsigned, off, grid, v, tris, tri, keep_min=True)
     return unsigned, shell_mask
 
 

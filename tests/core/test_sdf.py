@@ -85,6 +85,23 @@ def test_box_of_twelve_triangles_and_of_quads_match_analytic_box():
     assert np.all(np.abs(d_tri) >= np.abs(ref) - 1e-9)  # far field bounds from above
 
 
+def test_exact_shell_does_not_depend_on_the_chunk_size(monkeypatch):
+    """The (node, triangle) pairs of the triangles' boxes are measured a chunk at a
+    time, and a chunk may begin and end inside one box: with chunks far smaller than
+    any box the distances are the same, and exact in the shell."""
+    from keyframe_implicit.core import sdf
+
+    lo, hi = np.array([-0.6, -0.4, -0.5]), np.array([0.5, 0.45, 0.3])
+    v, quads = box(lo, hi)
+    g = cube_grid(40)
+    d = mesh_to_sdf(v, quads, g)
+    monkeypatch.setattr(sdf, "_PAIRS", 999)  # a box of these triangles holds ~4,000 pairs
+    np.testing.assert_array_equal(mesh_to_sdf(v, quads, g), d)
+    ref = box_sdf(g.points(), lo, hi)
+    band = np.abs(ref) <= 3 * g.spacing
+    assert np.abs(d - ref)[band].max() <= 1e-12
+
+
 def test_ngon_prism_given_as_ragged_polygons():
     """A hexagonal prism: two 6-gons and six quads in one ragged list."""
     k = 6
@@ -106,17 +123,23 @@ def test_ngon_prism_given_as_ragged_polygons():
     np.testing.assert_allclose(d[above], p[..., 2][above] - 0.4, atol=1e-9)
 
 
-def test_band_distance_is_exact_against_brute_force_on_irregular_mesh():
-    """Mixed triangle sizes (a coarse box next to a fine noisy sphere): the
-    candidate radius must still find the closest triangle for every band node."""
+@pytest.mark.parametrize("subdivisions, sampled", [(3, False), (5, True)])
+def test_band_distance_is_exact_against_brute_force_on_irregular_mesh(subdivisions, sampled):
+    """Mixed triangle sizes (a coarse box next to a noisy sphere): every band node
+    finds its closest triangle, whether all triangles are measured over their boxes
+    (the sphere's triangles about a cell across) or the sphere's, a fifth of a cell,
+    through samples on them."""
     rng = np.random.default_rng(3)
-    vs, fs = icosphere(3, 0.45, center=(0.1, 0.0, 0.05))
-    vs = vs + rng.normal(scale=0.01, size=vs.shape)
+    vs, fs = icosphere(subdivisions, 0.45, center=(0.1, 0.0, 0.05))
+    vs = vs + rng.normal(scale=0.01 / 2 ** (subdivisions - 3), size=vs.shape)
     vb, qb = box((-0.9, -0.8, -0.85), (0.2, 0.1, -0.47))  # disjoint from the sphere
     v = np.concatenate([vs, vb])
     f = np.concatenate([fs, triangulate(qb, len(vb)) + len(vs)])
     g = cube_grid(40)
-    d = mesh_to_sdf(v, f, g, exact_cells=3)
+    stats = {}
+    d = mesh_to_sdf(v, f, g, exact_cells=3, stats=stats)
+    boxed = stats["boxed_triangles"]
+    assert (boxed == 12) if sampled else (boxed == len(f))
     idx = np.flatnonzero(np.abs(d).reshape(-1) <= 3 * g.spacing)
     pick = rng.choice(idx, size=400, replace=False)
     ref = brute_distance(g.points().reshape(-1, 3)[pick], v, f)
