@@ -705,7 +705,7 @@ def _shell_distance(X, tri, tree, sample_tri, tri_delta, shell_r, k=_K):
 
 def _nearest_sample_distance(out, nodes, grid, v, tris, tri, keep_min=False):
     """out[nodes] = distance to the triangle of the nearest sample (an upper bound, at
-    most ``_SAMPLE_RADIUS`` cells above the true distance)."""
+    most the samples' ``delta`` above the true distance)."""
     samples = _Samples(v, tris, _SAMPLE_RADIUS * grid.spacing)
     for s in range(0, len(nodes), 8 * _CHUNK):
         o = nodes[s:s + 8 * _CHUNK]
