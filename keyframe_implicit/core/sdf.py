@@ -847,7 +847,7 @@ def _boxed_distances(best, best_t, grid, v, tris, tri, shell_r, rep):
     A node within ``shell_r`` of a triangle lies in the triangle's bounding box grown
     by ``shell_r``: the boxes' (node, triangle) pairs are measured ``_PAIRS`` at a time.
     """
-    lo, size = _node_boxes(grid, v[tris], shell_r)
+    lo, size = _grown_boxes(grid, v[tris], shell_r)
     count = size.prod(axis=1)
     ends = np.cumsum(count)
     starts, total = ends - count, int(ends[-1])
@@ -888,7 +888,7 @@ def _sampled_distances(best, best_t, grid, v, tris, first, tri, shell_r, rep):
         rep(min(1.0, (s + _CHUNK) / len(cand)), "exact distance near the surface")
 
 
-def _node_boxes(grid, corners, reach):
+def _grown_boxes(grid, corners, reach):
     """First node (T, 3) and node counts (T, 3) of each triangle's bounding box grown
     by ``reach``, clipped to the grid (counts 0 for a box outside it); ``corners`` (T, 3, 3)."""
     shape = np.asarray(grid.shape)
