@@ -221,22 +221,20 @@ def _edge_pairs(d):
 
 
 def _edge_operators(lc, weight, n, d):
-    """The trajectory solve's matrices from the cells' edges (thesis sec. 3.1, global form).
+    """The trajectory solve's operators from the cells' edges (thesis sec. 3.1, global form).
 
     An edge i -> j along axis a of cell c, with the cell's ``weight`` w, should equal
     h F_c(s)[:, a]. Its least-squares term adds w (e_i - e_j)(e_i - e_j)^T to the
     weighted graph Laplacian L (n, n) and w (e_j - e_i) to column (c, a) of B
     (n, nc d), so that the right-hand side is B T with T's row (c, a) the target.
 
-    L = D^T W D and B = D^T W E (D the edge differences, E the edges' targets), built
-    without an edge-sized matrix: a lattice edge is shared by up to 2^(d-1) cells, so
-    its weight is summed per lower node and axis first (L then has one entry per node
-    and neighbour); B's column (c, a) holds each of the cell's 2^d corners once, so B
-    is made column by column (CSC, which is also the faster layout for B T).
+    L = D^T W D (D the edge differences), a sparse matrix, built without an edge-sized
+    matrix: a lattice edge is shared by up to 2^(d-1) cells, so its weight is summed per
+    lower node and axis first (L then has one entry per node and neighbour). B = D^T W E
+    (E the edges' targets) is kept as the cells' corners and weights (`EdgeSums`), not
+    as a matrix of 2^d d entries a cell.
     """
-    nc = len(lc)
     pairs = _edge_pairs(d)
-    # the corners at the lower and upper ends of the cell's 2^(d-1) edges along each axis
     lower = np.array([[k for a, k, _ in pairs if a == axis] for axis in range(d)])
     upper = np.array([[hi for a, _, hi in pairs if a == axis] for axis in range(d)])
     rows, cols, vals = [], [], []
@@ -257,13 +255,46 @@ def _edge_operators(lc, weight, n, d):
     vals.append(diag)
     L = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(n, n))
-    # column (c, a) of B: -w at the lower ends of the cell's edges along a, +w at the upper
-    corner_rows = np.concatenate([lc[:, lower], lc[:, upper]], axis=2)  # (nc, d, 2^d)
-    signs = np.repeat([-1.0, 1.0], lower.shape[1])
-    values = np.broadcast_to(weight[:, None, None] * signs, corner_rows.shape)
-    B = sp.csc_matrix((values.reshape(-1), corner_rows.reshape(-1),
-                       np.arange(0, corner_rows.size + 1, 2 ** d)), shape=(n, nc * d))
-    return L, B
+    return L, EdgeSums(lc, weight, n)
+
+
+class EdgeSums:
+    """B = D^T W E of `_edge_operators` as an operator: ``B @ T`` (T of shape (nc d, m),
+    row (c, a) the target of cell c's edges along axis a) without B's 2^d d entries a cell.
+
+    Each corner k of a cell is one end of exactly one of the cell's edges along each axis
+    a: the upper end (+w) where k's bit a is set, else the lower end (-w). So corner k
+    of cell c receives w_c sum_a sign_ka T[(c, a)], and the nodes sum what their cells'
+    corners receive (one `np.bincount` per column of T). Kept: each cell's corners and
+    weight, 72 bytes a cell in 3D against B's 300 (benchmarks/README.md, "The
+    trajectories' right-hand side without its matrix").
+
+    Parameters
+    ----------
+    lc : (nc, 2^d) int, each cell's corners as node indices (`elements.cells_within`).
+    weight : (nc,) float, each cell's weight.
+    n : int, the number of nodes.
+    """
+
+    def __init__(self, lc, weight, n):
+        lc = np.asarray(lc)
+        self._corners = lc.reshape(-1).astype(np.intp)  # cell-major, as B's columns hold them
+        self._weight = np.asarray(weight, dtype=float)
+        d = int(np.log2(lc.shape[1]))
+        self._signs = 2.0 * elements.corners(d).T - 1.0  # (d, 2^d)
+        self.shape = (int(n), lc.shape[0] * d)
+
+    def __matmul__(self, T):
+        T = np.asarray(T, dtype=float)
+        nc, d = self._weight.size, self._signs.shape[0]
+        if T.ndim != 2 or T.shape[0] != nc * d:
+            raise ValueError(f"T must have shape ({nc * d}, m), got {T.shape}.")
+        T = T.reshape(nc, d, -1)
+        out = np.empty((self.shape[0], T.shape[2]))
+        for m in range(T.shape[2]):  # a column at a time: the temporaries are (nc, 2^d)
+            at = (T[..., m] * self._weight[:, None]) @ self._signs  # what corner k of c receives
+            out[:, m] = np.bincount(self._corners, at.reshape(-1), minlength=self.shape[0])
+        return out
 
 
 def _cell_polar(y, lc, h):

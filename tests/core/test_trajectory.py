@@ -55,7 +55,8 @@ def test_polar_by_newton_is_the_closest_rotation_of_the_svd():
 @pytest.mark.parametrize("d", [2, 3])
 def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
     """L = D^T W D and B = D^T W E, with one row of D per edge of every cell (shared
-    edges once per cell), as the docstring defines them."""
+    edges once per cell), as the docstring defines them; B as an operator, applied to
+    the identity and to several columns at once."""
     from keyframe_implicit.core import elements
     from keyframe_implicit.core.trajectory import _edge_operators, _edge_pairs
 
@@ -78,7 +79,12 @@ def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
             w.append(weight[c])
     D, E, W = np.array(rows_D), np.array(rows_E), np.diag(w)
     np.testing.assert_allclose(L.toarray(), D.T @ W @ D, atol=1e-14)
-    np.testing.assert_allclose(B.toarray(), D.T @ W @ E, atol=1e-14)
+    assert B.shape == (nodes.size, len(lc) * d)
+    np.testing.assert_allclose(B @ np.eye(len(lc) * d), D.T @ W @ E, atol=1e-14)
+    T = np.random.default_rng(1).normal(size=(len(lc) * d, d))
+    np.testing.assert_allclose(B @ T, D.T @ W @ E @ T, atol=1e-13)
+    with pytest.raises(ValueError, match="T must have shape"):
+        B @ T[1:]
 
 
 @pytest.mark.parametrize("method", ["global", "local"])
