@@ -204,6 +204,7 @@ def rigid_fit(x, y):
 
 _CACHED = 3  # times whose active-node positions `Trajectories` keeps
 _EXTRAPOLATED = 3  # solutions a Poisson solve's start is extrapolated from
+_TARGET_CHUNK = 32_768  # cells whose target gradients `Trajectories._rhs` makes at once
 
 
 def _smoothstep(t):
@@ -539,18 +540,29 @@ class Trajectories:
             out[c] = (w[:, None] * points[m]).sum(0) / w.sum()
         return out
 
-    def _cell_targets(self, s):
-        """Target gradients F_c(s) = R_c^s ((1 - s) I + s S_c) of the active cells, (nc, d, d)."""
+    def _cell_targets(self, s, cells=slice(None)):
+        """Target gradients F_c(s) = R_c^s ((1 - s) I + s S_c) of the active cells (or of
+        the ``cells`` given), (nc, d, d)."""
         d = self.dim
-        return rotation_exp(s * self._cell_rv, d) @ ((1.0 - s) * np.eye(d) + s * self._cell_S)
+        return rotation_exp(s * self._cell_rv[cells], d) @ ((1.0 - s) * np.eye(d)
+                                                             + s * self._cell_S[cells])
+
+    def _rhs(self, s):
+        """The Poisson right-hand side B T at time s, (n, d): T's row (c, a) is the target
+        h F_c(s)[:, a] of cell c's edges along axis a (`_edge_operators`). T is made
+        `_TARGET_CHUNK` cells at a time, so the rotations' temporaries stay small."""
+        d, nc = self.dim, self._ncells
+        T = np.empty((nc, d, d))
+        for c0 in range(0, nc, _TARGET_CHUNK):
+            cells = slice(c0, min(c0 + _TARGET_CHUNK, nc))
+            np.multiply(self.grid.spacing, np.swapaxes(self._cell_targets(s, cells), 1, 2),
+                        out=T[cells])
+        return self._B @ T.reshape(-1, d)
 
     def _poisson(self, s, start=None):
         """Poisson positions Y(s) of the active nodes (before the residual); CG starts from
         ``start``, by default from the last solutions (`_start`)."""
-        d = self.dim
-        Fs = self._cell_targets(s)
-        T = self.grid.spacing * np.swapaxes(Fs, 1, 2).reshape(-1, d)  # row (cell, a) = h F[:, a]
-        rhs = self._B @ T
+        rhs = self._rhs(s)
         start = self._start(s) if start is None else start
         Y, its = block_pcg(self._L, rhs, self._mg, start, tol=self.tolerance,
                            check=self._check)

@@ -96,29 +96,40 @@ def _lookup_in_cells(grid, corners, cells, *, newton_steps=6, tol=1e-6, max_cand
     """`inverse_lookup`'s nodes found (M,), each with its cell (an index into ``cells``) and
     its local coordinates about the cell's centre (d, M): what a multilinear read of node
     values at the source points needs (`multilinear_in_cells`). ``corners``: the moved
-    cells' corners in index units, corner-major (2^d, d, C) (`_index_corners`)."""
+    cells' corners in index units, corner-major (2^d, d, C) (`_index_corners`), or a
+    callable (c0, c1) -> those of cells c0:c1 (`_corner_gather`), made ``max_candidates``
+    cells at a time so that no array of every cell's corners is held."""
     d = grid.dim
     if len(cells) == 0:  # an empty region: nothing moves, nothing is found
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((d, 0))
-    lo, ext = _bounding_boxes(grid, corners, tol)
-    cnt = np.prod(ext, axis=0)
-    # cells in chunks of at most ``max_candidates`` bounding-box nodes: every per-cell and
-    # per-candidate array lives for one chunk only (bounded memory, even where a bad map
-    # stretches cells over many nodes)
-    bounds = np.searchsorted(np.cumsum(cnt), np.arange(1, int(cnt.sum()) // max_candidates + 1)
-                             * max_candidates)
-    edges = np.unique(np.concatenate([[0], bounds, [cells.size]]))
+    corners_of = corners if callable(corners) else (lambda c0, c1: corners[..., c0:c1])
     found, local = [], []
-    for c0, c1 in zip(edges[:-1], edges[1:]):  # loop over the chunks
-        if check is not None:
-            check()
-        coef, Jinv, margin = _cell_maps(corners[..., c0:c1], tol)
-        cell, z, v = _lookup_chunk(cnt[c0:c1], ext[:, c0:c1], lo[:, c0:c1], coef, Jinv, margin,
-                                   newton_steps)
-        found.append((cell + c0, z))
-        local.append(v)
+    for b0 in range(0, len(cells), max_candidates):  # loop over chunks of cells
+        block = corners_of(b0, min(b0 + max_candidates, len(cells)))
+        lo, ext = _bounding_boxes(grid, block, tol)
+        cnt = np.prod(ext, axis=0)
+        for c0, c1 in _candidate_chunks(cnt, max_candidates):
+            if check is not None:
+                check()
+            coef, Jinv, margin = _cell_maps(block[..., c0:c1], tol)
+            cell, z, v = _lookup_chunk(cnt[c0:c1], ext[:, c0:c1], lo[:, c0:c1], coef, Jinv,
+                                       margin, newton_steps)
+            found.append((cell + b0 + c0, z))
+            local.append(v)
     cell, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
     return np.ravel_multi_index(tuple(zi), grid.shape), cell, np.concatenate(local, axis=1)
+
+
+def _candidate_chunks(cnt, max_candidates):
+    """(c0, c1) runs of cells with at most ``max_candidates`` bounding-box nodes in all
+    (``cnt`` each cell's), or one cell where a cell alone has more: every per-cell and
+    per-candidate array lives for one run only (bounded memory, even where a bad map
+    stretches cells over many nodes)."""
+    total = np.cumsum(cnt)
+    bounds = np.searchsorted(total, np.arange(1, int(total[-1]) // max_candidates + 1)
+                             * max_candidates)
+    edges = np.unique(np.concatenate([[0], bounds, [cnt.size]]))
+    return zip(edges[:-1], edges[1:])
 
 
 def _index_corners(grid, corner_positions):
@@ -128,18 +139,22 @@ def _index_corners(grid, corner_positions):
     return np.ascontiguousarray(u.transpose(1, 2, 0))
 
 
-def _gather_corners(grid, node_positions, corner_of_cell):
-    """`_index_corners` of cells whose corners are nodes: ``node_positions`` (N, d) in world
-    units, ``corner_of_cell`` (C, 2^d) rows into it. The nodes go to index units once, then
-    each coordinate is gathered into its own rows, rather than gathering the cells' corners
+def _corner_gather(grid, node_positions, corner_of_cell):
+    """`_index_corners` of cells whose corners are nodes, as a callable (c0, c1) -> the
+    corners of cells c0:c1 (2^d, d, c1 - c0): ``node_positions`` (N, d) in world units,
+    ``corner_of_cell`` (C, 2^d) rows into it. The nodes go to index units once, then each
+    coordinate is gathered into its own rows, rather than gathering the cells' corners
     (C, 2^d, d) and laying them out again (benchmarks/README.md, "The idle core in
     Gauss-Newton's assembly")."""
     u = np.ascontiguousarray(grid.to_index(node_positions).T)  # (d, N)
-    index = corner_of_cell.T
-    out = np.empty((index.shape[0], u.shape[0], index.shape[1]))
-    for a in range(u.shape[0]):
-        np.take(u[a], index, out=out[:, a])
-    return out
+
+    def corners_of(c0, c1):
+        index = corner_of_cell[c0:c1].T
+        out = np.empty((index.shape[0], u.shape[0], index.shape[1]))
+        for a in range(u.shape[0]):
+            np.take(u[a], index, out=out[:, a])
+        return out
+    return corners_of
 
 
 def _bounding_boxes(grid, corners, tol):
@@ -373,7 +388,7 @@ class Transport:
     def _sources_in_cells(self, t):
         """`sources` as (target node, source cell, local coordinates (d, M)) (`_lookup_in_cells`)."""
         pos = self.trajectories.node_positions(t, self._corner_nodes)
-        return _lookup_in_cells(self.grid, _gather_corners(self.grid, pos, self._cnodes_local),
+        return _lookup_in_cells(self.grid, _corner_gather(self.grid, pos, self._cnodes_local),
                                 self._cells, newton_steps=self.newton_steps, check=self._check)
 
     def value_at(self, points):

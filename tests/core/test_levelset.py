@@ -162,6 +162,7 @@ def test_from_map_refuses_bad_input(rigid):
 
 
 def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
+    from keyframe_implicit.core import transport
     from keyframe_implicit.core.transport import inverse_lookup
 
     grid, phi_a, phi_b, mapped, info, ib = rigid
@@ -171,6 +172,14 @@ def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
     t2, s2 = inverse_lookup(grid, corners, fw._cells, max_candidates=997)
     np.testing.assert_array_equal(t1, t2)
     np.testing.assert_allclose(s1, s2)
+    # the carry's corners gathered a run of cells at a time: the same lookup
+    assert fw._cells.size > 2 * 997  # three runs of cells
+    gather = transport._corner_gather(grid, ib.trajectories.node_positions(0.5, fw._corner_nodes),
+                                      fw._cnodes_local)
+    t3, cell, local = transport._lookup_in_cells(grid, gather, fw._cells, max_candidates=997)
+    np.testing.assert_array_equal(t3, t1)
+    np.testing.assert_allclose(transport._index_coordinates(grid, fw._cells, cell, local), s1,
+                               rtol=0, atol=1e-12)
     # every source maps onto its target: x(s) at the source is the grid node
     src_world = grid.to_world(s1)
     moved = ib.trajectory(src_world, 0.5)

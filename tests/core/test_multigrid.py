@@ -39,8 +39,7 @@ def test_trajectories_agree_with_the_direct_solve_to_a_ten_thousandth_of_a_cell(
     assert len(tr.stats["multigrid_levels"]) >= 3
     for s in (0.25, 0.5, 0.9):
         got = tr._poisson(s)
-        rhs = tr._B @ (grid.spacing * np.swapaxes(
-            tr._cell_targets(s), 1, 2).reshape(-1, 3))
+        rhs = tr._rhs(s)
         want = _direct(tr._L, rhs, tr._comp)
         diff = got - want
         # each component may differ by a translation only; `_poisson` fixes it afterwards
@@ -48,6 +47,20 @@ def test_trajectories_agree_with_the_direct_solve_to_a_ten_thousandth_of_a_cell(
             m = tr._comp == c
             diff[m] -= diff[m].mean(axis=0)
         assert np.abs(diff).max() < 1e-4 * grid.spacing
+
+
+def test_right_hand_side_in_chunks_of_cells_is_the_whole_one(monkeypatch):
+    """`Trajectories._rhs` makes its targets a chunk of cells at a time: B T of the
+    whole T, however the cells are cut (here into chunks of 400 and one left over)."""
+    from keyframe_implicit.core import trajectory
+
+    grid, y, mat = _two_balls_bending(24)
+    tr = Trajectories(grid, y, mat)
+    assert tr._ncells > 800 and tr._ncells % 400
+    whole = tr._B @ (grid.spacing * np.swapaxes(tr._cell_targets(0.3), 1, 2).reshape(-1, 3))
+    monkeypatch.setattr(trajectory, "_TARGET_CHUNK", 400)
+    np.testing.assert_allclose(tr._rhs(0.3), whole, rtol=0, atol=1e-15)
+    assert np.abs(whole).max() > 1e-3 * grid.spacing  # not trivially zero
 
 
 def test_preconditioner_makes_cg_iterations_independent_of_the_grid():
@@ -61,15 +74,11 @@ def test_preconditioner_makes_cg_iterations_independent_of_the_grid():
 def test_warm_start_from_the_answer_takes_no_iteration():
     grid, y, mat = _two_balls_bending(24)
     tr = Trajectories(grid, y, mat)
-    rhs = tr._B @ (grid.spacing * np.swapaxes(tr._cell_targets(0.5), 1, 2).reshape(-1, 3))
+    rhs = tr._rhs(0.5)
     x, it = block_pcg(tr._L, rhs, tr._mg, tol=1e-10)
     assert it > 3
     _, again = block_pcg(tr._L, rhs, tr._mg, x, tol=1e-9)
     assert again == 0
-
-
-def _rhs(tr, grid, s):
-    return tr._B @ (grid.spacing * np.swapaxes(tr._cell_targets(s), 1, 2).reshape(-1, 3))
 
 
 def _off_by(tr, got, want):
@@ -87,7 +96,7 @@ def test_next_solve_starts_from_the_parabola_through_the_last_three():
     for s in (0.2, 0.3, 0.4):
         tr._poisson(s)
     assert [t for t, _ in tr._solved] == [0.2, 0.3, 0.4]
-    want, _ = block_pcg(tr._L, _rhs(tr, grid, 0.5), tr._mg, tol=1e-12)
+    want, _ = block_pcg(tr._L, tr._rhs(0.5), tr._mg, tol=1e-12)
     (_, Y3), (_, Y4) = tr._solved[-2:]
     line = 2.0 * Y4 - Y3
     assert _off_by(tr, tr._start(0.5), want) < 0.5 * _off_by(tr, line, want)
@@ -99,7 +108,7 @@ def test_next_solve_starts_from_the_parabola_through_the_last_three():
 def test_cg_polls_cancel_every_iteration():
     grid, y, mat = _two_balls_bending(24)
     tr = Trajectories(grid, y, mat)
-    rhs = tr._B @ (grid.spacing * np.swapaxes(tr._cell_targets(0.5), 1, 2).reshape(-1, 3))
+    rhs = tr._rhs(0.5)
     calls = []
 
     def check():

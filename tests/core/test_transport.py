@@ -57,15 +57,18 @@ def test_bounding_boxes_hold_each_moved_cell(d):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_corners_gathered_from_nodes_are_the_cells_corners_in_index_units(d):
-    """`_gather_corners` (the nodes' coordinates gathered one axis at a time) gives what
-    `_index_corners` makes of the cells' corners: corner-major (2^d, d, C), index units."""
+    """`_corner_gather` (the nodes' coordinates gathered one axis at a time) gives what
+    `_index_corners` makes of the cells' corners: corner-major (2^d, d, C), index units,
+    for any run of cells."""
     _, _, cells, moved = bent_cells(d)
     grid = Grid(np.full(d, -0.3), 0.7, (13,) * d)
     corner_of_cell = cells[:, None] + elements.corners(d) @ Grid(np.zeros(d), 1.0, (9,) * d).strides
-    got = transport._gather_corners(grid, moved, corner_of_cell)
+    gather = transport._corner_gather(grid, moved, corner_of_cell)
+    got = gather(0, cells.size)
     expected = transport._index_corners(grid, moved[corner_of_cell])
     assert got.shape == (2 ** d, d, cells.size) and expected.flags.c_contiguous
     np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(gather(3, 7), expected[..., 3:7])
     np.testing.assert_allclose(got[:, :, 5].T, (moved[corner_of_cell[5]] + 0.3).T / 0.7,
                                rtol=0, atol=1e-12)
 
