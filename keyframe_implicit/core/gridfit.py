@@ -173,9 +173,9 @@ def _refusal(grid, resolution, need, limit, fits):
 # 2D: not measured; per active node scaled by the stencil (9 blocks of 2 x 2 against 27
 # of 3 x 3).
 _COPIES = 2
-_PROCESS_BYTES = 117.9 * 2 ** 20
-_NODE_BYTES = {2: 176.8, 3: 176.8}
-_ACTIVE_BYTES = {2: 2459.5 * 36 / 243, 3: 2459.5}
+_PROCESS_BYTES = 106.9 * 2 ** 20
+_NODE_BYTES = {2: 194.5, 3: 194.5}
+_ACTIVE_BYTES = {2: 2285.3 * 36 / 243, 3: 2285.3}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
