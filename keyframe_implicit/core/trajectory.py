@@ -236,6 +236,7 @@ def _edge_operators(lc, weight, n, d):
     as a matrix of 2^d d entries a cell.
     """
     pairs = _edge_pairs(d)
+    # the corners at the lower and upper ends of the cell's 2^(d-1) edges along each axis
     lower = np.array([[k for a, k, _ in pairs if a == axis] for axis in range(d)])
     upper = np.array([[hi for a, _, hi in pairs if a == axis] for axis in range(d)])
     rows, cols, vals = [], [], []
