@@ -67,7 +67,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
         for near-rigid cells; converged candidates drop out).
     max_candidates : int
         Cells are processed in chunks of at most this many candidate nodes (a
-        chunk's arrays then stay small: less memory, and faster than large chunks).
+        chunk's arrays then stay small: less memory, and faster than large chunks),
+        taken from runs of at most this many cells.
     check : callable, optional
         Called before every chunk (cancellation).
 
