@@ -287,15 +287,6 @@ class _OrderHelper:
         return 0
 
 
-def _sphere_moving_right():
-    """Two keyframes of a sphere moving right on a 20^3 grid, its centre the feature pair."""
-    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
-    P = grid.points()
-    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
-    feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
-    return phis, grid, feats
-
-
 def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(monkeypatch):
     """The helper builds its own copy of the in-betweens for its half of the frames: handed
     the recipe as soon as the maps are solved, it builds while this process builds too."""
@@ -309,7 +300,10 @@ def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(
         init(self, *args, **kwargs)
 
     monkeypatch.setattr(trajectory.Trajectories, "__init__", counting)
-    phis, grid, feats = _sphere_moving_right()
+    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
+    P = grid.points()
+    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
+    feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
     helper = _OrderHelper(built)
     res = chain.animate_chain(phis, grid, feats, [1, 9], helper=helper, surfaces=False,
                               coverage=False)
@@ -337,7 +331,10 @@ def test_with_a_helper_each_process_builds_its_two_trajectories_one_after_the_ot
         init(self, *args, **kwargs)
 
     monkeypatch.setattr(trajectory.Trajectories, "__init__", recording)
-    phis, grid, feats = _sphere_moving_right()
+    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
+    P = grid.points()
+    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
+    feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
     shared = chain.animate_chain(phis, grid, feats, [1, 9], helper=_OrderHelper([0]),
                                  surfaces=False, coverage=False)
     assert threads == [True] * 4  # two here, two from the recipe
