@@ -216,7 +216,7 @@ class _Inbetweens:
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
-                                      threads=1 if helper is not None else 2, **self.options)
+                                      **self.options)
         if helper is None:
             fa, fb = self.features[k]
             return inbetween(a, b, self.grid, fa, fb, progress=rep.sub(0.0, 0.5), cancel=cancel,
@@ -229,7 +229,7 @@ class _Inbetweens:
         res, back, seconds = self._solved.pop(k)
         rep(0.4, "trajectories")
         inb = from_solved(a, b, self.grid, res, back, self.mine, seconds, on_maps=split.start,
-                          cancel=cancel, threads=1)
+                          cancel=cancel)
         rep(0.5, "in-betweens ready")
         return inb
 

@@ -137,8 +137,10 @@ class Inbetween:
     outside_value : float
         The value wherever no transport reaches (world units, > 0).
     threads : int
-        2: the two transports carry each level set in two threads; 1: one after the
-        other (`from_map`'s ``threads``).
+        2 (default): the two transports carry each level set in two threads, for a
+        process with two cores to itself; 1: one after the other, for a process that
+        shares the machine with another doing the same (`chain._FrameSplit`), where a
+        second thread only competes with it.
     stats : dict
         Figures of the maps (when solved here), the trajectories and the
         level sets (timings in seconds, coverage, map agreement).
@@ -146,7 +148,7 @@ class Inbetween:
 
     def __init__(self, phi_a, phi_b, grid, forward, backward=None, *, keep_volume=True,
                  resample="splat", idw_radius=1.5, stats=None, map_result=None,
-                 map_result_back=None, threads=2):
+                 map_result_back=None):
         self.grid = grid
         self.phi_a = phi_a
         self.phi_b = phi_b
@@ -163,7 +165,7 @@ class Inbetween:
         self.map_result = map_result
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
-        self.threads = int(threads)
+        self.threads = 2
         self.stats = dict(stats or {})
         self.stats.setdefault("levelset_seconds", 0.0)
         self.stats.setdefault("levelset_calls", 0)
@@ -182,7 +184,7 @@ class Inbetween:
                  keep_volume=True, material=None, components=None, trajectory_method="global",
                  trajectory_margin_cells=4.0, trajectory_margin_weight=0.1, resample="splat",
                  idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None, map_result_back=None, cancel=None, threads=2, **renamed):
+                 map_result=None, map_result_back=None, cancel=None, **renamed):
         """In-betweens from given maps.
 
         Parameters
@@ -225,15 +227,6 @@ class Inbetween:
         cancel : callable() -> bool, optional
             Polled by the trajectory solves and the transports, here and in every
             later `levelset` call; `progress.Cancelled` is raised once it returns True.
-        threads : int
-            2 (default): the two keyframes' trajectories are built in two threads, and
-            each level set is carried in two (`Inbetween.threads`), for a process with
-            two cores to itself. 1: one after the other, for a process that shares the
-            machine with another doing the same (the bake's helper process,
-            `chain._FrameSplit`): there a second thread only competes with it, and
-            the two trajectory setups' temporaries at once were a process's peak
-            memory (benchmarks/README.md, "The two trajectory setups one after the
-            other").
         """
         if not isinstance(grid, Grid):
             raise ValueError("grid must be a keyframe_implicit.core.Grid.")
@@ -266,7 +259,7 @@ class Inbetween:
             return Transport(field, Trajectories(grid, y, mat, comps, **traj_opts), **lookup_opts)
 
         backward = None
-        if transport == "two-sided" and mapped_back is not None and threads > 1:
+        if transport == "two-sided" and mapped_back is not None:
             with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
                 back = pool.submit(carried, phi_b, np.asarray(mapped_back, dtype=float),
                                    phi_b < 0)
@@ -275,8 +268,7 @@ class Inbetween:
         else:
             forward = carried(phi_a, mapped, material, components)
             if transport == "two-sided":
-                back = invert_map(grid, forward) if mapped_back is None else mapped_back
-                backward = carried(phi_b, np.asarray(back, dtype=float), phi_b < 0)
+                backward = carried(phi_b, invert_map(grid, forward), phi_b < 0)
         if backward is not None:
             # one truncation for both, so that the far field is one value
             w = min(forward.border_value, backward.border_value)
@@ -284,14 +276,13 @@ class Inbetween:
         st["trajectory_setup_seconds"] = time.perf_counter() - t0
         out = cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume,
                   resample=resample, idw_radius=idw_radius, stats=st, map_result=map_result,
-                  map_result_back=map_result_back, threads=threads)
+                  map_result_back=map_result_back)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, transport=transport, keep_volume=keep_volume,
             material=material, components=components, trajectory_method=trajectory_method,
             trajectory_margin_cells=traj_opts["margin_cells"],
             trajectory_margin_weight=traj_opts["margin_weight"], resample=resample,
-            idw_radius=idw_radius, newton_steps=newton_steps, interpolation=interpolation,
-            threads=threads))
+            idw_radius=idw_radius, newton_steps=newton_steps, interpolation=interpolation))
         return out
 
     def __reduce__(self):
@@ -550,17 +541,15 @@ def is_two_sided(mine):
     return mine.get("transport", "two-sided") == "two-sided"
 
 
-def from_solved(phi_a, phi_b, grid, res, back, mine, seconds, on_maps=None, cancel=None,
-                threads=2):
+def from_solved(phi_a, phi_b, grid, res, back, mine, seconds, on_maps=None, cancel=None):
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
     `solver.MapResult`; ``mine`` the `from_map` options (`split_options`); ``seconds`` the
-    time the maps took, for its stats. ``on_maps`` as in `inbetween`, ``threads`` as in
-    `Inbetween.from_map`."""
+    time the maps took, for its stats. ``on_maps`` as in `inbetween`."""
     st = {"map_seconds": seconds, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
-                  components=res.components, threads=threads, **mine)
+                  components=res.components, **mine)
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,

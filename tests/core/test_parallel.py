@@ -314,36 +314,6 @@ def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(
     assert np.abs(res.vertices - one.vertices).max() <= 1e-4 * grid.spacing
 
 
-def test_with_a_helper_each_process_builds_its_two_trajectories_one_after_the_other(
-        monkeypatch):
-    """With a helper each process has one core: the two keyframes' trajectories are built
-    in the calling thread, here and from the recipe the helper gets (their setups at once
-    were a process's peak memory). Alone, the second is built in a second thread."""
-    import threading
-
-    from keyframe_implicit.core import chain, trajectory
-
-    threads = []
-    init = trajectory.Trajectories.__init__
-
-    def recording(self, *args, **kwargs):
-        threads.append(threading.current_thread() is threading.main_thread())
-        init(self, *args, **kwargs)
-
-    monkeypatch.setattr(trajectory.Trajectories, "__init__", recording)
-    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
-    P = grid.points()
-    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
-    feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
-    shared = chain.animate_chain(phis, grid, feats, [1, 9], helper=_OrderHelper([0]),
-                                 surfaces=False, coverage=False)
-    assert threads == [True] * 4  # two here, two from the recipe
-    threads.clear()
-    alone = chain.animate_chain(phis, grid, feats, [1, 9], surfaces=False, coverage=False)
-    assert sorted(threads) == [False, True]
-    assert np.abs(shared.vertices - alone.vertices).max() <= 1e-4 * grid.spacing
-
-
 def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
     """`parallel.send` pickles only the arrays' shapes and types; each contiguous array's
     memory is a message of its own, read into the buffer the received array uses."""
