@@ -3,8 +3,13 @@
 Only reads; never modifies the keyframe objects or their data. Each keyframe is
 read on its own frame: its object's transform, shape keys and modifiers may be
 animated (the same object may even be several keyframes), so the scene is
-evaluated on every keyframe frame in turn (`Scene.frame_set`, as exporters do)
-and put back on the frame it was on. Evaluated meshes come from
+evaluated on a keyframe's frame (`Scene.frame_set`, as exporters do) whenever
+something read there may change with time (`frame_dependent`), and put back on
+the frame it was on. Objects that cannot change with time are read on the
+current frame: a frame change makes Blender redraw every 3D view, several times
+over while the viewport accumulates its anti-aliasing samples, and a bake of
+static keyframes should not pay those redraws (benchmarks/README.md, "What stays
+over 50 ms in the window"). Evaluated meshes come from
 ``Object.evaluated_get(depsgraph).to_mesh()`` (a temporary mesh outside
 ``bpy.data``) and are read with ``foreach_get``.
 """
@@ -108,18 +113,65 @@ def _world(obj, depsgraph):
     return tuple(obj.evaluated_get(depsgraph).matrix_world.translation)
 
 
+def _animated(id_data):
+    """Whether an ID block carries an action, NLA strips or drivers."""
+    ad = getattr(id_data, "animation_data", None) if id_data is not None else None
+    return ad is not None and (ad.action is not None or len(ad.drivers) > 0
+                               or len(ad.nla_tracks) > 0)
+
+
+#: Modifiers that read neither the time nor another object: with no animation of their
+#: own (which `_animated` sees on the object) they give the same mesh on every frame.
+_TIMELESS_MODIFIERS = frozenset(("SUBSURF", "TRIANGULATE", "WELD", "SOLIDIFY", "BEVEL",
+                                 "EDGE_SPLIT", "WEIGHTED_NORMAL"))
+
+
+def _timeless(modifier):
+    return modifier.type in _TIMELESS_MODIFIERS or (
+        modifier.type == "MIRROR" and modifier.mirror_object is None)
+
+
+def frame_dependent(obj):
+    """Whether ``obj`` may evaluate differently on another frame (conservative).
+
+    True when the object or one of its parents has animation (an action, NLA strips or
+    drivers, which live on the ID they drive), constraints, a modifier that may read the
+    time or another object (all but `_TIMELESS_MODIFIERS`: Wave, simulations, geometry
+    nodes, Armature, Boolean ...), a rigid body, or object data or shape keys with
+    animation. Otherwise its evaluated mesh and transform are the same on every frame.
+    """
+    while obj is not None:
+        data = obj.data
+        if (_animated(obj) or len(obj.constraints) > 0
+                or not all(_timeless(m) for m in obj.modifiers)
+                or obj.rigid_body is not None or _animated(data)
+                or _animated(getattr(data, "shape_keys", None))):
+            return True
+        obj = obj.parent
+    return False
+
+
 @contextmanager
-def _restoring_frame(scene):
-    """Evaluate ``scene`` on other frames inside the block; back on its frame afterwards."""
-    frame, subframe = scene.frame_current, scene.frame_subframe
+def _on_frames(scene):
+    """A function ``go(frame)`` that evaluates ``scene`` on ``frame`` (unless it is there
+    already); afterwards the scene is back on the frame it was on, if it left it."""
+    start = (scene.frame_current, scene.frame_subframe)
+    moved = []
+
+    def go(frame):
+        if (scene.frame_current, scene.frame_subframe) != (frame, 0.0):
+            scene.frame_set(frame)
+            moved.append(frame)
     try:
-        yield
+        yield go
     finally:
-        scene.frame_set(frame, subframe=subframe)
+        if moved:
+            scene.frame_set(start[0], subframe=start[1])
 
 
 def read_keyframes(scene, settings, depsgraph):
-    """Keyframe meshes and feature points, each evaluated on its keyframe's frame.
+    """Keyframe meshes and feature points, each evaluated on its keyframe's frame (on the
+    current frame where nothing read there depends on the frame: `frame_dependent`).
 
     Returns (keyframes, features, pair ids): the `Keyframe` list, per segment
     (points_a (N, 3), points_b (N, 3)) in world space -- side A read on keyframe
@@ -131,9 +183,13 @@ def read_keyframes(scene, settings, depsgraph):
     keyframes = []
     side_a = [[] for _ in rows]
     side_b = [[] for _ in rows]
-    with _restoring_frame(scene):
+    with _on_frames(scene) as go:
         for i, kf in enumerate(kfs):
-            scene.frame_set(int(kf.frame))
+            read_here = [kf.object]
+            read_here += [p.a for p in rows[i]] if i < len(rows) else []
+            read_here += [p.b for p in rows[i - 1]] if i > 0 else []
+            if any(frame_dependent(obj) for obj in read_here):
+                go(int(kf.frame))
             verts, tris, attrs = mesh_arrays(kf.object, depsgraph, attributes=True)
             if len(tris) == 0:
                 raise ValueError(f"Keyframe {i} ('{kf.object.name}', frame {kf.frame}) has no "
@@ -161,7 +217,8 @@ def collect(scene, depsgraph, resolution=0):
 
     ``resolution`` <= 0 means the scene setting. Raises ValueError (what is
     wrong and what to do) when validation finds a blocking problem. The scene
-    is evaluated on each keyframe's frame and left on the frame it was on.
+    is evaluated on each keyframe's frame where something read there may change with
+    time (`frame_dependent`), and left on the frame it was on.
     """
     settings = scene.keyframe_implicit
     validate.raise_on_errors(scene, settings)

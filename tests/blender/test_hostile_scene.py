@@ -135,6 +135,72 @@ def test_animated_modifier_is_read_on_each_keyframe_frame(scene, kfi):
     assert r1 > r0 + 0.25, (r0, r1)
 
 
+class _FrameChanges:
+    """Counts the scene's frame changes (`frame_change_pre`) while in the block."""
+
+    def __enter__(self):
+        self.frames = []
+        bpy.app.handlers.frame_change_pre.append(self._seen)
+        return self
+
+    def _seen(self, scene, *args):
+        self.frames.append(scene.frame_current)
+
+    def __exit__(self, *exc):
+        bpy.app.handlers.frame_change_pre.remove(self._seen)
+
+
+def test_static_keyframes_are_read_without_a_frame_change(scene, kfi):
+    a, b = kfi.build_spheres(TWO)
+    b.modifiers.new("Smooth", "SUBSURF")  # a modifier that does not read the time
+    scene.frame_set(3)
+    with _FrameChanges() as changes:
+        inp = _collect(scene)
+    # every frame change redraws the 3D views: none is needed when nothing is animated
+    assert changes.frames == [] and scene.frame_current == 3
+    centres = [kf.vertices.mean(axis=0) for kf in inp.keyframes]
+    np.testing.assert_allclose(centres, [(0, 0, 0), (1.5, 0, 0)], atol=1e-5)
+    assert len(inp.keyframes[1].vertices) > len(a.data.vertices)  # read after the subdivision
+    pa, pb = inp.features[0]
+    np.testing.assert_allclose(pb - pa, np.tile((1.5, 0.0, 0.0), (4, 1)), atol=1e-5)
+
+
+def test_time_reading_modifier_is_read_on_its_keyframe_frame(scene, kfi):
+    obj = kfi.add_sphere("Ripple", (0.0, 0.0, 0.0))
+    wave = obj.modifiers.new("Wave", "WAVE")  # moves with the time, without any animation data
+    wave.height = 0.3
+    for frame in (1, 9):
+        assert bpy.ops.keyframe_implicit.add_keyframe(object_name=obj.name, frame=frame) == {"FINISHED"}
+    ref = {}
+    for frame in (1, 9):
+        scene.frame_set(frame)
+        ref[frame] = kfi.evaluated_arrays(obj)[0]
+    assert np.abs(ref[1] - ref[9]).max() > 0.05  # the wave does move the sphere
+    scene.frame_set(5)
+    with _FrameChanges() as changes:
+        inp = _collect(scene)
+    assert changes.frames == [1, 9, 5] and scene.frame_current == 5
+    for kf, frame in zip(inp.keyframes, (1, 9)):
+        np.testing.assert_allclose(kf.vertices, ref[frame], atol=1e-6)
+
+
+def test_animated_feature_point_on_a_static_keyframe_is_read_on_its_frame(scene, kfi):
+    kfi.build_spheres(TWO)
+    empty = bpy.data.objects["KFI 0.1 B"]  # on KeyB (keyframe 2, frame 7)
+    start = tuple(empty.location)
+    empty.keyframe_insert("location", frame=1)
+    empty.location = (start[0], start[1], start[2] + 0.25)
+    empty.keyframe_insert("location", frame=7)
+    scene.frame_set(1)
+    with _FrameChanges() as changes:
+        inp = _collect(scene)
+    assert changes.frames == [7, 1] and scene.frame_current == 1
+    scene.frame_set(7)
+    want = tuple(empty.matrix_world.translation)
+    row = [str(i) for i in inp.pair_ids[0]].index("0.1")
+    np.testing.assert_allclose(inp.features[0][1][row], want, atol=1e-6)
+
+
 def test_negative_explicit_frame_is_honoured_and_unset_means_current(scene, kfi):
     kfi.add_sphere("Early", (0.0, 0.0, 0.0))
     scene.frame_set(4)
