@@ -135,17 +135,19 @@ def frame_dependent(obj):
     """Whether ``obj`` may evaluate differently on another frame (conservative).
 
     True when the object or one of its parents has animation (an action, NLA strips or
-    drivers, which live on the ID they drive), constraints, a modifier that may read the
-    time or another object (all but `_TIMELESS_MODIFIERS`: Wave, simulations, geometry
-    nodes, Armature, Boolean ...), a rigid body, or object data or shape keys with
-    animation. Otherwise its evaluated mesh and transform are the same on every frame.
+    drivers, which live on the ID they drive), constraints (a parent armature's bone
+    constraints too), a modifier that may read the time or another object (all but
+    `_TIMELESS_MODIFIERS`: Wave, simulations, geometry nodes, Armature, Boolean ...), a
+    rigid body, or object data or shape keys with animation. Otherwise its evaluated
+    mesh and transform are the same on every frame.
     """
     while obj is not None:
         data = obj.data
         if (_animated(obj) or len(obj.constraints) > 0
                 or not all(_timeless(m) for m in obj.modifiers)
                 or obj.rigid_body is not None or _animated(data)
-                or _animated(getattr(data, "shape_keys", None))):
+                or _animated(getattr(data, "shape_keys", None))
+                or (obj.pose is not None and any(len(b.constraints) for b in obj.pose.bones))):
             return True
         obj = obj.parent
     return False

@@ -184,6 +184,32 @@ def test_time_reading_modifier_is_read_on_its_keyframe_frame(scene, kfi):
         np.testing.assert_allclose(kf.vertices, ref[frame], atol=1e-6)
 
 
+def test_keyframe_on_a_bone_moved_by_a_constraint_is_read_on_its_frame(scene, kfi):
+    # nothing on the keyframe or its armature is keyed: the bone follows an animated target
+    target = bpy.data.objects.new("Target", None)
+    scene.collection.objects.link(target)
+    for frame, x in ((1, 0.0), (9, 3.0)):
+        target.location = (x, 0.0, 0.0)
+        target.keyframe_insert("location", frame=frame)
+    bpy.ops.object.armature_add(location=(0.0, 0.0, 0.0))
+    rig = bpy.context.active_object
+    follow = rig.pose.bones[0].constraints.new("COPY_LOCATION")
+    follow.target = target
+    obj = kfi.add_sphere("Carried", (0.0, 0.0, 0.0))
+    obj.parent, obj.parent_type, obj.parent_bone = rig, "BONE", rig.pose.bones[0].name
+    for frame in (1, 9):
+        assert bpy.ops.keyframe_implicit.add_keyframe(object_name=obj.name, frame=frame) == {"FINISHED"}
+    ref = {}
+    for frame in (1, 9):
+        scene.frame_set(frame)
+        ref[frame] = kfi.evaluated_arrays(obj)[0]
+    assert np.abs(ref[9] - ref[1]).max() > 2.0  # the bone does carry the sphere
+    scene.frame_set(5)
+    inp = _collect(scene)
+    for kf, frame in zip(inp.keyframes, (1, 9)):
+        np.testing.assert_allclose(kf.vertices, ref[frame], atol=1e-5)
+
+
 def test_animated_feature_point_on_a_static_keyframe_is_read_on_its_frame(scene, kfi):
     kfi.build_spheres(TWO)
     empty = bpy.data.objects["KFI 0.1 B"]  # on KeyB (keyframe 2, frame 7)
