@@ -165,16 +165,22 @@ def test_static_keyframes_are_read_without_a_frame_change(scene, kfi):
     np.testing.assert_allclose(pb - pa, np.tile((1.5, 0.0, 0.0), (4, 1)), atol=1e-5)
 
 
+def _added_on_frames(scene, kfi, obj, frames):
+    """Add ``obj`` as a keyframe on each of ``frames``; its evaluated vertices on each."""
+    for frame in frames:
+        assert bpy.ops.keyframe_implicit.add_keyframe(object_name=obj.name, frame=frame) == {"FINISHED"}
+    ref = {}
+    for frame in frames:
+        scene.frame_set(frame)
+        ref[frame] = kfi.evaluated_arrays(obj)[0]
+    return ref
+
+
 def test_time_reading_modifier_is_read_on_its_keyframe_frame(scene, kfi):
     obj = kfi.add_sphere("Ripple", (0.0, 0.0, 0.0))
     wave = obj.modifiers.new("Wave", "WAVE")  # moves with the time, without any animation data
     wave.height = 0.3
-    for frame in (1, 9):
-        assert bpy.ops.keyframe_implicit.add_keyframe(object_name=obj.name, frame=frame) == {"FINISHED"}
-    ref = {}
-    for frame in (1, 9):
-        scene.frame_set(frame)
-        ref[frame] = kfi.evaluated_arrays(obj)[0]
+    ref = _added_on_frames(scene, kfi, obj, (1, 9))
     assert np.abs(ref[1] - ref[9]).max() > 0.05  # the wave does move the sphere
     scene.frame_set(5)
     with _FrameChanges() as changes:
@@ -197,12 +203,7 @@ def test_keyframe_on_a_bone_moved_by_a_constraint_is_read_on_its_frame(scene, kf
     follow.target = target
     obj = kfi.add_sphere("Carried", (0.0, 0.0, 0.0))
     obj.parent, obj.parent_type, obj.parent_bone = rig, "BONE", rig.pose.bones[0].name
-    for frame in (1, 9):
-        assert bpy.ops.keyframe_implicit.add_keyframe(object_name=obj.name, frame=frame) == {"FINISHED"}
-    ref = {}
-    for frame in (1, 9):
-        scene.frame_set(frame)
-        ref[frame] = kfi.evaluated_arrays(obj)[0]
+    ref = _added_on_frames(scene, kfi, obj, (1, 9))
     assert np.abs(ref[9] - ref[1]).max() > 2.0  # the bone does carry the sphere
     scene.frame_set(5)
     inp = _collect(scene)
