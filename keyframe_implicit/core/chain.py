@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .grid import Grid
-from .parallel import Helper, one_blas_thread
+from .parallel import Helper, one_blas_thread, release_memory
 from .progress import Reporter
 from .quality import frame_quality
 from .renamed import take_renamed
@@ -155,6 +155,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             kept.stats["segments"].append(dict(inb.stats,
                                                template_seconds=time.perf_counter() - t_seg))
             del inb
+            if k < nk - 2:  # the next segment's arrays then do not stack on this one's
+                release_memory()
     finally:
         blas.restore_original_limits()
         if helper is not None:

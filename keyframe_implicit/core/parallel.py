@@ -23,18 +23,22 @@ only the parent holds, so a parent killed outright (a cancelled bake's worker)
 takes its helper with it. `Helper.close` ends it at once, finished or not.
 
 While a bake runs, BLAS keeps to one thread in each process (`one_blas_thread`).
+After each call the helper gives its heap's free pages back to the system
+(`release_memory`), as the bake's process does between a chain's segments.
 """
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import pickle
+import sys
 import threading
 import time
 from collections import deque
 
-__all__ = ["Helper", "HelperError", "cores", "one_blas_thread", "share"]
+__all__ = ["Helper", "HelperError", "cores", "one_blas_thread", "release_memory", "share"]
 
 
 def cores():
@@ -59,6 +63,37 @@ def one_blas_thread():
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(limits=1, user_api="blas")
+
+
+def _malloc_trim():
+    """glibc's ``malloc_trim``, or None where the C library has none (macOS, Windows, musl)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+_TRIM = _malloc_trim()
+
+
+def release_memory():
+    """Give the free pages of this process's heap back to the system (glibc's
+    ``malloc_trim``; nothing where there is none). Returns whether it could.
+
+    numpy's mid-sized arrays come from the heap once glibc has raised its mmap threshold
+    past them, and a freed heap stays resident: a segment's arrays, freed, are still
+    counted in the next segment's resident set, and a chain's peak grows with its
+    segments. Called where a call's or a segment's large arrays have just gone (a
+    helper's call answered, a chain's segment done), it keeps them from stacking
+    (benchmarks/README.md, "Free heap given back between a chain's segments"). The pages
+    given back cost a page fault each when they are used again.
+    """
+    if _TRIM is None:
+        return False
+    _TRIM(0)
+    return True
 
 
 class HelperError(RuntimeError):
@@ -288,6 +323,8 @@ def _serve(conn, lifeline, preload):
             send(conn, answer)
         except Exception as exc:  # pickling failed before anything was sent
             send(conn, (False, HelperError(f"the helper's answer could not be sent back: {exc!r}")))
+        del fn, args, kwargs, answer  # not held while the next call arrives and is rebuilt
+        release_memory()
 
 
 class _Ready:

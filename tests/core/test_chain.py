@@ -5,6 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from inbetween_cases import l_centroid, l_shape, make_grid
+from keyframe_implicit.core import chain
 from keyframe_implicit.core.chain import animate_chain
 
 
@@ -49,6 +50,18 @@ def test_three_keyframe_chain_passes_through_the_middle_keyframe():
     assert np.linalg.norm(np.diff(res.vertices, axis=0), axis=2).max() <= 2 * h
     assert max(res.stats["max_abs_phi"]) <= 0.1 * h
     assert len(res.stats["segments"]) == 2
+
+
+def test_a_chain_gives_its_free_heap_back_between_segments_not_after_the_last(monkeypatch):
+    released = []  # segments done when the heap is given back
+    grid = make_grid(3, 20)
+    phi = l_shape(grid.points())
+    monkeypatch.setattr(chain, "release_memory", lambda: released.append(len(done)))
+    done = []
+    real = chain._Kept.add
+    monkeypatch.setattr(chain._Kept, "add", lambda self, *a: (done.append(1), real(self, *a)))
+    animate_chain([phi] * 4, grid, None, [1, 3, 5, 7], maps=[grid.points()] * 3, surfaces=False)
+    assert released == [1, 2]
 
 
 def test_chain_refuses_bad_frames_and_missing_features():

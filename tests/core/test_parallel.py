@@ -76,6 +76,35 @@ def test_the_helper_does_not_keep_a_calls_pickled_bytes_through_the_call():
     assert during - before < 1.5 * payload.nbytes / 2 ** 20
 
 
+_KEPT = []  # in the helper: arrays that stay, so that the freed ones between them cannot merge
+
+
+def _freed_heap_left(mib):
+    """Free ``mib`` MiB of 4 MiB arrays from the heap, each between two that stay; the
+    resident MiB then (the freed pages still in it)."""
+    big = np.ones(2 ** 21)  # 16 MiB, mapped on its own; freed, it raises glibc's mmap threshold
+    del big
+    blocks = [np.ones(2 ** 19) for _ in range(2 * (mib // 4))]  # 4 MiB each: from the heap now
+    _KEPT.extend(blocks[1::2])
+    del blocks
+    return _resident_mib(None)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim: Linux")
+def test_the_helper_gives_a_calls_freed_heap_back_before_the_next_call():
+    """A chain's segments follow each other in the helper: what one call freed must not stay
+    resident under the next (`parallel.release_memory`)."""
+    with Helper(preload=()) as helper:
+        helper.submit(_resident_mib, None)
+        start = helper.result()
+        helper.submit(_freed_heap_left, 128)
+        left = helper.result()
+        helper.submit(_resident_mib, None)
+        after = helper.result()
+    assert left - start > 128 + 96, (start, left)  # the premise: freed, yet still resident
+    assert after - start < 128 + 32, (start, left, after)  # what stays is the kept arrays
+
+
 def test_a_killed_helper_is_an_error_that_names_the_signal():
     with Helper(preload=()) as helper:
         helper.submit(time.sleep, 30)
