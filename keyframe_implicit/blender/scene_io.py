@@ -8,8 +8,8 @@ something read there may change with time (`frame_dependent`), and put back on
 the frame it was on. Objects that cannot change with time are read on the
 current frame: a frame change makes Blender redraw every 3D view, several times
 over while the viewport accumulates its anti-aliasing samples, and a bake of
-static keyframes should not pay those redraws (benchmarks/README.md, "What stays
-over 50 ms in the window"). Evaluated meshes come from
+static keyframes should not pay those redraws (benchmarks/README.md, "Static
+keyframes read without a frame change"). Evaluated meshes come from
 ``Object.evaluated_get(depsgraph).to_mesh()`` (a temporary mesh outside
 ``bpy.data``) and are read with ``foreach_get``.
 """
