@@ -114,8 +114,8 @@ def _world(obj, depsgraph):
 
 
 def _animated(id_data):
-    """Whether an ID block carries an action, NLA strips or drivers."""
-    ad = getattr(id_data, "animation_data", None) if id_data is not None else None
+    """Whether an ID block (or None) carries an action, NLA strips or drivers."""
+    ad = getattr(id_data, "animation_data", None)
     return ad is not None and (ad.action is not None or len(ad.drivers) > 0
                                or len(ad.nla_tracks) > 0)
 
