@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import RBFInterpolator
 
-from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core.base.sampling import sample
 
 __all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided"]
 

@@ -47,7 +47,7 @@ STAGES = (("sdf", "distance"), ("maps", "maps"), ("trajectories", "trajectories"
 def keyframes(name):
     """(keyframes, features) of a case: meshes of its fields, 24 frames apart (1, 25, ...)."""
     from keyframe_implicit.core import Keyframe
-    from keyframe_implicit.core.surface import extract_surface
+    from keyframe_implicit.core.surface.extract.extract import extract_surface
 
     if name == "ellipsoid":
         from bench_solver import sphere_case
@@ -75,8 +75,8 @@ def peak_rss_mb():
 def run_one(name, n, processes):
     """Bake one case at ``n`` cells; figures as a dict (runs in the child)."""
     from keyframe_implicit.core import animate
-    from keyframe_implicit.core.gridfit import estimate_memory
-    from keyframe_implicit.core.pipeline import _material_fraction
+    from keyframe_implicit.core.bake.gridfit import estimate_memory
+    from keyframe_implicit.core.bake.pipeline import _material_fraction
 
     kfs, features = keyframes(name)
     t0 = time.perf_counter()

@@ -50,7 +50,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from keyframe_implicit.core import Grid, elements, solve_map  # noqa: E402
-from keyframe_implicit.core.sampling import sample  # noqa: E402
+from keyframe_implicit.core.base.sampling import sample  # noqa: E402
 
 
 def ellipsoid_sdf(P, c, ax):

@@ -21,7 +21,7 @@ import bpy
 
 import keyframe_implicit
 from keyframe_implicit.blender import bake, scene_io
-from keyframe_implicit.core import pipeline
+from keyframe_implicit.core.bake import pipeline
 
 POLL = 0.02
 STAGES = ("Distance grid", "Gauss-Newton", "trajectories", "frame 4")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from keyframe_implicit.core.grid import Grid
+from keyframe_implicit.core.base.grid import Grid
 
 __all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "rotation"]
 

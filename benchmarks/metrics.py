@@ -4,7 +4,7 @@ All lengths are reported in grid spacings h. A "sequence" is a list of level
 set grids at times ``s`` (negative inside), keyframe A at s = 0 and B at s = 1.
 
 - `volume`: volume inside the surface the artist gets (marching cubes of the
-  frame's field, `keyframe_implicit.core.surface.enclosed_volume`), the same for
+  frame's field, `keyframe_implicit.core.surface.extract.enclosed_volume`), the same for
   every method whether its field is a distance or not.
 - `volume_drift`: max over s of |V(s) - V_lin(s)| / V_lin(s), V_lin the linear
   interpolation of the keyframe volumes.
@@ -22,8 +22,8 @@ import numpy as np
 from scipy import ndimage
 from skimage import measure
 
-from keyframe_implicit.core.sampling import sample
-from keyframe_implicit.core.surface import enclosed_volume
+from keyframe_implicit.core.base.sampling import sample
+from keyframe_implicit.core.surface.extract.extract import enclosed_volume
 
 __all__ = [
     "volume", "volume_drift", "components", "spurious_components", "zero_set",

@@ -94,7 +94,7 @@ def main(argv=None):
               file=sys.stderr)
         return 1
     except Exception as exc:  # noqa: BLE001 - every failure becomes a message and exit 1
-        from .core.progress import Cancelled
+        from .core.base.progress import Cancelled
         from .worker import WorkerError
 
         # these say what happened and what to do in their own words

@@ -39,8 +39,8 @@ import sys
 import threading
 import traceback
 
-from .core.parallel import Helper, cores
-from .core.progress import Cancelled
+from .core.base.parallel import Helper, cores
+from .core.base.progress import Cancelled
 
 __all__ = ["Worker", "WorkerError"]
 
@@ -219,8 +219,8 @@ def main():
     sender = pickle.load(sys.stdin.buffer)  # a str: no class to map
     arguments = receive(sys.stdin.buffer, sender)
     threading.Thread(target=_leave_when_parent_gone, daemon=True).start()
-    from .core import pipeline
-    from .core.meshdata import resolve_output
+    from .core.bake import pipeline
+    from .core.surface.meshdata import resolve_output
 
     mode = arguments.pop("output_mode", None)
     try:

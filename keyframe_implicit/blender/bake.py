@@ -23,7 +23,7 @@ import os
 import threading
 import time
 
-from ..core.progress import Cancelled
+from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
 from . import output, scene_io, volumes
 

@@ -5,7 +5,7 @@ import time
 import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
-from ..core.progress import Cancelled
+from ..core.base.progress import Cancelled
 from . import bake, features, result_view, scene_io, validate
 
 _OPTS = {"REGISTER", "UNDO"}

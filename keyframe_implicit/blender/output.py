@@ -42,8 +42,8 @@ every data-block created here is removed again, so the scene is as before.
 import bpy
 import numpy as np
 
-from ..core.meshdata import FRAME_ATTRIBUTE, SHAPE_KEYS, resolve_output
-from ..core.quality import describe_worst
+from ..core.surface.meshdata import FRAME_ATTRIBUTE, SHAPE_KEYS, resolve_output
+from ..core.surface.quality import describe_worst
 from . import fcurves
 
 OUTPUT_TAG = "kfi_output"

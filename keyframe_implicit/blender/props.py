@@ -2,7 +2,7 @@
 
 One `KFI_Settings` per scene holds the ordered keyframe list, the grid
 resolution, the objective weights of thesis eq. 2.6 (see
-``keyframe_implicit/core/terms.py``; the panel calls them Volume, Rigidity and
+``keyframe_implicit/core/map/terms.py``; the panel calls them Volume, Rigidity and
 Shape Match), the output options, a pointer to the baked output object, so that
 baking again replaces that object and only it, and whether the keyframes are
 shown over it (`result_view`).
@@ -19,7 +19,7 @@ from bpy.props import (
     StringProperty,
 )
 
-from ..core.solver import DEFAULT_WEIGHTS
+from ..core.map.solver import DEFAULT_WEIGHTS
 
 
 def _is_mesh(_self, obj):
@@ -62,7 +62,7 @@ class KFI_Settings(bpy.types.PropertyGroup):
         description="Grid cells along the longest side of the keyframes' bounding box "
         "(memory and time grow with its cube)",
     )
-    # Weights of the three terms of thesis eq. 2.6 (core/terms.py), in an artist's words.
+    # Weights of the three terms of thesis eq. 2.6 (core/map/terms.py), in an artist's words.
     volume_weight: FloatProperty(
         name="Volume", default=DEFAULT_WEIGHTS["volume"], min=0.0, soft_max=100.0,
         description="How strictly every part keeps its volume while it moves. Raise it when "

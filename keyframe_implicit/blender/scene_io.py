@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.attributes import MeshAttributes
-from ..core.pipeline import Keyframe
+from ..core.surface.attributes import MeshAttributes
+from ..core.bake.pipeline import Keyframe
 from . import features, validate
 
 

@@ -132,7 +132,7 @@ def surface_check(obj, depsgraph):
     Counts faces per edge on the evaluated mesh (one ``foreach_get`` and a
     ``bincount``): an edge with one face lies on a hole, one with three or more
     is non-manifold. The core reads both as solids (generalised winding
-    numbers, core/sdf.py), so they are warnings; what it cannot read is a
+    numbers, core/fields/sdf.py), so they are warnings; what it cannot read is a
     surface that encloses no volume, such as a plane. For an open mesh the
     volume (divergence theorem) is taken about the centre of its hole edges,
     so the holes' missing caps add next to nothing. Objects without modifiers

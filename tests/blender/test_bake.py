@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.blender import bake, fcurves, output, scene_io
-from keyframe_implicit.core.progress import Cancelled
+from keyframe_implicit.core.base.progress import Cancelled
 
 # Two unit spheres (equal volume), the second moved along x: frames 1..7.
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
@@ -146,7 +146,7 @@ def test_failing_core_leaves_scene_unchanged(scene, kfi, in_worker):
     assert bpy.ops.keyframe_implicit.bake(resolution=kfi.RES) == {"FINISHED"}
     state = kfi.snapshot()
     in_worker("""
-        from keyframe_implicit.core import pipeline
+        from keyframe_implicit.core.bake import pipeline
 
         def broken(*args, progress=None, **kwargs):
             progress(0.2, "signed distance grids")

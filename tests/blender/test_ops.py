@@ -190,7 +190,7 @@ def test_property_group_contract(scene):
     item = s.keyframes.add()
     assert {"object", "frame"} <= set(item.bl_rna.properties.keys())
     # the panel starts from the solver's measured weights, not a guess of its own
-    from keyframe_implicit.core.solver import solve_map
+    from keyframe_implicit.core.map.solver import solve_map
     import inspect
 
     sig = inspect.signature(solve_map).parameters

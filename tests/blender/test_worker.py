@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.blender import bake, scene_io
-from keyframe_implicit.core import pipeline
-from keyframe_implicit.core.meshdata import resolve_output
+from keyframe_implicit.core.bake import pipeline
+from keyframe_implicit.core.surface.extract.meshdata import resolve_output
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
 
@@ -19,7 +19,7 @@ TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
 #: message is the stage the parent last heard of).
 FAULT = """
     import os, resource, signal, sys, time
-    from keyframe_implicit.core import pipeline
+    from keyframe_implicit.core.bake import pipeline
 
     _animate = pipeline.animate
     done = []

@@ -12,7 +12,7 @@ import functools
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from keyframe_implicit.core.grid import Grid
+from keyframe_implicit.core.base.grid import Grid
 
 
 # ---------------------------------------------------------------- SDF primitives

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from benchmark_modules import load
-from keyframe_implicit.core.grid import Grid
+from keyframe_implicit.core.base.grid import Grid
 
 metrics = load("metrics")
 

@@ -1,10 +1,11 @@
-"""The coarse correction of the Gauss-Newton systems (`core/coarse.py`)."""
+"""The coarse correction of the Gauss-Newton systems (`core/map/coarse.py`)."""
 
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Grid, solver
-from keyframe_implicit.core.coarse import CoarseSpace
+from keyframe_implicit.core import Grid
+from keyframe_implicit.core.map import solver
+from keyframe_implicit.core.map.coarse import CoarseSpace
 
 
 def _level(n, d):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Grid, cell_weights, sample, sample_with_gradient
-from keyframe_implicit.core.sampling import central_differences
+from keyframe_implicit.core.base.sampling import central_differences
 
 
 def test_node_positions_follow_origin_and_spacing():
@@ -143,8 +143,8 @@ def test_cells_within_match_a_cell_by_cell_count(shape):
     """`elements.cells_within` and the transport's border against a loop over the cells."""
     import itertools
 
-    from keyframe_implicit.core import elements
-    from keyframe_implicit.core.transport import _region_cells
+    from keyframe_implicit.core.base import elements
+    from keyframe_implicit.core.motion.transport import _region_cells
 
     g = Grid(origin=(0.0,) * len(shape), spacing=1.0, shape=shape)
     region = np.random.default_rng(3).random(shape) < 0.8

@@ -1,4 +1,4 @@
-"""Grid fitting and the memory estimate (issue 3, keyframe_implicit.core.gridfit)."""
+"""Grid fitting and the memory estimate (issue 3, keyframe_implicit.core.bake.gridfit)."""
 
 import re
 import tracemalloc
@@ -99,7 +99,7 @@ def test_oversized_request_fails_before_any_work_and_names_what_fits():
     # box gets a smaller guess (and estimate) than a tight one
     loose = fit_grid(pts, 40, padding_cells=20)
     tight = fit_grid(pts, 40, padding_cells=0)
-    from keyframe_implicit.core.gridfit import _box_fraction
+    from keyframe_implicit.core.bake.gridfit import _box_fraction
     f_loose = _box_fraction(pts.min(0), pts.max(0), loose)
     f_tight = _box_fraction(pts.min(0), pts.max(0), tight)
     assert 0 < f_loose < f_tight <= 0.5

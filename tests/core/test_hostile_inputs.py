@@ -91,7 +91,7 @@ def test_loose_far_vertex_is_ignored_and_counted():
 @pytest.fixture
 def shared_distance_grids(monkeypatch):
     """The helper makes the last keyframe's distance grid even on these small grids."""
-    from keyframe_implicit.core import pipeline
+    from keyframe_implicit.core.bake import pipeline
 
     monkeypatch.setattr(pipeline, "_WAIT_FOR_HELPER", True)
 
@@ -149,7 +149,7 @@ def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too(shared_dist
 def test_initial_map_stays_on_the_grid_with_near_duplicate_features(gap):
     """The guard on the RBF start: whatever the features, the material is not sent off the grid."""
     from keyframe_implicit.core import Grid
-    from keyframe_implicit.core.rbf import initial_map
+    from keyframe_implicit.core.map.rbf import initial_map
 
     n = 24
     g = Grid((-1.0, -1.0, -1.0), 2.0 / n, (n + 1,) * 3)

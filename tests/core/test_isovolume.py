@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Grid
-from keyframe_implicit.core.isovolume import _gradient_norm, volume_offset
-from keyframe_implicit.core.surface import enclosed_volume
+from keyframe_implicit.core.motion.isovolume import _gradient_norm, volume_offset
+from keyframe_implicit.core.surface.extract.extract import enclosed_volume
 
 
 @pytest.mark.parametrize("shape", [(7, 2, 5), (9, 6, 8), (11, 4)])
@@ -33,7 +33,7 @@ def test_a_truncated_fields_plateau_is_not_read_and_gives_the_same_offset(monkey
     reached, 1.9 cells in the benchmark's morph), under the search's reach: its plateau is
     outside at any shift below it, so only the nodes under it are read, and the offset is
     the one of the untruncated field."""
-    from keyframe_implicit.core import isovolume
+    from keyframe_implicit.core.motion import isovolume
 
     g = Grid(origin=(-1.0, -1.0, -1.0), spacing=2.0 / 47, shape=(48, 48, 48))
     f = np.linalg.norm(g.points(), axis=-1) - 0.5

@@ -5,9 +5,9 @@ import pytest
 from scipy import ndimage
 
 from inbetween_cases import RIGID_AXIS, bend_case, merge_case, rigid_case, rigid_expected, l_shape
-from keyframe_implicit.core.levelset import Inbetween
-from keyframe_implicit.core.sampling import sample
-from keyframe_implicit.core.surface import extract_surface, loop_area, mesh_volume
+from keyframe_implicit.core.motion.levelset import Inbetween
+from keyframe_implicit.core.base.sampling import sample
+from keyframe_implicit.core.surface.extract.extract import extract_surface, loop_area, mesh_volume
 
 
 def volume(levelset, grid):
@@ -162,8 +162,8 @@ def test_from_map_refuses_bad_input(rigid):
 
 
 def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
-    from keyframe_implicit.core import transport
-    from keyframe_implicit.core.transport import inverse_lookup
+    from keyframe_implicit.core.motion import transport
+    from keyframe_implicit.core.motion.transport import inverse_lookup
 
     grid, phi_a, phi_b, mapped, info, ib = rigid
     fw = ib.forward
@@ -188,7 +188,7 @@ def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
 
 def test_in_between_is_a_distance_field_near_its_surface(rigid):
     # |grad| ~ 1 across the zero set, and values off the surface are distances
-    from keyframe_implicit.core.sampling import sample_with_gradient
+    from keyframe_implicit.core.base.sampling import sample_with_gradient
 
     grid, phi_a, phi_b, mapped, info, ib = rigid
     h = grid.spacing

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core.attributes import MeshAttributes
-from keyframe_implicit.core.meshdata import (MESH_SEQUENCE, SHAPE_KEYS, MeshData, output_mesh,
+from keyframe_implicit.core.surface.extract.attributes import MeshAttributes
+from keyframe_implicit.core.surface.extract.meshdata import (MESH_SEQUENCE, SHAPE_KEYS, MeshData, output_mesh,
                                              polygon_edges)
-from keyframe_implicit.core.pipeline import Animation
+from keyframe_implicit.core.bake.pipeline import Animation
 
 
 def _polygons(rng, n_vertices, n_polygons):

@@ -5,9 +5,9 @@ import pytest
 from scipy.sparse.linalg import splu
 
 from keyframe_implicit.core import Grid
-from keyframe_implicit.core.multigrid import BlockMultigrid, block_pcg
-from keyframe_implicit.core.progress import Cancelled
-from keyframe_implicit.core.trajectory import Trajectories
+from keyframe_implicit.core.base.multigrid import BlockMultigrid, block_pcg
+from keyframe_implicit.core.base.progress import Cancelled
+from keyframe_implicit.core.motion.trajectory import Trajectories
 
 
 def _two_balls_bending(n=40):
@@ -52,7 +52,7 @@ def test_trajectories_agree_with_the_direct_solve_to_a_ten_thousandth_of_a_cell(
 def test_right_hand_side_in_chunks_of_cells_is_the_whole_one(monkeypatch):
     """`Trajectories._rhs` makes its targets a chunk of cells at a time: B T of the
     whole T, however the cells are cut (here into chunks of 400 and one left over)."""
-    from keyframe_implicit.core import trajectory
+    from keyframe_implicit.core.motion import trajectory
 
     grid, y, mat = _two_balls_bending(24)
     tr = Trajectories(grid, y, mat)

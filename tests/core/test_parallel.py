@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Cancelled, Grid, animate
-from keyframe_implicit.core.parallel import Helper, HelperError
+from keyframe_implicit.core.base.parallel import Helper, HelperError
 
 from test_pipeline import turning_sphere
 
@@ -118,7 +118,7 @@ def test_a_killed_helper_is_an_error_that_names_the_signal():
 def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
     code = textwrap.dedent("""
         import time
-        from keyframe_implicit.core.parallel import Helper
+        from keyframe_implicit.core.base.parallel import Helper
         if __name__ == "__main__":
             helper = Helper(preload=())
             helper.submit(time.sleep, 60)
@@ -183,7 +183,7 @@ def test_a_helper_that_dies_before_it_has_started_says_so():
 def test_a_bake_uses_a_helper_it_is_given_and_leaves_it_running(monkeypatch):
     """`animate(helper=...)`: the worker starts its helper before reading its inputs; the
     bake shares its work with that one, starts none of its own, and does not end it."""
-    from keyframe_implicit.core import parallel
+    from keyframe_implicit.core.base import parallel
 
     kfs, feats = turning_sphere(n=16, last=5)
     with Helper() as helper:
@@ -280,9 +280,9 @@ class _CountingHelper:
 def test_helper_takes_a_distance_grid_only_once_it_has_started(started):
     """A process takes 0.5-1 s to start, longer than a small grid's distance grids: this
     process does not wait for it, and hands it the last keyframe once it is up."""
-    from keyframe_implicit.core import pipeline
-    from keyframe_implicit.core.gridfit import fit_grid
-    from keyframe_implicit.core.progress import Reporter
+    from keyframe_implicit.core.bake import pipeline
+    from keyframe_implicit.core.bake.gridfit import fit_grid
+    from keyframe_implicit.core.base.progress import Reporter
 
     kfs, _ = turning_sphere(n=16, last=11)
     surfaces = [pipeline._surface_vertices(k, kf) for k, kf in enumerate(kfs)]
@@ -319,7 +319,8 @@ class _OrderHelper:
 def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(monkeypatch):
     """The helper builds its own copy of the in-betweens for its half of the frames: handed
     the recipe as soon as the maps are solved, it builds while this process builds too."""
-    from keyframe_implicit.core import chain, trajectory
+    from keyframe_implicit.core.bake import chain
+    from keyframe_implicit.core.motion import trajectory
 
     built = [0]
     init = trajectory.Trajectories.__init__
@@ -349,7 +350,7 @@ def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
     import multiprocessing
     import threading
 
-    from keyframe_implicit.core.parallel import receive, send
+    from keyframe_implicit.core.base.parallel import receive, send
 
     mine, theirs = multiprocessing.Pipe()
     sent = []
@@ -380,7 +381,7 @@ def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
 def test_frame_split_halves_the_inbetweens_not_the_frames(first, ends, mine):
     """A keyframe's own frame adds no work of its own: frames 1..25 give this process s = 0
     and 12 in-betweens, the helper 11 and s = 1 (halving the frames gave it 12)."""
-    from keyframe_implicit.core.chain import _FrameSplit
+    from keyframe_implicit.core.bake.chain import _FrameSplit
 
     frames = np.arange(first, ends[1] + 1)
     split = _FrameSplit(object(), frames, ends, 0, None, None)
@@ -396,8 +397,8 @@ def test_both_halves_of_a_split_carry_their_transports_one_after_the_other(monke
     only competes with it (`Inbetween.threads` 1 in both halves; alone, it stays 2)."""
     from types import SimpleNamespace
 
-    from keyframe_implicit.core import chain
-    from keyframe_implicit.core.progress import Reporter
+    from keyframe_implicit.core.bake import chain
+    from keyframe_implicit.core.base.progress import Reporter
 
     class InTurn:  # a helper that runs the submitted call when its result is asked for
         def submit(self, fn, *args):
@@ -462,7 +463,8 @@ def test_a_free_process_takes_the_next_map_of_the_chain(monkeypatch):
     """The maps of a window of segments are dealt as each process comes free: while the
     helper is held on its first map (the first segment's B -> A), this process solves the
     other three, and the chain is the one a single process makes."""
-    from keyframe_implicit.core import chain, solver
+    from keyframe_implicit.core.bake import chain
+    from keyframe_implicit.core.map import solver
 
     here = []
     solve = solver.solve_map
@@ -485,7 +487,7 @@ def test_a_free_process_takes_the_next_map_of_the_chain(monkeypatch):
 
 
 def test_cancel_while_waiting_for_the_helpers_map_ends_within_a_second():
-    from keyframe_implicit.core import chain
+    from keyframe_implicit.core.bake import chain
 
     phis, grid, feats = _two_segments()
     flipped = threading.Event()
@@ -506,7 +508,7 @@ def test_cancel_while_waiting_for_the_helpers_map_ends_within_a_second():
 
 
 def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised():
-    from keyframe_implicit.core import chain
+    from keyframe_implicit.core.bake import chain
 
     phis, grid, feats = _two_segments()
     helper = _HeldHelper(lambda: True, fail=HelperError("the helper was killed (SIGKILL)"))
@@ -518,7 +520,7 @@ def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised():
 
 
 def test_inbetween_with_a_helper_solves_the_map_b_to_a_there():
-    from keyframe_implicit.core.levelset import inbetween
+    from keyframe_implicit.core.motion.levelset import inbetween
 
     phis, grid, feats = _two_segments()
     helper = _HeldHelper(lambda: True)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Animation, Cancelled, Keyframe, animate, mesh_to_sdf
-from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core.base.sampling import sample
 
 
 def uv_sphere(center, radius, n=24):

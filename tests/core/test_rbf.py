@@ -3,8 +3,8 @@
 import numpy as np
 
 from keyframe_implicit.core import Grid
-from keyframe_implicit.core.rbf import initial_map, label_material
-from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core.map.rbf import initial_map, label_material
+from keyframe_implicit.core.base.sampling import sample
 
 
 def _grid(n, d):
@@ -118,7 +118,7 @@ def test_start_does_not_fold_a_merge_seen_backwards_3d():
     # a capsule split into two balls (the example merge's backward map): the centre pairs
     # ask for a 4x stretch, the pole pairs for 0.8x; the thesis's r^3 overshoots between
     # them and folds the capsule's ends, which the solver could never undo
-    from keyframe_implicit.core.rbf import min_det
+    from keyframe_implicit.core.map.rbf import min_det
 
     g = Grid((-2.0, -0.9, -0.9), 0.1, (41, 19, 19))
     P = g.points()

@@ -1,11 +1,11 @@
-"""Signed distance grids from meshes and polygons (issue 3, keyframe_implicit.core.sdf)."""
+"""Signed distance grids from meshes and polygons (issue 3, keyframe_implicit.core.fields.sdf)."""
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
 from keyframe_implicit.core import Cancelled, Grid, mesh_to_sdf, polygon_to_sdf
-from keyframe_implicit.core.sdf import point_triangle_distance, triangulate, winding_number
+from keyframe_implicit.core.fields.sdf import point_triangle_distance, triangulate, winding_number
 
 
 # -- test meshes built with numpy --------------------------------------------------
@@ -89,7 +89,7 @@ def test_exact_shell_does_not_depend_on_the_chunk_size(monkeypatch):
     """The (node, triangle) pairs of the triangles' boxes are measured a chunk at a
     time, and a chunk may begin and end inside one box: with chunks far smaller than
     any box the distances are the same, and exact in the shell."""
-    from keyframe_implicit.core import sdf
+    from keyframe_implicit.core.fields import sdf
 
     lo, hi = np.array([-0.6, -0.4, -0.5]), np.array([0.5, 0.45, 0.3])
     v, quads = box(lo, hi)

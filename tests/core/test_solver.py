@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from keyframe_implicit.core import Cancelled, Grid, elements, solve_map
-from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core import Cancelled, Grid, solve_map
+from keyframe_implicit.core.base import elements
+from keyframe_implicit.core.base.sampling import sample
 
 
 # -- analytic shapes -------------------------------------------------------
@@ -332,7 +333,7 @@ def test_close_features_use_hard_constraints_and_featureless_components_follow(m
 def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     """The stencil assembly (a sparse product per chunk of elements, 97 here) equals a plain
     per-corner scatter of every element block."""
-    from keyframe_implicit.core import solver, terms
+    from keyframe_implicit.core.map import solver, terms
 
     g = _unit_grid(10, 3)
     P = g.points()
@@ -366,7 +367,7 @@ def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
     """`_Level.product` with a thread for the first half of the rows gives H x bit for bit."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from keyframe_implicit.core import solver
+    from keyframe_implicit.core.map import solver
 
     g = _unit_grid(10, 3)
     P = g.points()
@@ -389,7 +390,7 @@ def test_energy_in_two_element_halves_is_the_whole_energy(monkeypatch):
     gradient and Hessian are those of one thread (up to the order of the sums)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from keyframe_implicit.core import solver
+    from keyframe_implicit.core.map import solver
 
     g = _unit_grid(12, 3)
     P = g.points()
@@ -439,7 +440,7 @@ def test_stiff_feature_patches_keep_the_halves_of_a_bent_rod_rigid():
 
 
 def test_prolongation_equals_multilinear_sampling_of_the_coarse_level():
-    from keyframe_implicit.core.solver import _levels, _prolong
+    from keyframe_implicit.core.map.solver import _levels, _prolong
 
     for shape in ((33, 34, 36), (32, 32), (48, 25, 27)):
         g = Grid((0.1,) * len(shape), 0.05, shape)
@@ -450,8 +451,8 @@ def test_prolongation_equals_multilinear_sampling_of_the_coarse_level():
 
 
 def test_a_fourth_term_is_one_function_and_one_registry_entry(monkeypatch):
-    """The recipe of core/terms.py: write the function, append a Term; solve_map takes its weight."""
-    from keyframe_implicit.core import solver, terms
+    """The recipe of core/map/terms.py: write the function, append a Term; solve_map takes its weight."""
+    from keyframe_implicit.core.map import solver, terms
 
     calls = []
 
@@ -477,7 +478,7 @@ def test_a_merge_seen_backwards_does_not_fold():
     squeeze towards the poles, a kink no affine feature patch can follow. The map must
     still keep det F >= 0.2 on the material (the patches shrink to what the start allows)
     and land every feature point."""
-    from keyframe_implicit.core.grid import Grid
+    from keyframe_implicit.core.base.grid import Grid
 
     h = 0.09
     g = Grid(origin=(-1.8, -0.8, -0.8), spacing=h, shape=(41, 19, 19))

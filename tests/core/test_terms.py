@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import elements, terms
-from keyframe_implicit.core.grid import Grid
+from keyframe_implicit.core.base import elements
+
+from keyframe_implicit.core.map import terms
+from keyframe_implicit.core.base.grid import Grid
 
 
 def _rotation(axis, angle):

@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from inbetween_cases import bend_case, merge_case, rigid_case
-from keyframe_implicit.core.grid import Grid
-from keyframe_implicit.core.trajectory import Trajectories, polar, rotation_exp, rotation_log
+from keyframe_implicit.core.base.grid import Grid
+from keyframe_implicit.core.motion.trajectory import Trajectories, polar, rotation_exp, rotation_log
 
 
 def test_polar_decomposition_and_rotation_log_roundtrip():
@@ -29,7 +29,7 @@ def test_polar_by_newton_is_the_closest_rotation_of_the_svd():
     """`polar` takes the Newton iteration for 3 x 3 matrices with det F > 0 and the SVD for
     folded or flat ones: both give the closest proper rotation (the SVD's, with the sign on
     the smallest singular value), whichever way a matrix went."""
-    from keyframe_implicit.core.trajectory import _newton_rotation, _svd_rotation
+    from keyframe_implicit.core.motion.trajectory import _newton_rotation, _svd_rotation
 
     rng = np.random.default_rng(3)
     F = rng.normal(size=(400, 3, 3))
@@ -57,8 +57,8 @@ def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
     """L = D^T W D and B = D^T W E, with one row of D per edge of every cell (shared
     edges once per cell), as the docstring defines them; B as an operator, applied to
     the identity and to several columns at once."""
-    from keyframe_implicit.core import elements
-    from keyframe_implicit.core.trajectory import _edge_operators, _edge_pairs
+    from keyframe_implicit.core.base import elements
+    from keyframe_implicit.core.motion.trajectory import _edge_operators, _edge_pairs
 
     grid = Grid((0.0,) * d, 1.0, (5,) * d)
     region = np.zeros(grid.shape, dtype=bool)  # two overlapping boxes: a ragged band
@@ -118,7 +118,7 @@ def test_paths_end_exactly_at_the_map_for_a_non_rigid_map():
 def test_points_at_the_ends_follow_the_node_paths_inside_and_outside_the_grid():
     # s = 0 and s = 1 take a shortcut (the points themselves, the map read at them): it
     # must give what interpolating the nodes' positions gives, clamped points included
-    from keyframe_implicit.core.sampling import cell_weights
+    from keyframe_implicit.core.base.sampling import cell_weights
 
     grid, phi_a, _, mapped, _ = bend_case(d=2, n=30)
     traj = Trajectories(grid, mapped, phi_a < 0)

@@ -3,9 +3,13 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import elements, sampling, transport
-from keyframe_implicit.core.grid import Grid
-from keyframe_implicit.core.sampling import sample
+from keyframe_implicit.core.base import elements
+
+from keyframe_implicit.core.base import sampling
+
+from keyframe_implicit.core.motion import transport
+from keyframe_implicit.core.base.grid import Grid
+from keyframe_implicit.core.base.sampling import sample
 
 
 def bent_cells(d, n=9, jitter=0.2, seed=3):

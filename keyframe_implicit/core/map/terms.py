@@ -4,7 +4,7 @@
          + w_rig * int ||F^T F - I||_F^2                  `rigidity_term`
          + w_ls  * int (H(Phi(x)) - H(Psi(y(x))))^2       `levelset_term`
 
-with F = dy/dx (discretised in `keyframe_implicit.core.elements`), H the
+with F = dy/dx (discretised in `keyframe_implicit.core.base.elements`), H the
 smeared Heaviside of eq. 2.7 (middle case -eps <= phi <= eps as corrected in
 PAPER-NOTES section 2, eps = 1.5 h) and the weights given to `solve_map` as
 ``volume_weight``, ``rigidity_weight``, ``levelset_weight`` (each term's
@@ -44,8 +44,8 @@ from typing import Callable
 
 import numpy as np
 
-from .elements import Quadrature, cofactor, deformation_gradient, determinant, gram
-from .sampling import sample_with_gradient
+from ..base.elements import Quadrature, cofactor, deformation_gradient, determinant, gram
+from ..base.sampling import sample_with_gradient
 
 __all__ = ["TermValue", "ElementBatch", "NodeBatch", "Term", "TERMS", "heaviside",
            "heaviside_derivative", "volume_term", "rigidity_term", "levelset_term"]
@@ -66,7 +66,7 @@ class ElementBatch:
 
     Y : (E, 2**d, d) mapped corner positions.
     weight : (E,) region weight of each cell (1 in A's material, less in the band).
-    gauss, centre : `Quadrature` rules of `keyframe_implicit.core.elements`.
+    gauss, centre : `Quadrature` rules of `keyframe_implicit.core.base.elements`.
     """
 
     Y: np.ndarray
@@ -187,7 +187,7 @@ def levelset_term(batch: NodeBatch, hessian: bool = True) -> TermValue:
     """Level-set term of eq. 2.6, (H(Phi(x)) - H(Psi(y(x))))^2 at the nodes.
 
     Psi is read at the off-grid mapped positions y with
-    `keyframe_implicit.core.sampling.sample_with_gradient` (multilinear
+    `keyframe_implicit.core.base.sampling.sample_with_gradient` (multilinear
     interpolation, piecewise-constant gradient; outside the grid it grows as
     the distance to the box, so far points stay "outside"). Residual
     r = H(Phi) - H(Psi(y)), derivative ``-H'(Psi) grad Psi``.

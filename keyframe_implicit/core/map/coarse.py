@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .multigrid import aggregate_blocks
+from ..base.multigrid import aggregate_blocks
 
 __all__ = ["CoarseSpace"]
 

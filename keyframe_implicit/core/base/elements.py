@@ -18,7 +18,7 @@ multilinear (bilinear in 2D, trilinear in 3D) finite element:
 All operators are small constant matrices: ``G`` of shape ``(d, 2**d)`` with
 ``F[i, a] = sum_c Y[c, i] * G[a, c]`` where ``Y`` holds the cell's corner
 positions y in the corner order of `corners` (the order of
-`keyframe_implicit.core.sampling.cell_weights`).
+`keyframe_implicit.core.base.sampling.cell_weights`).
 """
 
 from __future__ import annotations

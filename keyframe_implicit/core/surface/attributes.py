@@ -127,7 +127,7 @@ def closest_points(points, vertices, triangles, candidates=16):
     """
     from scipy.spatial import cKDTree
 
-    from .sdf import _Triangles
+    from ..fields.sdf import _Triangles
 
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v = np.asarray(vertices, dtype=float).reshape(-1, 3)

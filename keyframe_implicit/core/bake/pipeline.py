@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .progress import Reporter
+from ..base.progress import Reporter
 
 __all__ = ["Keyframe", "Animation", "animate"]
 
@@ -83,7 +83,7 @@ class Animation:
         """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),
         made once (`meshdata.output_mesh`) and kept in ``prepared``."""
         if kind not in self.prepared:
-            from .meshdata import output_mesh
+            from ..surface.meshdata import output_mesh
 
             self.prepared[kind] = output_mesh(self, kind)
         return self.prepared[kind]
@@ -102,7 +102,7 @@ class Animation:
         own = self.keyframe_attributes.get(int(self.frames[i]))
         if own is not None:  # a keyframe's frame shows the keyframe's own mesh
             return own
-        from .attributes import transfer
+        from ..surface.attributes import transfer
 
         return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
 
@@ -124,7 +124,7 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     A process takes 0.5-1 s to start, more than a small grid's distance grids take, so
     the helper only joins in where that pays.
     """
-    from .parallel import share
+    from ..base.parallel import share
 
     n = len(keyframes)
     if helper is None or n < 2:
@@ -151,7 +151,7 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
 
 def _distance_grid(keyframes, surfaces, grid, k, rep=None, cancel=None):
     """(field, figures) of keyframe ``k``; ValueError naming the keyframe on bad input."""
-    from .sdf import mesh_to_sdf
+    from ..fields.sdf import mesh_to_sdf
 
     n = len(keyframes)
     sub = (rep or Reporter()).sub(k / n, (k + 1) / n)
@@ -176,8 +176,8 @@ def _physical_memory():
 
 def _material_fraction(keyframe, grid):
     """Share of the grid box enclosed by a keyframe mesh (from its volume, before any grid work)."""
-    from .sdf import triangulate
-    from .surface import mesh_volume
+    from ..fields.sdf import triangulate
+    from ..surface.extract import mesh_volume
 
     v = np.asarray(keyframe.vertices, dtype=float).reshape(-1, 3)
     try:
@@ -201,7 +201,7 @@ def _segment_label(i):
 
 def _surface_vertices(k, kf):
     """(vertices (V, 3), triangles, loose) of a keyframe; loose counts vertices of no face."""
-    from .sdf import _check_vertices, triangulate
+    from ..fields.sdf import _check_vertices, triangulate
 
     label = _keyframe_label(k, kf)
     try:
@@ -303,7 +303,7 @@ def _rigid_sweep(points, features, steps=8, most=2048):
     (at most ``most`` points of each); their positions are returned, one array per
     segment.
     """
-    from .trajectory import rigid_fit, rotation_exp, rotation_log
+    from ..motion.trajectory import rigid_fit, rotation_exp, rotation_log
 
     out = []
     for k, (fa, fb) in enumerate(features):
@@ -445,7 +445,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         When ``cancel()`` returned True.
     """
     from .chain import animate_chain
-    from .parallel import Helper, one_blas_thread
+    from ..base.parallel import Helper, one_blas_thread
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
@@ -543,7 +543,7 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
     meshes), then the output chosen (`quality.choose_output`), into ``stats``. With the
     artist's mesh as the template (``artist``) its shape keys are judged relative to the
     keyframes' own figures, and the mesh sequence is the keyframes' meshes there."""
-    from .quality import choose_output
+    from ..surface.quality import choose_output
 
     quality = stats["quality"]
     key_frames = [kf.frame for kf in keyframes]
@@ -558,7 +558,7 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
 def _artist_template(keyframe, surface, template):
     """(vertices, triangles, MeshAttributes) of the first keyframe's own mesh, or None for
     the grid's template (asked for, or loose vertices that no surface carries)."""
-    from .attributes import MeshAttributes
+    from ..surface.attributes import MeshAttributes
 
     if template not in ("keyframe", "grid"):
         raise ValueError(f'template must be "keyframe" or "grid", got {template!r}.')
@@ -614,7 +614,7 @@ def _keyframe_attributes(keyframes, surfaces, first):
     """Per keyframe frame, the `MeshAttributes` of its own mesh: the first keyframe's are the
     template's (``first``); another keyframe's are its own when they fit its mesh, else its
     triangles."""
-    from .attributes import MeshAttributes
+    from ..surface.attributes import MeshAttributes
 
     out = {}
     for k, (kf, surface) in enumerate(zip(keyframes, surfaces)):
@@ -631,8 +631,8 @@ def _keyframe_attributes(keyframes, surfaces, first):
 def _measure_keyframes(quality, keyframes, chain, spacing, outputs):
     """Add, for each of ``outputs``, the two-way distance to the keyframe mesh the artist
     gave on every keyframe frame."""
-    from .quality import keyframe_distance
-    from .sdf import triangulate
+    from ..surface.quality import keyframe_distance
+    from ..fields.sdf import triangulate
 
     for kf in keyframes:
         i = int(kf.frame - chain.frames[0])

@@ -63,11 +63,11 @@ import scipy.sparse as sp
 from scipy import ndimage
 from scipy.sparse.csgraph import connected_components
 
-from . import elements
-from .grid import Grid
-from .multigrid import BlockMultigrid, block_pcg
-from .progress import Reporter
-from .sampling import cell_weights, sample
+from ..base import elements
+from ..base.grid import Grid
+from ..base.multigrid import BlockMultigrid, block_pcg
+from ..base.progress import Reporter
+from ..base.sampling import cell_weights, sample
 
 __all__ = ["Trajectories", "cofactors", "polar", "rigid_fit", "rotation_log", "rotation_exp"]
 

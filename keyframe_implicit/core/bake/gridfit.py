@@ -17,8 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid import Grid
-from .renamed import take_renamed
+from ..base.grid import Grid
 
 __all__ = ["MemoryLimitError", "fit_grid", "estimate_memory", "check_memory"]
 
@@ -178,8 +177,7 @@ _NODE_BYTES = {2: 194.5, 3: 194.5}
 _ACTIVE_BYTES = {2: 2285.3 * 36 / 243, 3: 2285.3}
 
 
-def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
-                    **renamed):
+def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3):
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
     Model (N grid nodes, M active solver nodes):
@@ -215,10 +213,6 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
     f = 0.25 if material_fraction is None else float(material_fraction)
     if not 0.0 <= f <= 1.0:
         raise ValueError(f"material_fraction must lie in [0, 1], got {material_fraction}.")
-    renamed = take_renamed(dict(renamed), {"band_cells": "margin_cells"}, "estimate_memory")
-    margin_cells = renamed.pop("margin_cells", margin_cells)
-    if renamed:
-        raise TypeError(f"estimate_memory got unexpected options {sorted(renamed)}.")
     N, d = grid.size, grid.dim
     P = _COPIES
     # margin nodes around a compact blob holding f * N nodes: its surface ~ (f N)^((d-1)/d)

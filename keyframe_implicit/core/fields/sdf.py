@@ -64,9 +64,8 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from .grid import Grid
-from .progress import Reporter
-from .renamed import take_renamed
+from ..base.grid import Grid
+from ..base.progress import Reporter
 
 __all__ = ["mesh_to_sdf", "orient_faces", "polygon_to_sdf", "triangulate", "winding_number"]
 
@@ -719,7 +718,7 @@ def _nearest_sample_distance(out, nodes, grid, v, tris, tri, keep_min=False):
 # public: meshes
 # ---------------------------------------------------------------------------
 def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, cancel=None,
-                stats=None, beta=2.0, **renamed):
+                stats=None, beta=2.0):
     """Signed distance grid of a (possibly open, self-intersecting) polygon mesh.
 
     Parameters
@@ -735,7 +734,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
         the upper bound ``|x - c(b)|``, c(b) the closest surface point of the nearest
         shell node ``b``.
     progress, cancel : callables, optional
-        See `keyframe_implicit.core.progress`.
+        See `keyframe_implicit.core.base.progress`.
     stats : dict, optional
         Filled with counts (triangles, degenerate_triangles, reoriented_faces,
         non_orientable_faces, boxed_triangles, shell_nodes, winding_nodes,
@@ -756,7 +755,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
         Wrong shapes, NaN/inf coordinates, no faces, out-of-range indices, only
         zero-area faces, or a 2D grid. Degenerate faces among good ones are skipped.
     """
-    exact_cells = _exact_cells_option(grid, exact_cells, renamed)
+    exact_cells = _exact_cells_option(grid, exact_cells)
     rep = Reporter(progress, cancel)
     st = {} if stats is None else stats
     t0 = time.perf_counter()
@@ -798,16 +797,13 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
     return np.where(inside, -unsigned, unsigned).reshape(grid.shape)
 
 
-def _exact_cells_option(grid, exact_cells, renamed):
-    """``exact_cells`` checked (and taken under its old name ``band_cells``)."""
+def _exact_cells_option(grid, exact_cells):
+    """``exact_cells`` checked, with the grid it applies to."""
     if not isinstance(grid, Grid):
         raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
     if grid.dim != 3:
         raise ValueError("mesh_to_sdf needs a 3D grid; use polygon_to_sdf for 2D loops.")
-    renamed = take_renamed(dict(renamed), {"band_cells": "exact_cells"}, "mesh_to_sdf")
-    exact_cells = float(renamed.pop("exact_cells", exact_cells))
-    if renamed:
-        raise TypeError(f"mesh_to_sdf got unexpected options {sorted(renamed)}.")
+    exact_cells = float(exact_cells)
     if not np.isfinite(exact_cells) or exact_cells < 1.0:
         raise ValueError(f"exact_cells must be >= 1 (cells of exact distance), got {exact_cells}.")
     return exact_cells

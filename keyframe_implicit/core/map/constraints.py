@@ -34,7 +34,7 @@ the radius, not on the resolution (measurements: benchmarks/README.md,
 
 The patch cells' rigidity weight is multiplied by `solve_map`'s
 ``patch_rigidity`` (default 10; the free A_i otherwise let a patch shear and
-scale as a whole -- see `keyframe_implicit.core.solver`).
+scale as a whole -- see `keyframe_implicit.core.map.solver`).
 """
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .elements import cofactor, determinant
-from .grid import Grid
-from .sampling import cell_weights
+from ..base.elements import cofactor, determinant
+from ..base.grid import Grid
+from ..base.sampling import cell_weights
 
 __all__ = ["FeatureConstraints"]
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid import Grid
+from ..base.grid import Grid
 
 __all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area"]
 

@@ -26,7 +26,7 @@ principal axes; sign/permutation of the axes chosen to best overlap B's
 material, pinned by whatever feature points exist), plus a smooth Gaussian
 correction that makes the feature points land exactly. Components without
 any feature point are aligned rigidly with the component of B whose centroid
-is nearest. The optimiser (`keyframe_implicit.core.solver`) refines all of it.
+is nearest. The optimiser (`keyframe_implicit.core.map.solver`) refines all of it.
 
 Outside the material every node still gets a smooth value: inside component k
 the map is component k's; elsewhere an inverse-distance blend (weights
@@ -43,9 +43,9 @@ import numpy as np
 from scipy import ndimage
 from scipy.interpolate import RBFInterpolator
 
-from . import elements
-from .grid import Grid
-from .sampling import sample
+from ..base import elements
+from ..base.grid import Grid
+from ..base.sampling import sample
 
 __all__ = ["InitialMap", "initial_map", "label_material", "rigid_alignment"]
 

@@ -110,7 +110,7 @@ class Helper:
         does not wait for them.
     """
 
-    def __init__(self, preload=("keyframe_implicit.core.chain",)):
+    def __init__(self, preload=("keyframe_implicit.core.bake.chain",)):
         ctx = multiprocessing.get_context("spawn")
         self._conn, theirs = ctx.Pipe()
         lifeline, their_lifeline = ctx.Pipe()

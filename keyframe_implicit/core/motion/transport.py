@@ -27,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from . import elements
-from .grid import Grid
-from .progress import Reporter
-from .sampling import multilinear_in_cells, sample
+from ..base import elements
+from ..base.grid import Grid
+from ..base.progress import Reporter
+from ..base.sampling import multilinear_in_cells, sample
 from .trajectory import cofactors
 
 __all__ = ["Transport", "inverse_lookup"]

@@ -1,9 +1,9 @@
 """Volume map between two keyframes: constrained Gauss-Newton (thesis sec. 2.3-2.5).
 
-`solve_map` minimises eq. 2.6 (terms in `keyframe_implicit.core.terms`, cells
-in `keyframe_implicit.core.elements`) subject to the feature constraints of
-eq. 2.8 / 2.14-2.20 (`keyframe_implicit.core.constraints`), starting from the
-RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.rbf`). The measurements
+`solve_map` minimises eq. 2.6 (terms in `keyframe_implicit.core.map.terms`, cells
+in `keyframe_implicit.core.base.elements`) subject to the feature constraints of
+eq. 2.8 / 2.14-2.20 (`keyframe_implicit.core.map.constraints`), starting from the
+RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.map.rbf`). The measurements
 behind every default below are in benchmarks/README.md ("Solver").
 
 Algorithm
@@ -46,7 +46,7 @@ optimiser trades volume for rigidity.
 Feature patches are stiffer than the material (``patch_rigidity``)
 -------------------------------------------------------------------
 Each feature point moves the solved nodes within ``feature_radius`` by one
-affine map y'_i + A_i (x - x'_i) (`keyframe_implicit.core.constraints`).
+affine map y'_i + A_i (x - x'_i) (`keyframe_implicit.core.map.constraints`).
 A_i is a free d x d matrix, so with the material's own rigidity a patch can
 shear and scale as a whole and absorb what the volume term pushes into it (a
 bent rod's "rigid" half came out 2.2 % short). A feature marks material that
@@ -74,15 +74,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy import ndimage
 
-from . import elements
+from ..base import elements
 from .coarse import CoarseSpace
 from .constraints import FeatureConstraints
-from .grid import Grid
-from .parallel import cores
-from .progress import Reporter
+from ..base.grid import Grid
+from ..base.parallel import cores
+from ..base.progress import Reporter
 from .rbf import initial_map
-from .renamed import take_renamed
-from .sampling import sample, cell_weights
+from ..base.sampling import sample, cell_weights
 from .terms import TERMS, ElementBatch, NodeBatch, heaviside
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
@@ -724,7 +723,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         Feature points x'_i of A and their targets y'_i in B (row i pairs with
         row i), world units, inside the grid box. N may be 0.
     volume_weight, rigidity_weight, levelset_weight : float
-        Weights of the three terms of eq. 2.6 (`keyframe_implicit.core.terms`).
+        Weights of the three terms of eq. 2.6 (`keyframe_implicit.core.map.terms`).
     max_iterations : int
         Gauss-Newton iterations per level at most.
     tolerance : float
@@ -733,13 +732,13 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     margin_cells : float
         Width (cells) of the map's margin: the cells outside A's material
         solved with weight ``margin_weight``.
-    progress, cancel : callables, see `keyframe_implicit.core.progress`.
+    progress, cancel : callables, see `keyframe_implicit.core.base.progress`.
     **opts
         ``margin_weight`` (0.1), ``min_det`` (0.2, see the module docstring),
         ``feature_radius`` (world units; default 4 % of
         the largest grid extent, never less than one cell diagonal; 0 gives
         plain hard constraints on each feature's cell) -- see
-        `keyframe_implicit.core.constraints`; ``patch_rigidity`` (10, factor
+        `keyframe_implicit.core.map.constraints`; ``patch_rigidity`` (10, factor
         on ``rigidity_weight`` in the cells inside one feature patch, see
         the module docstring); ``coarse_nodes`` (24, nodes per
         side of the coarsest level; a huge value disables coarse-to-fine),
@@ -750,7 +749,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         new exact gradient), ``initial`` (an array grid.shape + (d,) to
         start from instead of the RBF map; the constraints are re-imposed),
         and the weight of any extra term registered
-        in `keyframe_implicit.core.terms.TERMS`.
+        in `keyframe_implicit.core.map.terms.TERMS`.
 
     Returns
     -------
@@ -765,7 +764,6 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         When ``cancel()`` returned True.
     """
     t_start = time.perf_counter()
-    take_renamed(opts, {"band_weight": "margin_weight", "band_cells": "margin_cells"}, "solve_map")
     margin_cells = opts.pop("margin_cells", margin_cells)
     phi_a, phi_b, xa, yb = _check_inputs(phi_a, phi_b, grid, features_a, features_b)
     options, weights = _options(opts, {"volume_weight": volume_weight, "rigidity_weight": rigidity_weight,

@@ -50,21 +50,18 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from scipy import ndimage
 
-from .elements import cofactor, determinant
-from .grid import Grid
+from ..base.elements import cofactor, determinant
+from ..base.grid import Grid
 from .isovolume import volume_offset
-from .parallel import cores
-from .progress import Reporter
-from .renamed import take_renamed
-from .surface import enclosed_volume
+from ..base.parallel import cores
+from ..base.progress import Reporter
+from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
 
 __all__ = ["Inbetween", "inbetween", "invert_map", "idw_resample"]
 
 _TRAJ_OPTIONS = ("trajectory_method", "trajectory_margin_cells", "trajectory_margin_weight")
-_RENAMED = {"trajectory_band": "trajectory_margin_cells",
-            "trajectory_band_weight": "trajectory_margin_weight"}
 _LS_OPTIONS = ("transport", "keep_volume", "resample", "idw_radius", "newton_steps", "interpolation")
 TRANSPORTS = ("two-sided", "one-sided")
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
@@ -184,7 +181,7 @@ class Inbetween:
                  keep_volume=True, material=None, components=None, trajectory_method="global",
                  trajectory_margin_cells=4.0, trajectory_margin_weight=0.1, resample="splat",
                  idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None, map_result_back=None, cancel=None, **renamed):
+                 map_result=None, map_result_back=None, cancel=None):
         """In-betweens from given maps.
 
         Parameters
@@ -242,14 +239,9 @@ class Inbetween:
                              'use it with transport="one-sided".')
         if not np.any(phi_b < 0):
             raise ValueError("phi_b has no node inside (< 0): keyframe B is empty on this grid.")
-        renamed = take_renamed(dict(renamed), _RENAMED, "Inbetween.from_map")
-        unknown = set(renamed) - set(_RENAMED.values())
-        if unknown:
-            raise TypeError(f"Inbetween.from_map got unexpected options {sorted(unknown)}.")
         traj_opts = dict(method=trajectory_method, cancel=cancel,
-                         margin_cells=renamed.get("trajectory_margin_cells", trajectory_margin_cells),
-                         margin_weight=renamed.get("trajectory_margin_weight",
-                                                   trajectory_margin_weight))
+                         margin_cells=trajectory_margin_cells,
+                         margin_weight=trajectory_margin_weight)
         lookup_opts = dict(interpolation=interpolation, newton_steps=newton_steps, cancel=cancel)
         st = dict(stats or {})
         t0 = time.perf_counter()
@@ -465,7 +457,7 @@ class Recipe:
 
 def map_agreement(grid, mapped, mapped_back, material):
     """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max)."""
-    from .sampling import sample
+    from ..base.sampling import sample
 
     x = grid.points()[material]
     if x.size == 0:
@@ -508,7 +500,6 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     Inbetween
     """
     rep = Reporter(progress, cancel)
-    take_renamed(options, _RENAMED, "inbetween")
     mine, options = split_options(options)
     parallel = options.pop("parallel", True)
     helper = options.pop("helper", None)
@@ -565,7 +556,7 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
     their kernels); it reports no progress of its own and stops when the
     forward one fails or the caller cancels.
     """
-    from .solver import solve_map
+    from ..map.solver import solve_map
 
     if not two_sided:
         return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
@@ -608,8 +599,8 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     from the end of the one before it (or the window's start) until both its maps are
     solved, so they add up to the window's time.
     """
-    from .parallel import share
-    from .solver import solve_map
+    from ..base.parallel import share
+    from ..map.solver import solve_map
 
     t0 = time.perf_counter()
     jobs = [(k, side) for k in window for side in ((0, 1) if two_sided else (0,))]

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid import Grid
-from .surface import enclosed_volume
+from ..base.grid import Grid
+from ..surface.extract import enclosed_volume
 
 __all__ = ["volume_offset"]
 

@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-from .progress import Reporter
-from .sampling import central_differences, sample, sample_with_gradient
-from .surface import extract_surface, mesh_area
+from ..base.progress import Reporter
+from ..base.sampling import central_differences, sample, sample_with_gradient
+from .extract import extract_surface, mesh_area
 
 __all__ = ["track_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
 
@@ -255,7 +255,7 @@ def local_rotations(inb, points, s, step=0.5):
     differences over ``step`` cells), split F = R S by `trajectory.polar`:
     the locally rigid part of the motion (eq. 3.1's R(s)).
     """
-    from .trajectory import polar
+    from ..motion.trajectory import polar
 
     p = np.asarray(points, dtype=float)
     d = p.shape[1]

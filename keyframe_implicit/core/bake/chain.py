@@ -27,13 +27,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .grid import Grid
-from .parallel import Helper, one_blas_thread, release_memory
-from .progress import Reporter
-from .quality import frame_quality
-from .renamed import take_renamed
-from .surface import extract_surface
-from .template import DetailTrack, _initial_template, track_template, uncovered_area
+from ..base.grid import Grid
+from ..base.parallel import Helper, one_blas_thread, release_memory
+from ..base.progress import Reporter
+from ..surface.quality import frame_quality
+from ..surface.extract import extract_surface
+from ..surface.template import DetailTrack, _initial_template, track_template, uncovered_area
 
 __all__ = ["animate_chain", "ChainResult"]
 
@@ -122,8 +121,6 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     ChainResult
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
-    from .levelset import _RENAMED
-
     rep = Reporter(progress, cancel)
     phis, frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
     nk = len(phis)
@@ -137,7 +134,6 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                 keyframe_meshes=keyframe_meshes)
     kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, what)
     own = helper is None and processes > 1
-    take_renamed(options, _RENAMED, "animate_chain")
     segments = _Inbetweens(phis, grid, features, maps, options, cancel)
     blas = one_blas_thread()
     try:
@@ -202,7 +198,7 @@ class _Inbetweens:
     (`levelset.solve_maps_shared`), or solved in this process (`levelset.inbetween`)."""
 
     def __init__(self, phis, grid, features, maps, options, cancel):
-        from .levelset import split_options
+        from ..motion.levelset import split_options
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
         self.options, self.cancel = options, cancel
@@ -213,7 +209,7 @@ class _Inbetweens:
     def make(self, k, helper, split, rep):
         """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
         their recipe is known; progress to 0.5 of ``rep``."""
-        from .levelset import Inbetween, from_solved, inbetween, is_two_sided, solve_maps_shared
+        from ..motion.levelset import Inbetween, from_solved, inbetween, is_two_sided, solve_maps_shared
 
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sampling import sample_with_gradient
-from .surface import extract_surface, mesh_area
+from ..base.sampling import sample_with_gradient
+from .extract import extract_surface, mesh_area
 
 __all__ = ["LIMITS", "frame_quality", "keyframe_distance", "mesh_distance", "failures",
            "worst_frame", "choose_output", "describe_worst"]
@@ -56,7 +56,7 @@ def mesh_distance(points, vertices, faces, candidates=16):
     """
     from scipy.spatial import cKDTree
 
-    from .sdf import _Triangles
+    from ..fields.sdf import _Triangles
 
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v, f = _triangles(vertices, faces)
