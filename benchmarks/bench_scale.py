@@ -47,7 +47,7 @@ STAGES = (("sdf", "distance"), ("maps", "maps"), ("trajectories", "trajectories"
 def keyframes(name):
     """(keyframes, features) of a case: meshes of its fields, 24 frames apart (1, 25, ...)."""
     from keyframe_implicit.core import Keyframe
-    from keyframe_implicit.core.surface.extract.extract import extract_surface
+    from keyframe_implicit.core.surface.extract import extract_surface
 
     if name == "ellipsoid":
         from bench_solver import sphere_case

@@ -23,7 +23,7 @@ from scipy import ndimage
 from skimage import measure
 
 from keyframe_implicit.core.base.sampling import sample
-from keyframe_implicit.core.surface.extract.extract import enclosed_volume
+from keyframe_implicit.core.surface.extract import enclosed_volume
 
 __all__ = [
     "volume", "volume_drift", "components", "spurious_components", "zero_set",

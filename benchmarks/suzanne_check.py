@@ -131,7 +131,7 @@ def uv_agreement(out, key):
     result built from keyframe A and keyframe B, a copy of A's mesh): each loop's vertex is
     read on ``key`` in a triangle of the loop's own polygon there (barycentric, clipped), so
     both sides of a seam read their own UVs; the error is that UV against the loop's."""
-    from keyframe_implicit.core.surface.extract.attributes import barycentric
+    from keyframe_implicit.core.surface.attributes import barycentric
 
     tri_of_loop = np.empty(len(key["lv"]), np.int64)
     tri_of_loop[key["tri_loops"].reshape(-1)] = np.repeat(np.arange(len(key["tris"])), 3)
@@ -180,7 +180,7 @@ def report(renders=None, resolution=40):
     """Print the Suzanne figures for both outputs: render difference on the first keyframe
     frame, UV agreement on every frame, materials kept, frame A exact, frame B's distance to
     B's mesh; with ``renders`` (a folder) the first, middle and last frames are saved there."""
-    from keyframe_implicit.core.surface.extract.quality import mesh_distance
+    from keyframe_implicit.core.surface.quality import mesh_distance
 
     for mode in ("SHAPE_KEYS", "MESH_SEQUENCE"):
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True, load_ui=False)

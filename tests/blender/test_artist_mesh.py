@@ -7,7 +7,7 @@ import pathlib
 import bpy
 import numpy as np
 
-from keyframe_implicit.core.surface.extract.quality import mesh_distance
+from keyframe_implicit.core.surface.quality import mesh_distance
 
 _PATH = pathlib.Path(__file__).resolve().parents[2] / "benchmarks" / "suzanne_check.py"
 _SPEC = importlib.util.spec_from_file_location("suzanne_check", _PATH)

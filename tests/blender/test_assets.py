@@ -114,7 +114,7 @@ def test_asset_bakes_at_low_resolution(name):
     Blender evaluates lies on the modelled keyframe within the limits of a clean result
     (two-way distance 0.1 h mean, 1 h max), even on this coarse grid: a keyframe's
     frame is the keyframe's own mesh, or the artist's mesh landed on it."""
-    from keyframe_implicit.core.surface.extract.quality import LIMITS, keyframe_distance
+    from keyframe_implicit.core.surface.quality import LIMITS, keyframe_distance
 
     scene = _open(name)
     keys = scene.keyframe_implicit.keyframes

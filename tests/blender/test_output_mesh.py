@@ -5,8 +5,8 @@ import bpy
 import numpy as np
 
 from keyframe_implicit.blender import output
-from keyframe_implicit.core.surface.extract.attributes import MeshAttributes
-from keyframe_implicit.core.surface.extract.meshdata import MeshData
+from keyframe_implicit.core.surface.attributes import MeshAttributes
+from keyframe_implicit.core.surface.meshdata import MeshData
 
 
 def _blender_route(positions, polygons):

@@ -5,10 +5,10 @@ import pytest
 
 from keyframe_implicit import examples
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf
-from keyframe_implicit.core.surface.extract.attributes import (MeshAttributes, closest_points, concatenate,
+from keyframe_implicit.core.surface.attributes import (MeshAttributes, closest_points, concatenate,
                                                transfer)
 from keyframe_implicit.core.bake.gridfit import fit_grid
-from keyframe_implicit.core.surface.extract.quality import mesh_distance
+from keyframe_implicit.core.surface.quality import mesh_distance
 from keyframe_implicit.core.fields.sdf import triangulate
 
 
@@ -210,7 +210,7 @@ def test_posed_copies_land_vertex_for_vertex(squash_bake):
 
 
 def test_same_vertex_count_alone_is_not_a_posed_copy():
-    from keyframe_implicit.core.surface.extract.template import same_vertices
+    from keyframe_implicit.core.surface.template import same_vertices
 
     v, _, _ = uv_sphere(12)
     rng = np.random.default_rng(1)

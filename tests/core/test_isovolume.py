@@ -5,7 +5,7 @@ import pytest
 
 from keyframe_implicit.core import Grid
 from keyframe_implicit.core.motion.isovolume import _gradient_norm, volume_offset
-from keyframe_implicit.core.surface.extract.extract import enclosed_volume
+from keyframe_implicit.core.surface.extract import enclosed_volume
 
 
 @pytest.mark.parametrize("shape", [(7, 2, 5), (9, 6, 8), (11, 4)])

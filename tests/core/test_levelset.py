@@ -7,7 +7,7 @@ from scipy import ndimage
 from inbetween_cases import RIGID_AXIS, bend_case, merge_case, rigid_case, rigid_expected, l_shape
 from keyframe_implicit.core.motion.levelset import Inbetween
 from keyframe_implicit.core.base.sampling import sample
-from keyframe_implicit.core.surface.extract.extract import extract_surface, loop_area, mesh_volume
+from keyframe_implicit.core.surface.extract import extract_surface, loop_area, mesh_volume
 
 
 def volume(levelset, grid):

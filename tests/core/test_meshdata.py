@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core.surface.extract.attributes import MeshAttributes
-from keyframe_implicit.core.surface.extract.meshdata import (MESH_SEQUENCE, SHAPE_KEYS, MeshData, output_mesh,
+from keyframe_implicit.core.surface.attributes import MeshAttributes
+from keyframe_implicit.core.surface.meshdata import (MESH_SEQUENCE, SHAPE_KEYS, MeshData, output_mesh,
                                              polygon_edges)
 from keyframe_implicit.core.bake.pipeline import Animation
 

@@ -5,7 +5,7 @@ import pytest
 
 from keyframe_implicit import examples
 from keyframe_implicit.core import Grid, animate, extract_surface
-from keyframe_implicit.core.surface.extract.quality import (LIMITS, failures, frame_quality, keyframe_distance,
+from keyframe_implicit.core.surface.quality import (LIMITS, failures, frame_quality, keyframe_distance,
                                             worst_frame)
 
 
@@ -77,7 +77,7 @@ def test_auto_output_of_the_examples_meets_every_limit(name):
 def test_mesh_distance_is_the_nearest_of_every_triangle_when_all_are_candidates():
     """With every triangle a candidate, `mesh_distance` is the brute-force minimum of the
     exact point-triangle distances (each pair measured on its own)."""
-    from keyframe_implicit.core.surface.extract.quality import mesh_distance
+    from keyframe_implicit.core.surface.quality import mesh_distance
     from keyframe_implicit.core.fields.sdf import point_triangle_distance
 
     rng = np.random.default_rng(4)

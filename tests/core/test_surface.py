@@ -5,7 +5,7 @@ import pytest
 
 from inbetween_cases import make_grid, sd_sphere
 from keyframe_implicit.core.base.grid import Grid
-from keyframe_implicit.core.surface.extract.extract import extract_surface, loop_area, mesh_area, mesh_volume
+from keyframe_implicit.core.surface.extract import extract_surface, loop_area, mesh_area, mesh_volume
 
 
 def test_sphere_mesh_in_world_units_with_outward_normals():

@@ -6,7 +6,7 @@ import pytest
 from inbetween_cases import make_grid, rigid_case, rigid_expected, sd_sphere
 from keyframe_implicit.core.motion.levelset import Inbetween
 from keyframe_implicit.core.base.sampling import sample
-from keyframe_implicit.core.surface.extract.template import track_template
+from keyframe_implicit.core.surface.template import track_template
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from scipy import ndimage
 from benchmark_modules import load
 from keyframe_implicit.core import inbetween
 from keyframe_implicit.core.motion.levelset import Inbetween
-from keyframe_implicit.core.surface.extract.extract import enclosed_volume
+from keyframe_implicit.core.surface.extract import enclosed_volume
 
 cases = load("cases")
 TIMES = np.linspace(0.0, 1.0, 9)
