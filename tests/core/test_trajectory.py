@@ -6,7 +6,8 @@ from scipy.spatial.transform import Rotation
 
 from inbetween_cases import bend_case, merge_case, rigid_case
 from keyframe_implicit.core.base.grid import Grid
-from keyframe_implicit.core.motion.trajectory import Trajectories, polar, rotation_exp, rotation_log
+from keyframe_implicit.core.base.rotations import polar, rotation_exp, rotation_log
+from keyframe_implicit.core.motion.trajectory import Trajectories
 
 
 def test_polar_decomposition_and_rotation_log_roundtrip():
@@ -29,7 +30,7 @@ def test_polar_by_newton_is_the_closest_rotation_of_the_svd():
     """`polar` takes the Newton iteration for 3 x 3 matrices with det F > 0 and the SVD for
     folded or flat ones: both give the closest proper rotation (the SVD's, with the sign on
     the smallest singular value), whichever way a matrix went."""
-    from keyframe_implicit.core.motion.trajectory import _newton_rotation, _svd_rotation
+    from keyframe_implicit.core.base.rotations import _newton_rotation, _svd_rotation
 
     rng = np.random.default_rng(3)
     F = rng.normal(size=(400, 3, 3))

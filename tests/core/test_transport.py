@@ -27,7 +27,7 @@ def bent_cells(d, n=9, jitter=0.2, seed=3):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_small_inverses_and_the_singular_fallback(d):
-    """`_inverse_small` (3D by `trajectory.cofactors`) inverts each matrix of a batch, and
+    """`_inverse_small` (by `elements.cofactor` on the batch-last layout) inverts each matrix of a batch, and
     gives ``singular`` times the identity for a singular one."""
     rng = np.random.default_rng(1)
     J = rng.normal(size=(d, d, 50)) + 2.0 * np.eye(d)[:, :, None]

@@ -298,12 +298,12 @@ def _rigid_sweep(points, features, steps=8, most=2048):
     A body turning between two keyframes sweeps past both keyframes' boxes (a square's
     corner half-way through a quarter turn lies 41 % of its half-width beyond them), and
     a fixed padding in cells shrinks as the resolution grows. Where a segment has three
-    feature pairs or more, the best rigid motion between them (`trajectory.rigid_fit`)
+    feature pairs or more, the best rigid motion between them (`rotations.rigid_fit`)
     carries keyframe A's points forward and B's backward through ``steps`` in-betweens
     (at most ``most`` points of each); their positions are returned, one array per
     segment.
     """
-    from ..motion.trajectory import rigid_fit, rotation_exp, rotation_log
+    from ..base.rotations import rigid_fit, rotation_exp, rotation_log
 
     out = []
     for k, (fa, fb) in enumerate(features):

@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..base.elements import cofactor, determinant
+from ..base.elements import inverse
 from ..base.grid import Grid
 from ..base.sampling import cell_weights
 
@@ -227,8 +227,7 @@ class FeatureConstraints:
         """
         d = self.d
         blocks = diag[self.free_nodes]
-        # closed-form inverse (cofactor / det): much faster than batched LAPACK for tiny blocks
-        inv_free = cofactor(blocks).swapaxes(-1, -2) / determinant(blocks)[:, None, None]
+        inv_free = inverse(blocks)
         inv_patch = None
         if self.n_patch:
             Hn = diag[self.patch_nodes]

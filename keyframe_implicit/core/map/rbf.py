@@ -45,6 +45,7 @@ from scipy.interpolate import RBFInterpolator
 
 from ..base import elements
 from ..base.grid import Grid
+from ..base.rotations import rigid_fit
 from ..base.sampling import sample
 
 __all__ = ["InitialMap", "initial_map", "label_material", "rigid_alignment"]
@@ -164,16 +165,6 @@ def _principal_frame(points):
     return c, vecs[:, order], np.sqrt(np.maximum(vals[order], 0.0))
 
 
-def _kabsch(xa, ya):
-    """Proper rotation R minimising sum |R (xa - ca) - (ya - cb)|^2."""
-    ca, cb = xa.mean(axis=0), ya.mean(axis=0)
-    M = (ya - cb).T @ (xa - ca)
-    U, _, Vt = np.linalg.svd(M)
-    D = np.eye(xa.shape[1])
-    D[-1, -1] = np.sign(np.linalg.det(U @ Vt)) or 1.0
-    return U @ D @ Vt
-
-
 def rigid_alignment(points_a, phi_b, grid: Grid, target_points, features_a=None, features_b=None):
     """Rigid motion (R, t) carrying a component of A onto a component of B.
 
@@ -208,7 +199,7 @@ def rigid_alignment(points_a, phi_b, grid: Grid, target_points, features_a=None,
         c = features_a - features_a.mean(axis=0)
         s = np.linalg.svd(c, compute_uv=False)
         if np.sum(s > 1e-6 * max(s[0], 1e-300)) >= d - 1:
-            cands.append(_kabsch(features_a, features_b))
+            cands.append(rigid_fit(features_a, features_b)[2])
     for perm in itertools.permutations(range(d)):
         P = np.eye(d)[:, perm]
         for signs in itertools.product((1.0, -1.0), repeat=d):

@@ -50,7 +50,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from scipy import ndimage
 
-from ..base.elements import cofactor, determinant
+from ..base.elements import inverse
 from ..base.grid import Grid
 from .isovolume import volume_offset
 from ..base.parallel import cores
@@ -643,5 +643,5 @@ def _affine_fit_at(p, pos, val, w, h, ridge=1e-6):
     D = (pos - xb[:, None]) / h
     C = np.einsum("pk,pki,pkj->pij", w, D, D) + ridge * np.eye(p.shape[1])
     B = np.einsum("pk,pki,pkm->pim", w, D, val - vb[:, None])
-    G = np.matmul(cofactor(C).swapaxes(-1, -2), B) / determinant(C)[:, None, None]
+    G = np.matmul(inverse(C), B)
     return vb + np.einsum("pi,pim->pm", (p - xb) / h, G)

@@ -28,10 +28,10 @@ import numpy as np
 from scipy import ndimage
 
 from ..base import elements
+from ..base.elements import cofactor
 from ..base.grid import Grid
 from ..base.progress import Reporter
 from ..base.sampling import multilinear_in_cells, sample
-from .trajectory import cofactors
 
 __all__ = ["Transport", "inverse_lookup"]
 
@@ -300,13 +300,9 @@ def _inverse_small(J, singular=1.0):
     """Inverses (d, d, M) of a batch of 2x2 / 3x3 matrices (d, d, M), by the adjugate;
     ``singular`` times the identity where a matrix is singular."""
     d = J.shape[0]
-    if d == 2:
-        det = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
-        adj = np.array([[J[1, 1], -J[0, 1]], [-J[1, 0], J[0, 0]]])
-    else:
-        cof = cofactors(J)
-        adj = cof.swapaxes(0, 1)
-        det = np.einsum("dm,dm->m", J[0], cof[0])
+    cof = cofactor(J, batch_last=True)
+    adj = cof.swapaxes(0, 1)
+    det = np.einsum("dm,dm->m", J[0], cof[0])
     ok = np.abs(det) > 1e-12
     out = adj / np.where(ok, det, 1.0)
     out[:, :, ~ok] = singular * np.eye(d)[:, :, None]

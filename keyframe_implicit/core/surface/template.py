@@ -252,10 +252,10 @@ def local_rotations(inb, points, s, step=0.5):
     """Rotation part (P, 3, 3) of the trajectories' local motion at time s.
 
     The Jacobian of x -> ``inb.trajectory(x, s)`` at each point (central
-    differences over ``step`` cells), split F = R S by `trajectory.polar`:
+    differences over ``step`` cells), split F = R S by `rotations.polar`:
     the locally rigid part of the motion (eq. 3.1's R(s)).
     """
-    from ..motion.trajectory import polar
+    from ..base.rotations import polar
 
     p = np.asarray(points, dtype=float)
     d = p.shape[1]
