@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from keyframe_implicit import examples  # noqa: E402
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf  # noqa: E402
 from keyframe_implicit.core.bake.gridfit import fit_grid  # noqa: E402
-from keyframe_implicit.core.fields.sdf import triangulate  # noqa: E402
+from keyframe_implicit.core.fields.mesh import triangulate  # noqa: E402
 
 
 def rot_z(angle):

@@ -21,7 +21,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from keyframe_implicit.core import Grid, mesh_to_sdf
 from keyframe_implicit.examples import icosphere
-from keyframe_implicit.core.fields.sdf import point_triangle_distance, winding_number
+from keyframe_implicit.core.fields.triangles import point_triangle_distance
+from keyframe_implicit.core.fields.winding import winding_number
 
 
 def noisy_sphere(n_sub=5, radius=1.0, noise=0.03, seed=0):

@@ -38,7 +38,7 @@ _EXPORTS = {
     "sample_with_gradient": "base.sampling",
     "cell_weights": "base.sampling",
     "mesh_to_sdf": "fields.sdf",
-    "polygon_to_sdf": "fields.sdf",
+    "polygon_to_sdf": "fields.polygon",
     "fit_grid": "bake.gridfit",
     "estimate_memory": "bake.gridfit",
     "MemoryLimitError": "bake.gridfit",

@@ -9,7 +9,7 @@ from keyframe_implicit.core.surface.attributes import (MeshAttributes, closest_p
                                                transfer)
 from keyframe_implicit.core.bake.gridfit import fit_grid
 from keyframe_implicit.core.surface.quality import mesh_distance
-from keyframe_implicit.core.fields.sdf import triangulate
+from keyframe_implicit.core.fields.mesh import triangulate
 
 
 def rot_z(angle):

@@ -78,7 +78,7 @@ def test_mesh_distance_is_the_nearest_of_every_triangle_when_all_are_candidates(
     """With every triangle a candidate, `mesh_distance` is the brute-force minimum of the
     exact point-triangle distances (each pair measured on its own)."""
     from keyframe_implicit.core.surface.quality import mesh_distance
-    from keyframe_implicit.core.fields.sdf import point_triangle_distance
+    from keyframe_implicit.core.fields.triangles import point_triangle_distance
 
     rng = np.random.default_rng(4)
     v = rng.standard_normal((30, 3))

@@ -5,7 +5,9 @@ import pytest
 from scipy import ndimage
 
 from keyframe_implicit.core import Cancelled, Grid, mesh_to_sdf, polygon_to_sdf
-from keyframe_implicit.core.fields.sdf import point_triangle_distance, triangulate, winding_number
+from keyframe_implicit.core.fields.mesh import triangulate
+from keyframe_implicit.core.fields.triangles import point_triangle_distance
+from keyframe_implicit.core.fields.winding import winding_number
 
 
 # -- test meshes built with numpy --------------------------------------------------
@@ -399,13 +401,10 @@ def test_polygon_sdf_matches_brute_force_on_a_star_with_a_hole(rule):
     assert d[tuple(np.rint(g.to_index([0.03, -0.02])).astype(int))] > 0  # the hole
 
 
-def test_old_name_of_the_exact_shell_still_works():
-    """``band_cells`` was the exact shell's old name: it warns with the new one and gives
-    the same field."""
+def test_a_misspelt_option_is_refused():
+    """A keyword mesh_to_sdf does not take (a typo, or a name it no longer has) is refused."""
     v, f = icosphere(2, 0.4)
     g = cube_grid(20)
-    with pytest.warns(DeprecationWarning, match="'exact_cells'"):
-        old = mesh_to_sdf(v, f, g, band_cells=2)
-    np.testing.assert_array_equal(old, mesh_to_sdf(v, f, g, exact_cells=2))
-    with pytest.raises(TypeError, match="unexpected options"):
-        mesh_to_sdf(v, f, g, exact_cels=2)
+    for wrong in ("exact_cels", "band_cells"):
+        with pytest.raises(TypeError, match=wrong):
+            mesh_to_sdf(v, f, g, **{wrong: 2})

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Grid, mesh_to_sdf
-from keyframe_implicit.core.fields.sdf import orient_faces
+from keyframe_implicit.core.fields.mesh import orient_faces
 from keyframe_implicit.examples import icosphere
 
 N = 40

@@ -292,13 +292,8 @@ def test_bad_options_are_rejected():
     g, pa, pb, fa, fb = _ok_case()
     with pytest.raises(ValueError, match="unknown option 'margin_wieght'"):
         solve_map(pa, pb, g, fa, fb, margin_wieght=0.1)
-    # the old name of the margin's weight still works, and says its new name
-    with pytest.warns(DeprecationWarning, match="'margin_weight'"):
-        old = solve_map(pa, pb, g, fa, fb, band_weight=0.0, max_iterations=1)
-    new = solve_map(pa, pb, g, fa, fb, margin_weight=0.0, max_iterations=1)
-    np.testing.assert_array_equal(old.mapped, new.mapped)
-    with pytest.raises(ValueError, match="pass 'margin_weight' only"):
-        solve_map(pa, pb, g, fa, fb, band_weight=0.0, margin_weight=0.1)
+    with pytest.raises(ValueError, match="unknown option 'band_weight'"):
+        solve_map(pa, pb, g, fa, fb, band_weight=0.0)
     with pytest.raises(ValueError, match="levelset_weight must be"):
         solve_map(pa, pb, g, fa, fb, levelset_weight=-1)
     with pytest.raises(ValueError, match="patch_rigidity must be"):

@@ -176,7 +176,7 @@ def _physical_memory():
 
 def _material_fraction(keyframe, grid):
     """Share of the grid box enclosed by a keyframe mesh (from its volume, before any grid work)."""
-    from ..fields.sdf import triangulate
+    from ..fields.mesh import triangulate
     from ..surface.extract import mesh_volume
 
     v = np.asarray(keyframe.vertices, dtype=float).reshape(-1, 3)
@@ -201,11 +201,11 @@ def _segment_label(i):
 
 def _surface_vertices(k, kf):
     """(vertices (V, 3), triangles, loose) of a keyframe; loose counts vertices of no face."""
-    from ..fields.sdf import _check_vertices, triangulate
+    from ..fields.mesh import check_vertices, triangulate
 
     label = _keyframe_label(k, kf)
     try:
-        v = _check_vertices(kf.vertices)
+        v = check_vertices(kf.vertices)
         tris = triangulate(kf.faces, len(v))
     except ValueError as exc:
         raise ValueError(f"{label}: {exc}") from None
@@ -632,7 +632,7 @@ def _measure_keyframes(quality, keyframes, chain, spacing, outputs):
     """Add, for each of ``outputs``, the two-way distance to the keyframe mesh the artist
     gave on every keyframe frame."""
     from ..surface.quality import keyframe_distance
-    from ..fields.sdf import triangulate
+    from ..fields.mesh import triangulate
 
     for kf in keyframes:
         i = int(kf.frame - chain.frames[0])

@@ -103,7 +103,7 @@ class MeshAttributes:
     def triangle_loops(self):
         """(T, 3) loop indices of the polygons' fan triangles, and (T,) their polygon.
 
-        Fans around each polygon's first corner, as `sdf.triangulate` makes them,
+        Fans around each polygon's first corner, as `mesh.triangulate` makes them,
         so ``loop_vertices[triangle_loops()[0]]`` are the mesh's triangles.
         """
         start = np.asarray(self.loop_start, dtype=np.int64)
@@ -127,7 +127,7 @@ def closest_points(points, vertices, triangles, candidates=16):
     """
     from scipy.spatial import cKDTree
 
-    from ..fields.sdf import _Triangles
+    from ..fields.triangles import Triangles
 
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v = np.asarray(vertices, dtype=float).reshape(-1, 3)
@@ -139,7 +139,7 @@ def closest_points(points, vertices, triangles, candidates=16):
     k = min(int(candidates), len(keep))
     _, idx = cKDTree(v[t[keep]].mean(axis=1)).query(p, k=k, workers=-1)
     cand = keep[idx.reshape(len(p), k)].reshape(-1)
-    kernel = _Triangles(v, t[keep])
+    kernel = Triangles(v, t[keep])
     local = np.searchsorted(keep, cand)
     q = kernel.closest_point(np.repeat(p, k, axis=0), local).reshape(len(p), k, 3)
     best = np.argmin(np.einsum("pkd,pkd->pk", q - p[:, None], q - p[:, None]), axis=1)

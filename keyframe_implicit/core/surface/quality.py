@@ -50,13 +50,13 @@ def _triangles(vertices, faces):
 def mesh_distance(points, vertices, faces, candidates=16):
     """Distance from points (P, 3) to a triangle mesh.
 
-    Exact point-triangle distances (`sdf._Triangles.distance`, its constants made once
+    Exact point-triangle distances (`triangles.Triangles.distance`, its constants made once
     per triangle of the mesh, not per pair) to the ``candidates`` triangles whose
     centroids are nearest; the smallest is taken.
     """
     from scipy.spatial import cKDTree
 
-    from ..fields.sdf import _Triangles
+    from ..fields.triangles import Triangles
 
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v, f = _triangles(vertices, faces)
@@ -67,7 +67,7 @@ def mesh_distance(points, vertices, faces, candidates=16):
     k = min(int(candidates), len(f))
     _, idx = cKDTree(v[f].mean(axis=1)).query(p, k=k, workers=-1)
     idx = idx.reshape(len(p), k)
-    d = _Triangles(v, f).distance(np.repeat(p, k, axis=0), idx.reshape(-1))
+    d = Triangles(v, f).distance(np.repeat(p, k, axis=0), idx.reshape(-1))
     return d.reshape(len(p), k).min(axis=1)
 
 
