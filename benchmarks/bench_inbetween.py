@@ -40,7 +40,8 @@ sys.path.insert(0, str(ROOT / "tests" / "core"))
 
 def run(n, frames, method, solver):
     from inbetween_cases import rigid_case, rigid_expected
-    from keyframe_implicit.core.motion.levelset import Inbetween, inbetween
+    from keyframe_implicit.core.bake.maps import inbetween
+    from keyframe_implicit.core.motion.levelset import Inbetween
     from keyframe_implicit.core.surface.extract import extract_surface
     from keyframe_implicit.core.surface.template import project_to_zero_set, track_template
 

@@ -45,7 +45,7 @@ _EXPORTS = {
     "check_memory": "bake.gridfit",
     "solve_map": "map.solver",
     "MapResult": "map.solver",
-    "inbetween": "motion.levelset",
+    "inbetween": "bake.maps",
     "Inbetween": "motion.levelset",
     "Transport": "motion.transport",
     "extract_surface": "surface.extract",

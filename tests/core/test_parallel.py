@@ -520,7 +520,7 @@ def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised():
 
 
 def test_inbetween_with_a_helper_solves_the_map_b_to_a_there():
-    from keyframe_implicit.core.motion.levelset import inbetween
+    from keyframe_implicit.core.bake.maps import inbetween
 
     phis, grid, feats = _two_segments()
     helper = _HeldHelper(lambda: True)

@@ -1,9 +1,9 @@
 """More than two keyframes played one after another, one template throughout.
 
 Each adjacent pair (k, k+1) has its own feature points and its own map and
-in-betweens (`levelset.inbetween`). The maps of different pairs do not depend on
+in-betweens (`maps.inbetween`). The maps of different pairs do not depend on
 each other: with a helper process they are solved two segments at a time
-(`levelset.solve_maps_shared`).
+(`maps.solve_maps_shared`).
 
 The template mesh is the surface of the first keyframe; it is carried through
 segment 0, and its vertices on the last frame of segment k -- which lie on
@@ -105,7 +105,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         1: everything in this process (the two maps, and the two transports of each
         frame, in two threads). 2 or more: one helper process (`parallel.Helper`)
         shares the maps of every two segments with this process, each taking the
-        next when it is free (`levelset.solve_maps_shared`), and makes the later half
+        next when it is free (`maps.solve_maps_shared`), and makes the later half
         of each segment's frames, for a machine with two free cores and a caller that
         may start processes. Either way BLAS keeps to one thread in this process while
         the chain runs (`parallel.one_blas_thread`).
@@ -113,7 +113,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         The helper to use instead of starting one (its caller closes it).
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
-        Passed to `levelset.inbetween` (solver weights and options, ``margin_cells``,
+        Passed to `maps.inbetween` (solver weights and options, ``margin_cells``,
         ``resample``, ...) or to `Inbetween.from_map` when ``maps`` is given.
 
     Returns
@@ -195,10 +195,10 @@ def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
 class _Inbetweens:
     """Each segment's `levelset.Inbetween`, as `animate_chain` gets its maps: given
     (``maps``), solved with a helper a window of segments at a time
-    (`levelset.solve_maps_shared`), or solved in this process (`levelset.inbetween`)."""
+    (`maps.solve_maps_shared`), or solved in this process (`maps.inbetween`)."""
 
     def __init__(self, phis, grid, features, maps, options, cancel):
-        from ..motion.levelset import split_options
+        from .maps import split_options
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
         self.options, self.cancel = options, cancel
@@ -209,7 +209,8 @@ class _Inbetweens:
     def make(self, k, helper, split, rep):
         """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
         their recipe is known; progress to 0.5 of ``rep``."""
-        from ..motion.levelset import Inbetween, from_solved, inbetween, is_two_sided, solve_maps_shared
+        from ..motion.levelset import Inbetween
+        from .maps import from_solved, inbetween, is_two_sided, solve_maps_shared
 
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
@@ -265,7 +266,7 @@ class _Kept:
 
 
 #: Segments whose maps are solved together when there is a helper
-#: (`levelset.solve_maps_shared`). Each segment's maps are kept until its frames are made,
+#: (`maps.solve_maps_shared`). Each segment's maps are kept until its frames are made,
 #: so the window bounds how many are held.
 _MAP_WINDOW = 2
 
