@@ -75,7 +75,7 @@ def peak_rss_mb():
 def run_one(name, n, processes):
     """Bake one case at ``n`` cells; figures as a dict (runs in the child)."""
     from keyframe_implicit.core import animate
-    from keyframe_implicit.core.bake.gridfit import estimate_memory
+    from keyframe_implicit.core.bake.memory import estimate_memory
     from keyframe_implicit.core.bake.pipeline import _material_fraction
 
     kfs, features = keyframes(name)

@@ -1,4 +1,4 @@
-"""Fit `gridfit.estimate_memory`'s constants to the peak resident sets `bench_scale.py` measured.
+"""Fit `memory.estimate_memory`'s constants to the peak resident sets `bench_scale.py` measured.
 
     python benchmarks/bench_scale.py --sizes 64 128 192 --json rows.json
     python benchmarks/fit_memory.py rows.json [more.json ...]

@@ -1,4 +1,4 @@
-"""Grid fitting and the memory estimate (issue 3, keyframe_implicit.core.bake.gridfit)."""
+"""Grid fitting and the memory estimate (keyframe_implicit.core.bake.gridfit, .memory)."""
 
 import re
 import tracemalloc

@@ -440,7 +440,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     ------
     ValueError
         On input the user must fix (message says what), including
-        `gridfit.MemoryLimitError` when the resolution is too high for this machine.
+        `memory.MemoryLimitError` when the resolution is too high for this machine.
     Cancelled
         When ``cancel()`` returned True.
     """
@@ -503,9 +503,10 @@ def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding
                max_bytes):
     """The one grid of the bake (`gridfit.fit_grid`): it holds every keyframe's faces (loose
     vertices are ignored), every feature point and the rigid sweeps between them. Refused
-    before any work, with the resolution that would fit, when `gridfit.estimate_memory`
+    before any work, with the resolution that would fit, when `memory.estimate_memory`
     puts it over ``max_bytes`` (None: no limit)."""
-    from .gridfit import MemoryLimitError, check_memory, estimate_memory, fit_grid
+    from .gridfit import fit_grid
+    from .memory import MemoryLimitError, check_memory, largest_fitting
 
     pts = [s[3] for s in surfaces]
     lo = np.min([p.min(axis=0) for p in pts], axis=0)
@@ -527,8 +528,7 @@ def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding
     try:
         check_memory(grid, max_bytes, **mem)
     except MemoryLimitError as exc:
-        best = max((r for r in range(4, int(resolution))
-                    if estimate_memory(fitted(r), **mem)["peak"] <= max_bytes), default=None)
+        best = largest_fitting(fitted, 4, int(resolution) - 1, max_bytes, **mem)
         hint = (f"lower the resolution to {best} or less" if best else
                 "even the smallest grid does not fit: free memory or simplify the keyframes")
         raise MemoryLimitError(
