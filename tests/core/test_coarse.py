@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Grid
-from keyframe_implicit.core.map import solver
+from keyframe_implicit.core.map import solver, system
 from keyframe_implicit.core.map.coarse import CoarseSpace
 
 
 def _level(n, d):
-    """A `solver._Level` with two feature patches (so some nodes are not free), its
+    """A `system.MapSystem` with two feature patches (so some nodes are not free), its
     Hessian at a wavy map, and the grid index of its nodes."""
     g = Grid(np.zeros(d), 1.0 / (n - 1), (n,) * d)
     P = g.points()
@@ -17,7 +17,7 @@ def _level(n, d):
     phi_b = np.linalg.norm(P - 0.52, axis=-1) - 0.3
     fa = np.full((2, d), 0.5)
     fa[1, 0] = 0.75
-    L = solver._Level(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.12, patch_rigidity=10.0)
+    L = system.MapSystem(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.12, patch_rigidity=10.0)
     y = L.x + 0.02 * np.sin(7 * L.x)
     w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
     _, _, _, Hs = L.evaluate(y, w, 512, True)

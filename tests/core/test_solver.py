@@ -328,20 +328,20 @@ def test_close_features_use_hard_constraints_and_featureless_components_follow(m
 def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     """The stencil assembly (a sparse product per chunk of elements, 97 here) equals a plain
     per-corner scatter of every element block."""
-    from keyframe_implicit.core.map import solver, terms
+    from keyframe_implicit.core.map import system, terms
 
     g = _unit_grid(10, 3)
     P = g.points()
     phi_a = np.linalg.norm(P - 0.5, axis=-1) - 0.3
     phi_b = np.linalg.norm(P - 0.52, axis=-1) - 0.3
     fa = np.array([[0.5, 0.5, 0.5], [0.8, 0.5, 0.5]])
-    L = solver._Level(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.1, patch_rigidity=10.0)
+    L = system.MapSystem(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.1, patch_rigidity=10.0)
     assert L.patch_cell.any() and np.allclose(L.cell_weights_of("rigidity")[L.patch_cell],
                                               10.0 * L.cell_weight[L.patch_cell])
     y = L.x + 0.02 * np.sin(7 * L.x)
     w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
     _, _, _, Hs = L.evaluate(y, w, 97, True)
-    assert Hs.dtype == solver._HESSIAN_DTYPE
+    assert Hs.dtype == system.HESSIAN_DTYPE
     ref = np.zeros(Hs.shape)
     Y = y[L.elem]
     for name, fn in (("volume", terms.volume_term), ("rigidity", terms.rigidity_term)):
@@ -359,20 +359,20 @@ def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
 
 
 def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
-    """`_Level.product` with a thread for the first half of the rows gives H x bit for bit."""
+    """`MapSystem.product` with a thread for the first half of the rows gives H x bit for bit."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from keyframe_implicit.core.map import solver
+    from keyframe_implicit.core.map import system
 
     g = _unit_grid(10, 3)
     P = g.points()
-    L = solver._Level(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
+    L = system.MapSystem(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
                       np.linalg.norm(P - 0.52, axis=-1) - 0.3, g, np.zeros((0, 3)),
                       np.zeros((0, 3)), 3, 0.1, 0.0, patch_rigidity=10.0)
     y = L.x + 0.02 * np.sin(7 * L.x)
     Hs = L.evaluate(y, {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}, 97, True)[3]
     x = np.random.default_rng(2).normal(size=L.n * 3).astype(Hs.dtype)
-    monkeypatch.setattr(solver, "_SPLIT_FROM", 0)
+    monkeypatch.setattr(system, "_SPLIT_FROM", 0)
     with ThreadPoolExecutor(max_workers=1) as pool:
         halves = L.product(Hs, pool)(x)
     assert L.n > 2 and np.array_equal(halves, L.bsr(Hs) @ x)
@@ -380,22 +380,22 @@ def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
 
 
 def test_energy_in_two_element_halves_is_the_whole_energy(monkeypatch):
-    """`_Level.evaluate` with a thread for half of the elements: the halves write no common
+    """`MapSystem.evaluate` with a thread for half of the elements: the halves write no common
     row (so they need no lock), the three ranges cover every element once, and energy,
     gradient and Hessian are those of one thread (up to the order of the sums)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from keyframe_implicit.core.map import solver
+    from keyframe_implicit.core.map import system
 
     g = _unit_grid(12, 3)
     P = g.points()
     fa = np.array([[0.5, 0.5, 0.5], [0.75, 0.5, 0.5]])
-    L = solver._Level(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
+    L = system.MapSystem(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
                       np.linalg.norm(P - 0.52, axis=-1) - 0.3, g, fa, fa + 0.02, 3, 0.1, 0.1,
                       patch_rigidity=10.0)
     y = L.x + 0.02 * np.sin(7 * L.x)
     w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
-    monkeypatch.setattr(solver, "_SPLIT_FROM", 0)
+    monkeypatch.setattr(system, "_SPLIT_FROM", 0)
     (a, b), (c, e), (m, m2) = L._element_halves(37)
     assert (a, b, m2, e) == (0, m, c, len(L.elem)) and a < b < m2 < e
     assert not np.intersect1d(L.elem[a:b], L.elem[c:e]).size
@@ -435,19 +435,19 @@ def test_stiff_feature_patches_keep_the_halves_of_a_bent_rod_rigid():
 
 
 def test_prolongation_equals_multilinear_sampling_of_the_coarse_level():
-    from keyframe_implicit.core.map.solver import _levels, _prolong
+    from keyframe_implicit.core.map.hierarchy import coarse_to_fine, prolong
 
     for shape in ((33, 34, 36), (32, 32), (48, 25, 27)):
         g = Grid((0.1,) * len(shape), 0.05, shape)
-        coarse = _levels(g, 5)[-2]
+        coarse = coarse_to_fine(g, 5)[-2]
         assert coarse.spacing == 2 * g.spacing and np.all(coarse.upper >= g.upper)
         f = np.random.default_rng(0).normal(size=coarse.shape + (len(shape),))
-        assert np.allclose(_prolong(f, g.shape), sample(f, coarse, g.points()), atol=1e-12)
+        assert np.allclose(prolong(f, g.shape), sample(f, coarse, g.points()), atol=1e-12)
 
 
 def test_a_fourth_term_is_one_function_and_one_registry_entry(monkeypatch):
     """The recipe of core/map/terms.py: write the function, append a Term; solve_map takes its weight."""
-    from keyframe_implicit.core.map import solver, terms
+    from keyframe_implicit.core.map import terms
 
     calls = []
 
@@ -458,7 +458,7 @@ def test_a_fourth_term_is_one_function_and_one_registry_entry(monkeypatch):
         tv = terms.volume_term(batch, hessian)  # reuse shapes: zero contribution below
         return terms.TermValue(0.0 * float(np.sum(w * r * r)), 0.0 * tv.grad, None if tv.hess is None else 0.0 * tv.hess)
 
-    monkeypatch.setattr(solver, "TERMS", terms.TERMS + (terms.Term("pull", "pull_weight", "element", pull_term),))
+    monkeypatch.setattr(terms, "TERMS", terms.TERMS + (terms.Term("pull", "pull_weight", "element", pull_term),))
     g, phi_a, phi_b, fa, fb = _two_discs(24)
     res = solve_map(phi_a, phi_b, g, fa, fb, pull_weight=2.0)
     assert calls and "pull" in res.stats["terms"] and res.stats["weights"]["pull"] == 2.0

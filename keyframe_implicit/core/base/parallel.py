@@ -53,7 +53,7 @@ def one_blas_thread():
 
     A bake's parallel work is its own: two processes (`Helper`), and in each the two maps
     or the two transports in threads, and each Hessian product in two halves
-    (`solver._Level.product`). BLAS's threads only compete with it for the same
+    (`system.MapSystem.product`). BLAS's threads only compete with it for the same
     cores: OpenBLAS starts one per core for a dot product of a few hundred thousand
     entries (each CG step of a Gauss-Newton system) or the multigrid's coarse product, and
     they spin while they wait for the next call. The limit covers the BLAS libraries

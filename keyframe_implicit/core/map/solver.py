@@ -18,7 +18,7 @@ Algorithm
   gradient and the Gauss-Newton Hessian are assembled per element in closed
   form straight into a fixed 3**d-neighbour block stencil (no Jacobian is
   formed), then handed to scipy as a block-sparse (BSR) matrix, stored in single
-  precision (``_HESSIAN_DTYPE``).
+  precision (``HESSIAN_DTYPE``).
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
   preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2),
   plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
@@ -26,13 +26,13 @@ Algorithm
   (120,000) unknowns or more adds a coarse correction (`coarse.CoarseSpace`,
   at most ``coarse_space_size`` = 9000 coarse unknowns): block Jacobi alone
   needs iterations in proportion to the grid's resolution. Each product with the
-  Hessian runs in two row halves, one in a second thread (`_Level.product`): it uses
+  Hessian runs in two row halves, one in a second thread (`MapSystem.product`): it uses
   the core the bake's other process leaves idle once its own map is solved.
 * Safeguard (PAPER-NOTES section 4): backtracking line search on the true
   energy (Armijo) that also refuses any step taking det F of the material
   (any quadrature point) below ``min_det`` (0.2), or below its current
   minimum where the start is lower. A level starts from the coarser
-  correction only as far as that keeps det F there (`_level_start`): the
+  correction only as far as that keeps det F there (`start_map`): the
   transports of the in-betweens assume maps that do not fold.
 * Stop when an accepted step lowers the energy by less than ``tolerance``
   (relative, 1 %) or after ``max_iterations`` per level.
@@ -71,30 +71,17 @@ from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
-from scipy import ndimage
 
-from ..base import elements
-from .coarse import CoarseSpace
-from .constraints import FeatureConstraints
 from ..base.grid import Grid
 from ..base.parallel import cores
 from ..base.progress import Reporter
+from .coarse import CoarseSpace
+from .hierarchy import coarse_to_fine, correction, fields_on, start_map
 from .rbf import initial_map
-from ..base.sampling import sample, cell_weights
-from .terms import TERMS, ElementBatch, NodeBatch, heaviside
+from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
+from . import terms
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
-
-#: Storage of the Gauss-Newton Hessian (the stencil blocks and the BSR matrix made from them):
-#: the largest array of a solve (3^d d^2 values per node). Single precision halves it; its
-#: rounding (1e-7 relative) is far below the loose CG tolerance it serves (``cg_tolerance``),
-#: and energy, gradient and line search stay in double precision (benchmarks/README.md).
-_HESSIAN_DTYPE = np.float32
-
-#: Levels of fewer active nodes assemble and multiply their Hessian in one thread
-#: (`_Level._element_halves`, `_Level.product`).
-_SPLIT_FROM = 4096
 
 #: Default options of `solve_map` (besides the term weights).
 DEFAULTS = dict(
@@ -192,238 +179,6 @@ def _check_inputs(phi_a, phi_b, grid, features_a, features_b):
     return out[0], out[1], feats[0], feats[1]
 
 
-# ----------------------------------------------------------------------------
-# one level
-# ----------------------------------------------------------------------------
-class _Level:
-    """Region, elements, stencil and constraints of one grid level."""
-
-    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, margin_cells, margin_weight, radius,
-                 patch_rigidity=1.0):
-        d = grid.dim
-        self.grid, self.d = grid, d
-        self.phi_b = phi_b
-        h = grid.spacing
-        self.eps = 1.5 * h  # eq. 2.7
-        cs = elements.corners(d)
-        centre = np.zeros(tuple(n - 1 for n in grid.shape))  # Phi at each cell's centre
-        for v in elements.corner_views(phi_a):
-            centre += v
-        centre /= len(cs)
-        cshape = centre.shape
-        mat = centre < 0
-        margin = ((~mat) & (centre < margin_cells * h) if (margin_weight > 0 and margin_cells > 0)
-                  else np.zeros_like(mat))
-        weight = np.where(mat, 1.0, np.where(margin, margin_weight, 0.0))
-        forced = np.zeros(cshape, dtype=bool)
-        if len(xa):
-            flat, _ = cell_weights(grid, xa)
-            base = np.stack(np.unravel_index(flat[:, 0], grid.shape), axis=-1)
-            forced[tuple(base.T)] = True
-        act_cell = mat | margin | forced
-        cells = np.argwhere(act_cell)  # (E, d)
-        self.cell_weight = weight[act_cell]
-        self.cell_material = mat[act_cell]
-        self.material_cells = mat
-        node_idx = cells[:, None, :] + cs[None, :, :]
-        flat_nodes = np.ravel_multi_index(tuple(node_idx[..., a] for a in range(d)), grid.shape)
-        active = np.unique(flat_nodes)
-        self.active = active
-        # int32 indices: the index tables cost more than the Hessian's blocks otherwise
-        self.elem = np.searchsorted(active, flat_nodes).astype(np.int32)  # (E, K)
-        self.n = len(active)
-        self.gauss = elements.quadrature(d, h, "gauss")
-        self.centre = elements.quadrature(d, h, "centre")
-        K = len(cs)
-        self.node_weight = np.zeros(self.n)
-        for c in range(K):
-            self.node_weight += np.bincount(self.elem[:, c], weights=self.cell_weight * h ** d / K,
-                                            minlength=self.n)
-        self.h_phi = heaviside(phi_a.reshape(-1)[active], self.eps)
-        # 3**d neighbour stencil
-        offs = np.array(list(np.ndindex(*(3,) * d))) - 1  # lexicographic -> sorted columns
-        self.offsets = offs
-        lookup = np.full(grid.size, -1, dtype=np.int64)
-        lookup[active] = np.arange(self.n)
-        idx = np.stack(np.unravel_index(active, grid.shape), axis=-1)
-        nbr = np.full((self.n, len(offs)), -1, dtype=np.int32)
-        for o, off in enumerate(offs):
-            q = idx + off
-            ok = np.all((q >= 0) & (q < np.asarray(grid.shape)), axis=1)
-            nbr[ok, o] = lookup[np.ravel_multi_index(tuple(q[ok].T), grid.shape)]
-        self.centre_off = int(np.flatnonzero(np.all(offs == 0, axis=1))[0])
-        code = {tuple(o): i for i, o in enumerate(offs.tolist())}
-        # offset of corner c' seen from corner c: block [c, c'] of an element is stencil block
-        # (node of c, pair_off[c, c'])
-        self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
-                                  for c1 in range(K)], dtype=np.int32)
-        # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
-        # its block stays zero, so the stencil array is the BSR data without a copy
-        own = np.broadcast_to(np.arange(self.n, dtype=np.int32)[:, None], nbr.shape)
-        self.bsr_indices = np.where(nbr >= 0, nbr, own).reshape(-1)
-        self.bsr_indptr = (np.arange(self.n + 1) * len(offs)).astype(np.int32)
-        self.cons = FeatureConstraints(grid, active, xa, yb, radius)
-        self.x = grid.to_world(idx)
-        # cells inside one feature patch: their F is the patch's affine A_i (see `patch_rigidity`)
-        self.patch_cell = np.all(self.cons.patch_of_node[self.elem] >= 0, axis=1)
-        self.term_weight = {"rigidity": np.where(self.patch_cell, float(patch_rigidity), 1.0) * self.cell_weight}
-
-    def cell_weights_of(self, name):
-        """Per-cell weight of term ``name`` (region weight, times ``patch_rigidity`` in patch cells for rigidity)."""
-        return self.term_weight.get(name, self.cell_weight)
-
-    # -- energy ----------------------------------------------------------------
-    def evaluate(self, y, weights, chunk, hessian=True, check=None, pool=None):
-        """Total energy, per-term energies, node gradient (n, d), stencil Hessian.
-
-        ``check`` (optional) is called before every chunk of elements (cancellation).
-        With a ``pool`` (one thread) the element terms run in two halves at once
-        (`_element_halves`), as the Hessian product does (`product`).
-        """
-        d = self.d
-        grad = np.zeros((self.n, d))
-        Hs = np.zeros((self.n, len(self.offsets), d, d), _HESSIAN_DTYPE) if hessian else None
-        energies = dict.fromkeys((t.name for t in TERMS), 0.0)
-
-        def run(lo, hi):
-            return self._element_terms(lo, hi, y, weights, chunk, grad, Hs, check)
-        parts = self._element_halves(chunk) if pool is not None else None
-        if parts is None:
-            found = [run(0, len(self.elem))]
-        else:  # two halves that touch no common node at once, then the elements between
-            (a, b), (c, e), (m, m2) = parts
-            job = pool.submit(run, c, e)
-            try:
-                found = [run(a, b)]
-            finally:
-                found.append(job.result())
-            found.append(run(m, m2))
-        for part in found:
-            for name, value in part.items():
-                energies[name] += value
-        for t in TERMS:
-            if t.kind != "node" or weights[t.name] == 0:
-                continue
-            w = weights[t.name]
-            tv = t.function(NodeBatch(y, self.node_weight, self.h_phi, self.phi_b, self.grid, self.eps),
-                            hessian=hessian)
-            energies[t.name] += w * tv.energy
-            grad += w * tv.grad
-            if hessian:
-                Hs[:, self.centre_off] += w * tv.hess
-        return sum(energies.values()), energies, grad, Hs
-
-    def _element_terms(self, lo, hi, y, weights, chunk, grad, Hs, check=None):
-        """Add the element terms of elements ``lo`` to ``hi`` into ``grad`` and ``Hs`` (None:
-        no Hessian), ``chunk`` elements at a time; their energies, by term name."""
-        K = self.elem.shape[1]
-        energies = {}
-        for s in range(lo, hi, chunk):
-            if check is not None:
-                check()
-            e = min(s + chunk, hi)
-            el = self.elem[s:e]
-            Y = y[el]
-            g_sum, h_sum = None, None
-            for t in TERMS:
-                w = weights[t.name]
-                if t.kind != "element" or w == 0:
-                    continue
-                # the user weight rides on the cell weights: the term returns weighted values
-                batch = ElementBatch(Y, w * self.cell_weights_of(t.name)[s:e], self.gauss, self.centre)
-                tv = t.function(batch, hessian=Hs is not None)
-                energies[t.name] = energies.get(t.name, 0.0) + tv.energy
-                if g_sum is None:
-                    g_sum, h_sum = tv.grad, tv.hess
-                else:
-                    g_sum += tv.grad
-                    if Hs is not None:
-                        h_sum += tv.hess
-            if g_sum is None:
-                continue
-            for c in range(K):
-                grad[el[:, c]] += g_sum[:, c]  # rows el[:, c] are distinct for a fixed corner c
-            if Hs is not None:
-                self._add_blocks(Hs, el, h_sum)
-        return energies
-
-    def _element_halves(self, chunk):
-        """((lo, hi) of the first half, (lo, hi) of the second, (lo, hi) of the elements
-        between) or None when the level is too small to split (`_SPLIT_FROM`).
-
-        Elements are in the order of their first corner, and so of their last; an
-        element writes gradient and Hessian rows of its corners only. The second half
-        starts after every element sharing a corner with the first half: the two halves
-        write disjoint rows and run in two threads without locks, and the elements between
-        (about one slab of cells) run after them.
-        """
-        E = len(self.elem)
-        if self.n < _SPLIT_FROM or E < 4 * chunk:
-            return None
-        m = E // 2
-        m2 = int(np.searchsorted(self.elem[:, 0], self.elem[m - 1, -1], side="right"))
-        if m2 >= E:
-            return None
-        return (0, m), (m2, E), (m, m2)
-
-    def _add_blocks(self, Hs, el, hess):
-        """Add the element Hessian blocks ``hess`` (E, K, K, d, d) of elements ``el`` into ``Hs``.
-
-        Block [c, c'] of element e goes to stencil block (el[e, c], pair_off[c, c']); up to 2**d
-        blocks of a chunk share a target. One sparse product (a column per block, a row per
-        stencil block) sums them in C, into the slice of ``Hs`` between the chunk's first and
-        last target (about one grid slab of nodes: the temporary is a small part of ``Hs``).
-        All K*K blocks are added, the lower ones too: the element blocks are symmetric
-        ([c', c] = [c, c']^T), so this is the mirror of the upper ones without a pass over the
-        whole Hessian.
-        """
-        dd = self.d * self.d
-        rows = (el[:, :, None] * np.int32(len(self.offsets)) + self.pair_off).reshape(-1)
-        lo, hi = rows.min(), rows.max() + 1
-        indptr = np.arange(len(rows) + 1, dtype=np.int32)  # one entry per column
-        scatter = sp.csc_matrix((np.ones(len(rows)), rows - lo, indptr), shape=(hi - lo, len(rows)))
-        Hs.reshape(-1, dd)[lo:hi] += scatter @ hess.reshape(-1, dd)
-
-    def det_stats(self, y, chunk):
-        """min det F over every quadrature point, and centre det F, of the material cells."""
-        el_all = self.elem[self.cell_material]
-        G = np.concatenate([self.gauss.G, self.centre.G])
-        mins, centres = [], []
-        for s in range(0, len(el_all), chunk):
-            F = elements.deformation_gradient(y[el_all[s:s + chunk]], G)
-            det = elements.determinant(F)
-            mins.append(det.min(axis=1))
-            centres.append(det[:, -1])
-        if not mins:
-            return np.zeros(0), np.zeros(0)
-        return np.concatenate(mins), np.concatenate(centres)
-
-    def bsr(self, Hs, lo=0, hi=None):
-        """Rows ``lo`` to ``hi`` (nodes; default all) of the Hessian of stencil blocks ``Hs``
-        (n, 3**d, d, d) as a BSR matrix, sharing ``Hs``'s memory."""
-        d, k = self.d, len(self.offsets)
-        hi = self.n if hi is None else hi
-        data = Hs.reshape(-1, d, d)[lo * k:hi * k]
-        return sp.bsr_matrix((data, self.bsr_indices[lo * k:hi * k], self.bsr_indptr[:hi - lo + 1]),
-                             shape=((hi - lo) * d, self.n * d), copy=False)
-
-    def product(self, Hs, pool=None):
-        """x -> H x for the stencil blocks ``Hs``. With a ``pool`` (one thread) the first
-        half of the rows is multiplied there: scipy's BSR product releases the GIL, so when
-        the bake's other process is idle (its map solved first) a product takes about 0.6
-        of the time, and when both are busy about the same (benchmarks/README.md)."""
-        if pool is None or self.n < _SPLIT_FROM:
-            return self.bsr(Hs).dot
-        half = self.n // 2
-        first, second = self.bsr(Hs, 0, half), self.bsr(Hs, half)
-
-        def apply(x):
-            job = pool.submit(first.dot, x)
-            out = second.dot(x)
-            return np.concatenate([job.result(), out])
-        return apply
-
-
 def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     """Projected preconditioned CG for A x = b on the range of ``project``, from 0; it
     stops at a residual of ``tol`` times |b| (projected).
@@ -458,18 +213,18 @@ def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     return x, it
 
 
-def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep, timing,
+def _solve_level(level: MapSystem, y, weights, opts, max_iterations, tolerance, rep, timing,
                  pool=None):
     """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history.
     ``pool``: a one-thread executor for half of each assembly and Hessian product
-    (`_Level.evaluate`, `_Level.product`)."""
+    (`MapSystem.evaluate`, `MapSystem.product`)."""
     cons = level.cons
     chunk = int(opts["chunk_elements"])
     t0 = time.perf_counter()
     E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check, pool=pool)
     timing["assembly"] += time.perf_counter() - t0
     dets = level.det_stats(y, chunk)
-    floor = _det_floor(dets, opts["min_det"])
+    floor = det_floor(dets, opts["min_det"])
     history = [dict(energy=E, **terms)]
     it = 0
     cg_total = 0
@@ -491,7 +246,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
                 precond = _with_correction(precond, coarse.correction(Hs), cons.n_free, d)
 
         def apply_A(z):  # the product in the Hessian's precision (a cast, not an upcast of H)
-            Tz = cons.expand(z).reshape(-1).astype(_HESSIAN_DTYPE)
+            Tz = cons.expand(z).reshape(-1).astype(HESSIAN_DTYPE)
             return cons.reduce(H(Tz).reshape(-1, d).astype(float))
 
         b = -cons.reduce(g)
@@ -512,7 +267,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
         alpha, y_new, E_new, terms_new, g_new, dets_new = step
         rel = (E - E_new) / max(E, 1e-300)
         y, dets, terms = y_new, dets_new, terms_new
-        floor = _det_floor(dets, opts["min_det"])
+        floor = det_floor(dets, opts["min_det"])
         history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **terms_new))
         E = E_new
         if rel < tolerance or it == max_iterations:
@@ -533,7 +288,7 @@ def _solve_level(level: _Level, y, weights, opts, max_iterations, tolerance, rep
 
 def _second_thread():
     """A one-thread executor for half of each assembly and Hessian product
-    (`_Level.evaluate`, `_Level.product`), or a context of None on a single core."""
+    (`MapSystem.evaluate`, `MapSystem.product`), or a context of None on a single core."""
     if cores() < 2:
         return nullcontext(None)
     return ThreadPoolExecutor(max_workers=1, thread_name_prefix="keyframe_implicit solver")
@@ -564,7 +319,7 @@ def _with_correction(precond, correction, n_free, d):
 
 def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, pool=None):
     """Backtracking from the full step: the first of 1, 1/2, 1/4, ... (down to 1e-4) that
-    keeps det F of the material at or above ``floor`` (`_det_floor`) and lowers the
+    keeps det F of the material at or above ``floor`` (`det_floor`) and lowers the
     energy by the Armijo fraction 1e-4 of ``slope``. The det F test is tried first: it
     costs a few per cent of an energy evaluation and refuses most steps near folding.
 
@@ -575,7 +330,7 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, 
         check()
         y_new = y + alpha * dy
         dets_new = level.det_stats(y_new, chunk)
-        if _det_floor(dets_new, min_det) >= floor:
+        if det_floor(dets_new, min_det) >= floor:
             E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
                                                         check=check, pool=pool)
             if E_new <= E + 1e-4 * alpha * slope:
@@ -584,127 +339,12 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, 
     return None
 
 
-def _constrained_level(pa, pb, g, xa, yb, margin_cells, options, base):
-    """The `_Level` of grid ``g`` with feature patches no larger than the start allows.
-
-    A patch moves its nodes by one affine map. Where the features ask for a kink at a
-    feature point (stretched 4x on one side, squeezed on the other, as a body torn in
-    two seen backwards), no affine map fits both sides and the patch's rim folds the
-    start. The radius is then halved, down to the plain hard constraint on the
-    feature's cell, until imposing the constraints folds nothing the start did not.
-    """
-    d, chunk = g.dim, int(options["chunk_elements"])
-    diag = 1.01 * np.sqrt(d) * g.spacing  # a patch must hold its feature's cell
-    radius, margin_weight = options["feature_radius"], options["margin_weight"]
-    rad = max(float(radius), diag) if radius > 0 else 0.0
-    floor = None  # the start's own det F floor: the region and its cells do not depend on rad
-    while True:
-        level = _Level(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, options["patch_rigidity"])
-        if rad == 0.0 or level.cons.n_patch == 0:
-            return level
-        raw = base.reshape(-1, d)[level.active]
-        if floor is None:
-            floor = _det_floor(level.det_stats(raw, chunk), options["min_det"])
-        if _det_floor(level.det_stats(level.cons.enforce(raw), chunk), options["min_det"]) >= floor:
-            return level
-        rad = rad / 2 if rad / 2 >= diag else 0.0
-
-
-def _level_start(level, base, corr_prev, options):
-    """Start of one level: its base map plus as much of the coarser level's correction as
-    keeps the material's det F at ``min_det`` (or at the base's own minimum, if lower).
-
-    The correction comes from coarser cells and is extended past their region, so at
-    the finer level's material boundary it can fold cells the coarse level never saw;
-    it is halved until it does not. Returns the start on every node and on the active ones.
-    """
-    d, chunk = level.d, int(options["chunk_elements"])
-
-    def start(scale):
-        full = base if scale == 0 else base + scale * _prolong(corr_prev, level.grid.shape)
-        return full, level.cons.enforce(full.reshape(-1, d)[level.active])
-
-    full, y = start(0.0)
-    if corr_prev is None:
-        return full.copy(), y
-    floor = _det_floor(level.det_stats(y, chunk), options["min_det"])
-    for scale in (1.0, 0.5, 0.25, 0.125):
-        full_s, y_s = start(scale)
-        if _det_floor(level.det_stats(y_s, chunk), options["min_det"]) >= floor:
-            return full_s, y_s
-    return full.copy(), y
-
-
-def _det_floor(dets, min_det):
-    """What a step may not lower: the material's smallest det F, counted up to ``min_det``.
-
-    A step is refused if it takes any quadrature point of the material below
-    ``min_det`` (or below the current minimum, where the start is already
-    lower), so the map never folds and never comes close to folding.
-    """
-    low = dets[0]
-    return float(min(low.min(), min_det)) if low.size else float(min_det)
-
-
-def _extend(full, known, passes):
-    """Fill nodes where ``known`` is False smoothly from the known ones (nearest + smoothing)."""
-    if np.all(known):
-        return full
-    _, idx = ndimage.distance_transform_edt(~known, return_indices=True)
-    out = full[tuple(idx)]
-    unknown = ~known
-    d = full.shape[-1]
-    for _ in range(passes):
-        for j in range(d):
-            sm = ndimage.uniform_filter(out[..., j], size=3, mode="nearest")
-            out[..., j][unknown] = sm[unknown]
-    return out
-
-
-def _prolong(field, shape):
-    """Multilinear prolongation from a level of spacing 2h onto the nested level of spacing h.
-
-    Coarse node k sits on fine node 2k (same origin), so per axis fine 2k takes
-    coarse k and fine 2k+1 the mean of coarse k and k+1; the result is cropped
-    to ``shape``. Equal to multilinear sampling, without per-point work.
-    """
-    out = np.asarray(field, dtype=float)
-    for a, n in enumerate(shape):
-        m = out.shape[a]
-        up = np.empty(out.shape[:a] + (2 * m - 1,) + out.shape[a + 1:])
-        even = [slice(None)] * out.ndim
-        odd = [slice(None)] * out.ndim
-        even[a] = slice(0, None, 2)
-        odd[a] = slice(1, None, 2)
-        lo = [slice(None)] * out.ndim
-        hi = [slice(None)] * out.ndim
-        lo[a] = slice(0, m - 1)
-        hi[a] = slice(1, m)
-        up[tuple(even)] = out
-        up[tuple(odd)] = 0.5 * (out[tuple(lo)] + out[tuple(hi)])
-        crop = [slice(None)] * out.ndim
-        crop[a] = slice(0, n)
-        out = up[tuple(crop)]
-    return out
-
-
-def _levels(grid: Grid, coarse_nodes: int):
-    grids = [grid]
-    while True:
-        g = grids[-1]
-        shape = tuple(int(np.ceil((n - 1) / 2)) + 1 for n in g.shape)
-        if min(shape) < coarse_nodes:
-            break
-        grids.append(Grid(g.origin, 2 * g.spacing, shape))
-    return grids[::-1]
-
-
 # ----------------------------------------------------------------------------
 # public entry point
 # ----------------------------------------------------------------------------
 #: Default weights of the terms of eq. 2.6 (`terms.TERMS`; measured choice: see the module
 #: docstring). The Blender panel takes its defaults from here.
-DEFAULT_WEIGHTS = {t.name: t.default for t in TERMS}
+DEFAULT_WEIGHTS = {t.name: t.default for t in terms.TERMS}
 
 
 def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
@@ -781,7 +421,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     timing["initial map"] = time.perf_counter() - t0
     disp0 = y0 - grid.points()
 
-    grids = _levels(grid, int(options["coarse_nodes"]))
+    grids = coarse_to_fine(grid, int(options["coarse_nodes"]))
     nlev = len(grids)
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (grid.dim * i) for i in range(nlev)])
@@ -792,17 +432,17 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
             t0 = time.perf_counter()
             pa, pb, base = ((phi_a, phi_b, y0) if li == nlev - 1
-                            else _level_fields(phi_a, phi_b, disp0, grid, g))
+                            else fields_on(phi_a, phi_b, disp0, grid, g))
             if not np.any(pa < 0):
                 continue  # material too thin for this coarse level
-            level = _constrained_level(pa, pb, g, xa, yb, margin_cells, options, base)
-            y_start_full, y = _level_start(level, base, corr, options)
+            level = constrained_system(pa, pb, g, xa, yb, margin_cells, options, base)
+            y_start_full, y = start_map(level, base, corr, options)
             timing["setup"] += time.perf_counter() - t0
             y, history, iters, cg_total, dets, terms = _solve_level(
                 level, y, weights, options, int(max_iterations), float(tolerance),
                 rep.sub(edges[li], edges[li + 1]), timing, pool)
             t0 = time.perf_counter()
-            corr = _correction(level, y, y_start_full, base, int(options["extension_passes"]))
+            corr = correction(level, y, y_start_full, base, int(options["extension_passes"]))
             timing["extension"] += time.perf_counter() - t0
             level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
                                     iterations=iters, cg_iterations=cg_total, history=history))
@@ -819,7 +459,7 @@ def _options(opts, weight_opts, grid):
     """`DEFAULTS` updated by ``opts`` (checked; ``feature_radius`` resolved, ``initial``
     an array), and the weight of every term of `TERMS` by its name: (options, weights).
     ``weight_opts`` holds the named weight arguments."""
-    extra = {t.weight_option for t in TERMS} - set(weight_opts)
+    extra = {t.weight_option for t in terms.TERMS} - set(weight_opts)
     options = dict(DEFAULTS)
     for k, v in opts.items():
         if k in options:
@@ -830,7 +470,7 @@ def _options(opts, weight_opts, grid):
             raise ValueError(f"unknown option {k!r} for solve_map; known options: "
                              f"{sorted(set(options) | extra)}.")
     weights = {}
-    for t in TERMS:
+    for t in terms.TERMS:
         w = float(weight_opts.get(t.weight_option, t.default))
         if not np.isfinite(w) or w < 0:
             raise ValueError(f"{t.weight_option} must be a finite number >= 0, got {w}.")
@@ -856,25 +496,6 @@ def _options(opts, weight_opts, grid):
                              "(y(x) of every node), e.g. the .mapped of an earlier solve.")
         options["initial"] = y0
     return options, weights
-
-
-def _level_fields(phi_a, phi_b, disp0, grid, g):
-    """The keyframes' fields and the start map on the coarse grid ``g``: (pa, pb, base)."""
-    pts = g.points()
-    return (sample(phi_a, grid, pts, outside="distance"), sample(phi_b, grid, pts, outside="distance"),
-            pts + sample(disp0, grid, pts))
-
-
-def _correction(level, y, y_start_full, base, passes):
-    """The level's solution as a correction of its start map ``base`` on every node of
-    its grid: solved on the active nodes, extended beyond them (`_extend`)."""
-    g, d = level.grid, level.d
-    full = y_start_full.reshape(-1, d).copy()
-    full[level.active] = y
-    known = np.zeros(g.size, dtype=bool)
-    known[level.active] = True
-    corr = (full - base.reshape(-1, d)).reshape(g.shape + (d,))
-    return _extend(corr, known.reshape(g.shape), passes)
 
 
 def _map_stats(level, y, dets, terms, weights, level_stats, init):
