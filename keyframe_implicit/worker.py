@@ -212,7 +212,8 @@ def main():
     if hasattr(os, "nice"):
         os.nice(_NICENESS)
     # the helper's interpreter loads while this one reads the inputs and imports the core
-    helper = Helper() if _PROCESSES > 1 else None
+    # (named, not imported, here: `chain.HELPER_PRELOAD` would import the core first)
+    helper = Helper((f"{__package__}.core.bake.chain",)) if _PROCESSES > 1 else None
     answers = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # prints (Python's or a library's) go to stderr, never into the answers
     sys.stdout = sys.stderr

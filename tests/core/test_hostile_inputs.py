@@ -6,6 +6,8 @@ gave a misleading "close the mesh", loose vertices stretched the grid, and messa
 neither the keyframe nor the element at fault.
 """
 
+import time
+
 import numpy as np
 import pytest
 
@@ -89,20 +91,25 @@ def test_loose_far_vertex_is_ignored_and_counted():
 
 
 @pytest.fixture
-def shared_distance_grids(monkeypatch):
-    """The helper makes the last keyframe's distance grid even on these small grids."""
-    from keyframe_implicit.core.bake import pipeline
+def started_helper():
+    """A helper process that has started: it makes the last keyframe's distance grid even
+    on these small grids, which take less time than a process takes to start."""
+    from keyframe_implicit.core.base.parallel import Helper
 
-    monkeypatch.setattr(pipeline, "_WAIT_FOR_HELPER", True)
+    with Helper(preload=()) as helper:
+        while not helper.ready():
+            time.sleep(0.01)
+        yield helper
 
 
 @pytest.mark.parametrize("processes", [1, 2])  # 2: keyframe 2's distance grid in the helper
-def test_reoriented_faces_are_reported(processes, shared_distance_grids):
+def test_reoriented_faces_are_reported(processes, started_helper):
     kfs = _spheres()
     f = kfs[1].faces.copy()
     f[::2] = f[::2, ::-1]
     kfs[1] = Keyframe(kfs[1].vertices, f, 5, "Ball.001")
-    anim = animate(kfs, [_features()], resolution=RES, processes=processes)
+    helper = started_helper if processes == 2 else None
+    anim = animate(kfs, [_features()], resolution=RES, processes=processes, helper=helper)
     notes = [n for n in anim.stats["notes"] if "Keyframe 2 ('Ball.001', frame 5)" in n]
     assert len(notes) == 1 and "Recalculate Outside" in notes[0], anim.stats["notes"]
     _check_result(anim, kfs)
@@ -137,12 +144,13 @@ def test_open_mesh_is_told_to_close_it():
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES)
 
 
-def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too(shared_distance_grids):
+def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too(started_helper):
     kfs = _spheres()
     sheet = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], float)
     kfs[1] = Keyframe(sheet + (2.0, 0.0, 0.0), [[0, 1, 2, 3]], 5, "Sheet")
     with pytest.raises(ValueError, match="Keyframe 2 \\('Sheet', frame 5\\).*4 open edges.*Close"):
-        animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES, processes=2)
+        animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES, processes=2,
+                helper=started_helper)
 
 
 @pytest.mark.parametrize("gap", [0.001, 0.01])

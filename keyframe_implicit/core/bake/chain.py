@@ -34,7 +34,10 @@ from ..surface.quality import frame_quality
 from ..surface.extract import extract_surface
 from ..surface.template import DetailTrack, _initial_template, track_template, uncovered_area
 
-__all__ = ["animate_chain", "ChainResult"]
+__all__ = ["animate_chain", "ChainResult", "HELPER_PRELOAD"]
+
+#: What a helper process imports as it starts: everything a chain's work sends it.
+HELPER_PRELOAD = (__name__,)
 
 
 @dataclass
@@ -138,7 +141,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     blas = one_blas_thread()
     try:
         if own:
-            helper = Helper()
+            helper = Helper(HELPER_PRELOAD)
         for k in range(nk - 1):  # loop over segments (keyframe pairs)
             seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
             f0, f1 = frames[k], frames[k + 1]

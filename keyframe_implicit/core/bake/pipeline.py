@@ -111,11 +111,6 @@ _WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
                  "levelset": "levelset_weight"}
 
 
-#: Tests: wait until the helper has started, so that it makes the last keyframe's distance
-#: grid even on small grids.
-_WAIT_FOR_HELPER = False
-
-
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each.
 
@@ -131,10 +126,6 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
         done = dict(enumerate(_distance_grid(keyframes, surfaces, grid, k, rep, cancel)
                               for k in range(n)))
     else:
-        if _WAIT_FOR_HELPER:
-            while not helper.ready():
-                time.sleep(0.01)
-
         def here(k, stop):
             return _distance_grid(keyframes, surfaces, grid, k, rep, stop)
 
@@ -444,7 +435,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     Cancelled
         When ``cancel()`` returned True.
     """
-    from .chain import animate_chain
+    from .chain import HELPER_PRELOAD, animate_chain
     from ..base.parallel import Helper, one_blas_thread
 
     t0 = time.perf_counter()
@@ -468,7 +459,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     blas, given = one_blas_thread(), helper
     try:
         if helper is None and opts.get("processes", 1) > 1:
-            helper = Helper()
+            helper = Helper(HELPER_PRELOAD)
         phis, stats["sdf"] = _distance_grids(keyframes, surfaces, grid, rep.sub(0.0, 0.15),
                                              cancel, helper)
         stats["sdf_seconds"] = time.perf_counter() - t0

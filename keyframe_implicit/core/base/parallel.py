@@ -107,10 +107,10 @@ class Helper:
     ----------
     preload : sequence of str
         Modules the helper imports as soon as it starts, so that the first call
-        does not wait for them.
+        does not wait for them (the bake names `chain.HELPER_PRELOAD`).
     """
 
-    def __init__(self, preload=("keyframe_implicit.core.bake.chain",)):
+    def __init__(self, preload=()):
         ctx = multiprocessing.get_context("spawn")
         self._conn, theirs = ctx.Pipe()
         lifeline, their_lifeline = ctx.Pipe()
