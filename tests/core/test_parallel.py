@@ -280,12 +280,12 @@ class _CountingHelper:
 def test_helper_takes_a_distance_grid_only_once_it_has_started(started):
     """A process takes 0.5-1 s to start, longer than a small grid's distance grids: this
     process does not wait for it, and hands it the last keyframe once it is up."""
-    from keyframe_implicit.core.bake import pipeline
+    from keyframe_implicit.core.bake import checks, pipeline
     from keyframe_implicit.core.bake.gridfit import fit_grid
     from keyframe_implicit.core.base.progress import Reporter
 
     kfs, _ = turning_sphere(n=16, last=11)
-    surfaces = [pipeline._surface_vertices(k, kf) for k, kf in enumerate(kfs)]
+    surfaces = [checks.surface_vertices(k, kf) for k, kf in enumerate(kfs)]
     grid = fit_grid([kf.vertices for kf in kfs], 20)
     helper = _CountingHelper(started)
     alone, _ = pipeline._distance_grids(kfs, surfaces, grid, Reporter())
