@@ -1,27 +1,21 @@
 """Numerical core of keyframe_implicit: pure numpy / scipy / scikit-image (and threadpoolctl
 for BLAS's threads), never bpy.
 
-Pipeline (thesis "Keyframe Animation of Implicit Models", 2006), one module per stage:
+The method (thesis "Keyframe Animation of Implicit Models", 2006; corrected equations
+and what goes beyond the thesis in docs/method.md), one sub-package per stage:
 
-=====================  ==========================================================
-``grid``               `Grid`: the regular grid every field lives on (sec. 2.1)
-``sampling``           multilinear sampling of fields at off-grid points
-``sdf``                keyframe meshes / polygons -> signed distance grids
-``gridfit``            choosing a grid for given keyframes, memory estimate
-``rbf``                initial map from feature points (eq. 2.1-2.5)
-``terms``              the terms of the objective, eq. 2.6 (one per function)
-``constraints``        feature-point constraints C y = d (eq. 2.14-2.20)
-``solver``             constrained Gauss-Newton -> `solve_map` (sec. 2.5)
-``trajectory``         as-rigid-as-possible trajectories (sec. 3.1)
-``transport``          a keyframe's field carried along its trajectories
-``levelset``           in-between level sets: two transports blended (eq. 3.4
-                       read two-sided, PAPER-NOTES section 8) -> `inbetween`
-``isovolume``          the iso-value that keeps an in-between's volume
-``surface``            marching cubes / contours -> `extract_surface`
-``template``           one mesh tracked through all frames (shape keys)
-``chain``              several keyframes in sequence
-``pipeline``           meshes + feature points + frames -> per-frame vertices
-=====================  ==========================================================
+=============  =================================================================
+``fields``     keyframe meshes -> signed distance grids (sec. 2.1)
+``map``        volume map by constrained Gauss-Newton on eq. 2.6 (ch. 2)
+``motion``     as-rigid-as-possible trajectories, transports, in-betweens (ch. 3)
+``surface``    level sets -> tracked meshes, attributes, quality, output mesh
+``bake``       the whole bake: `animate`, chains, grid and memory, map scheduling
+``base``       the grid and the numerics every stage shares
+=============  =================================================================
+
+Imports run one way: ``bake`` uses the stages, each stage uses ``base`` (``surface``
+and ``fields`` share the triangle kernel), and no module imports another's private
+name.
 
 The public names below are imported lazily so that ``import
 keyframe_implicit.core`` stays cheap and each stage can be used on its own.

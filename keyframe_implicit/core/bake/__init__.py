@@ -1,0 +1,11 @@
+"""Stage 5: the whole bake, from keyframe meshes to one mesh per timeline frame.
+
+``pipeline``  `animate`: grid, distance grids, chain, output choice
+``checks``    refusals before any heavy work, and the result checked after
+``gridfit``   the one grid holding every keyframe and feature point
+``memory``    the memory model: a request that would not fit is refused first
+``maps``      `inbetween`: a pair's two maps solved (threads or helper), then its
+              in-betweens
+``chain``     `animate_chain`: several keyframes in sequence, segments shared with
+              the helper process
+"""

@@ -1,0 +1,8 @@
+"""Stage 3: the in-between level sets (thesis ch. 3).
+
+``trajectory``  as-rigid-as-possible paths x(s) of every node (sec. 3.1, eq. 3.1)
+``transport``   a keyframe's field carried along its paths, by inverse lookup (eq. 3.2-3.3)
+``levelset``    `Inbetween`: the two transports blended (eq. 3.4 read two-sided,
+                docs/method.md, section 8)
+``isovolume``   the per-frame iso-value that keeps the in-between's volume
+"""
