@@ -15,7 +15,7 @@ Shape keys (issue 5, item 4):
 - a link from the setup (``settings.output_object``) so that baking again
   replaces this object and only it.
 
-Mesh sequence (topology free, for merges and splits; PAPER-NOTES section 9):
+Mesh sequence (topology free, for merges and splits; docs/method.md, section 9):
 
 - one mesh holding every frame's own surface, the frames laid end to end,
   with the integer face attribute ``kfi_frame`` (the frame's index from the

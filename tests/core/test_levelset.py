@@ -1,4 +1,4 @@
-"""In-between level sets (thesis sec. 3.2, eq. 3.2-3.4; PAPER-NOTES sec. 6)."""
+"""In-between level sets (thesis sec. 3.2, eq. 3.2-3.4; docs/method.md, section 6)."""
 
 import numpy as np
 import pytest

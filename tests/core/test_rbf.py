@@ -1,4 +1,4 @@
-"""Initial map from feature points (eq. 2.1-2.5 as corrected in PAPER-NOTES section 1)."""
+"""Initial map from feature points (eq. 2.1-2.5 as corrected in docs/method.md, section 1)."""
 
 import numpy as np
 

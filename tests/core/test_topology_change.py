@@ -1,4 +1,4 @@
-"""Merges, splits and morphs through the two-sided in-betweens (PAPER-NOTES section 8).
+"""Merges, splits and morphs through the two-sided in-betweens (docs/method.md, section 8).
 
 The benchmark's own cases (benchmarks/cases.py), solved end to end with
 `inbetween`: the volume of every frame's surface stays on the linear path

@@ -1,4 +1,4 @@
-"""As-rigid-as-possible trajectories (thesis sec. 3.1, PAPER-NOTES sec. 5)."""
+"""As-rigid-as-possible trajectories (thesis sec. 3.1, docs/method.md, section 5)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The semi-Lagrangian inverse lookup of `transport` on bent cells (PAPER-NOTES section 6)."""
+"""The semi-Lagrangian inverse lookup of `transport` on bent cells (docs/method.md, section 6)."""
 
 import numpy as np
 import pytest

@@ -11,7 +11,7 @@ keyframe k+1's surface -- are the template of segment k+1. So the frame of
 keyframe k shows the template on keyframe k's surface, and vertex identity is
 kept across the whole animation.
 
-Where topology changes one template cannot stay clean (PAPER-NOTES section
+Where topology changes one template cannot stay clean (docs/method.md, section
 9), so every frame's own surface is also kept, with the velocity of its
 vertices for motion blur, and both outputs are measured against it
 (`quality`): the caller picks the output.

@@ -109,8 +109,6 @@ class Animation:
         return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
 
 
-_WEIGHT_NAMES = {"volume": "volume_weight", "rigidity": "rigidity_weight",
-                 "levelset": "levelset_weight"}
 
 
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
@@ -228,6 +226,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     Cancelled
         When ``cancel()`` returned True.
     """
+    from ..map import terms
     from .chain import HELPER_PRELOAD, animate_chain
     from ..base.parallel import Helper, one_blas_thread
 
@@ -235,10 +234,11 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     rep = Reporter(progress, cancel)
     keyframes, features = check_inputs(keyframes, features, feature_names)
     opts = dict(options)
+    weight_options = {t.name: t.weight_option for t in terms.TERMS}  # "volume" -> volume_weight
     for key, value in (weights or {}).items():
-        if key not in _WEIGHT_NAMES:
-            raise ValueError(f"Unknown weight {key!r}; use {sorted(_WEIGHT_NAMES)}.")
-        opts[_WEIGHT_NAMES[key]] = float(value)
+        if key not in weight_options:
+            raise ValueError(f"Unknown weight {key!r}; use {sorted(weight_options)}.")
+        opts[weight_options[key]] = float(value)
     if max_bytes is None:
         phys = _physical_memory()
         max_bytes = int(0.75 * phys) if phys else None

@@ -3,7 +3,7 @@
 The thesis' "naive" one-F-per-cell difference (eq. 2.9-2.10) has hourglass
 modes: a checkerboard motion of the nodes leaves the cell-centre F unchanged,
 so it costs no energy. The thesis subdivides each cell (fig. 2.1-2.2); the 3D
-split is not spelled out (PAPER-NOTES section 3). Here every cell is a
+split is not spelled out (docs/method.md, section 3). Here every cell is a
 multilinear (bilinear in 2D, trilinear in 3D) finite element:
 
 * the rigidity term of eq. 2.6 is integrated with the 2**d-point Gauss rule

@@ -3,7 +3,7 @@
 Used wherever a field must be read between nodes: Psi(y(x)) in the level-set
 term of eq. 2.6 (with its gradient for the Gauss-Newton Jacobian), the
 bilinear/trilinear feature constraints of eq. 2.19 (as corrected in
-PAPER-NOTES section 4), and the backward values of eq. 3.4.
+docs/method.md, section 4), and the backward values of eq. 3.4.
 
 Interpolation is (bi/tri)linear: the gradient is piecewise constant per cell,
 exact for fields that are linear in the cell, and the weights are the

@@ -1,7 +1,7 @@
 """Keyframe meshes and polygons -> signed distance grids (thesis section 2.1).
 
 The thesis samples every keyframe as a signed distance function Phi / Psi on one
-regular grid, negative inside the material (PAPER-NOTES, "Notation"). Artists'
+regular grid, negative inside the material (docs/method.md, "Notation and input"). Artists'
 meshes are open (Suzanne's eyes), self-intersecting, made of overlapping loose
 parts and contain degenerate faces, so the two halves of the job are done by
 methods that do not assume a clean closed manifold:

@@ -1,6 +1,6 @@
 """Feature-point constraints C y = d (thesis eq. 2.8 and 2.14-2.20).
 
-As corrected in PAPER-NOTES section 4: each feature point x'_i gives one row
+As corrected in docs/method.md, section 4: each feature point x'_i gives one row
 of C per coordinate, holding the multilinear (bilinear / trilinear,
 "barycentric" in the thesis) weights t of the 2**d nodes of the cell that
 contains x'_i (they sum to one), and the right-hand side is the target y'_i

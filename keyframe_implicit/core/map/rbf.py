@@ -1,6 +1,6 @@
 """Initial map from feature points, radial basis functions (thesis sec. 2.2, eq. 2.1-2.5).
 
-As corrected in PAPER-NOTES section 1, the centres are the feature points x'_i
+As corrected in docs/method.md, section 1, the centres are the feature points x'_i
 and the interpolated quantity is the displacement y'_i - x'_i:
 
     y(x) = x + p(x) + sum_i lambda_i R(|x - x'_i|),   y(x'_i) = y'_i      (eq. 2.1-2.2)

@@ -28,7 +28,7 @@ Algorithm
   needs iterations in proportion to the grid's resolution. Each product with the
   Hessian runs in two row halves, one in a second thread (`MapSystem.product`): it uses
   the core the bake's other process leaves idle once its own map is solved.
-* Safeguard (PAPER-NOTES section 4): backtracking line search on the true
+* Safeguard (docs/method.md, section 4): backtracking line search on the true
   energy (Armijo) that also refuses any step taking det F of the material
   (any quadrature point) below ``min_det`` (0.2), or below its current
   minimum where the start is lower. A level starts from the coarser
@@ -53,7 +53,7 @@ bent rod's "rigid" half came out 2.2 % short). A feature marks material that
 must follow the user's point, so the patch cells' rigidity weight is
 multiplied by ``patch_rigidity`` (10).
 
-Integration region (PAPER-NOTES section 2)
+Integration region (docs/method.md, section 2)
 ------------------------------------------
 Cells whose centre is inside A's material (phi_a < 0) have weight 1; cells
 within ``margin_cells`` (3) cells outside it, the map's margin, have weight
@@ -375,7 +375,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     progress, cancel : callables, see `keyframe_implicit.core.base.progress`.
     **opts
         ``margin_weight`` (0.1), ``min_det`` (0.2, see the module docstring),
-        ``feature_radius`` (world units; default 4 % of
+        ``feature_radius`` (world units; default 8 % of
         the largest grid extent, never less than one cell diagonal; 0 gives
         plain hard constraints on each feature's cell) -- see
         `keyframe_implicit.core.map.constraints`; ``patch_rigidity`` (10, factor

@@ -6,7 +6,7 @@
 
 with F = dy/dx (discretised in `keyframe_implicit.core.base.elements`), H the
 smeared Heaviside of eq. 2.7 (middle case -eps <= phi <= eps as corrected in
-PAPER-NOTES section 2, eps = 1.5 h) and the weights given to `solve_map` as
+docs/method.md, section 2, eps = 1.5 h) and the weights given to `solve_map` as
 ``volume_weight``, ``rigidity_weight``, ``levelset_weight`` (each term's
 default is in `TERMS`).
 
@@ -32,8 +32,10 @@ Write ``def my_term(batch, hessian=True) -> TermValue`` for one of the two
 kinds (see `volume_term` for the pattern: residual, its derivative w.r.t. the
 corner positions, then energy / gradient / ``2 w J J^T``) and append
 ``Term("my", "my_weight", "element", my_term, default=...)`` to `TERMS`.
-`solve_map` then accepts ``my_weight=...``, assembles the term into the Gauss-Newton system and
-reports its value per iteration in ``stats["terms"]``; nothing else changes.
+`solve_map` then accepts ``my_weight=...`` and `animate` ``weights={"my": ...}``; the
+solver assembles the term into the Gauss-Newton system and reports its value per
+iteration in ``stats["history"]`` and at the end in ``stats["terms"]``. The Blender panel
+shows a property for each of the three terms it knows (blender/props.py).
 Rigid motions must cost nothing if the term is physical.
 """
 

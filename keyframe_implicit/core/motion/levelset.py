@@ -1,4 +1,4 @@
-"""In-between level sets (thesis section 3.2, eq. 3.2-3.4; PAPER-NOTES sections 6 and 8).
+"""In-between level sets (thesis section 3.2, eq. 3.2-3.4; docs/method.md, sections 6 and 8).
 
 Two transports, one per keyframe (default, ``transport="two-sided"``)
 ----------------------------------------------------------------------

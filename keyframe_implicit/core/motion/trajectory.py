@@ -1,4 +1,4 @@
-"""As-rigid-as-possible trajectories from a volume map (thesis section 3.1, PAPER-NOTES section 5).
+"""As-rigid-as-possible trajectories from a volume map (thesis section 3.1, docs/method.md, section 5).
 
 Given the map y(x) on every grid node, `Trajectories` gives each node a path
 x(s), s in [0, 1], with x(0) = x and x(1) = y(x) exactly.
@@ -6,7 +6,7 @@ x(s), s in [0, 1], with x(0) = x and x(1) = y(x) exactly.
 Two forms are implemented:
 
 ``method="global"`` (default) — the shape interpolation of Alexa, Cohen-Or and
-Levin (2000), the "stronger reading" of PAPER-NOTES section 5:
+Levin (2000), the "stronger reading" of docs/method.md, section 5:
 
 1. every active cell gets one deformation gradient F_c (least-squares fit of
    the map to the cell's edges, i.e. the mean of its parallel edge
@@ -45,7 +45,7 @@ whole component) and the two are blended smoothly over the outer half of the
 margin, so every node has a continuous path.
 
 ``method="local"`` — the thesis's per-node formula (eq. 3.1 as read in
-PAPER-NOTES section 5):
+docs/method.md, section 5):
     x(s) = x_bar + s (y_bar - x_bar) + R_n^s (x - x_bar) + s r,
     r = y - [y_bar + R_n (x - x_bar)],
 with x_bar, y_bar the centroids of the node's component before and after the

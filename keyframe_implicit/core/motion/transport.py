@@ -16,9 +16,9 @@ and a node no moved cell reaches -- beyond the moved border -- has no value,
 which its user reads as the truncation. So "far outside" and "not reached"
 agree, the carried field is continuous where the region ends, and nothing far
 from the material can drift to zero (thesis sec. 3.2 and its artifacts,
-PAPER-NOTES section 6).
+docs/method.md, section 6).
 
-`levelset.Inbetween` blends two transports, one per keyframe (PAPER-NOTES
+`levelset.Inbetween` blends two transports, one per keyframe (docs/method.md,
 section 8); `Transport.carry` says how each treats material its map tears.
 """
 

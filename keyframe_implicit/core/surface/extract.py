@@ -1,4 +1,4 @@
-"""Zero level set of a grid field as a mesh (3D) or contour loops (2D) (PAPER-NOTES section 7).
+"""Zero level set of a grid field as a mesh (3D) or contour loops (2D) (docs/method.md, section 7).
 
 3D: `skimage.measure.marching_cubes` with spacing and origin in world units.
 2D: `skimage.measure.find_contours`. The field is padded by one node of a

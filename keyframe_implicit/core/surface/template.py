@@ -1,4 +1,4 @@
-"""One mesh tracked through all in-between frames (PAPER-NOTES section 7).
+"""One mesh tracked through all in-between frames (docs/method.md, section 7).
 
 Marching cubes gives a different mesh on every frame; a Blender shape key
 needs the same vertices on every frame. So one template -- the surface of
