@@ -95,7 +95,7 @@ def start_map(level, base, corr_prev, options):
     the finer level's material boundary it can fold cells the coarse level never saw;
     it is halved until it does not. Returns the start on every node and on the active ones.
     """
-    d, chunk = level.d, int(options["chunk_elements"])
+    d, chunk = level.d, int(options.chunk_elements)
 
     def start(scale):
         full = base if scale == 0 else base + scale * prolong(corr_prev, level.grid.shape)
@@ -104,9 +104,9 @@ def start_map(level, base, corr_prev, options):
     full, y = start(0.0)
     if corr_prev is None:
         return full.copy(), y
-    floor = det_floor(level.det_stats(y, chunk), options["min_det"])
+    floor = det_floor(level.det_stats(y, chunk), options.min_det)
     for scale in (1.0, 0.5, 0.25, 0.125):
         full_s, y_s = start(scale)
-        if det_floor(level.det_stats(y_s, chunk), options["min_det"]) >= floor:
+        if det_floor(level.det_stats(y_s, chunk), options.min_det) >= floor:
             return full_s, y_s
     return full.copy(), y

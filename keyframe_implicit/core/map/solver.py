@@ -65,6 +65,7 @@ fold; at full weight the empty gap of a merge resists it.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
@@ -76,6 +77,7 @@ from ..base.grid import Grid
 from ..base.parallel import cores
 from ..base.progress import Reporter
 from .coarse import CoarseSpace
+from .options import MapOptions, weight_options
 from .hierarchy import coarse_to_fine, correction, fields_on, start_map
 from .rbf import initial_map
 from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
@@ -83,23 +85,9 @@ from . import terms
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 
-#: Default options of `solve_map` (besides the term weights).
-DEFAULTS = dict(
-    margin_weight=0.1,
-    feature_radius=None,
-    patch_rigidity=10.0,
-    coarse_nodes=24,
-    cg_tolerance=3e-2,
-    cg_max_iterations=300,
-    coarse_space_from=120_000,
-    coarse_space_size=9000,
-    damping=1e-6,
-    chunk_elements=512,
-    extension_passes=8,
-    initial=None,
-    reuse_hessian=True,
-    min_det=0.2,
-)
+#: Default options of `solve_map` besides the term weights (`options.MapOptions`).
+DEFAULTS = {f.name: getattr(MapOptions(), f.name) for f in dataclasses.fields(MapOptions)
+            if f.name != "weights"}
 
 
 @dataclass
@@ -213,19 +201,19 @@ def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     return x, it
 
 
-def _solve_level(level: MapSystem, y, weights, opts, max_iterations, tolerance, rep, timing,
-                 pool=None):
+def _solve_level(level: MapSystem, y, opts, rep, timing, pool=None):
     """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history.
     ``pool``: a one-thread executor for half of each assembly and Hessian product
     (`MapSystem.evaluate`, `MapSystem.product`)."""
-    cons = level.cons
-    chunk = int(opts["chunk_elements"])
+    cons, weights = level.cons, opts.weights
+    max_iterations, tolerance = int(opts.max_iterations), float(opts.tolerance)
+    chunk = int(opts.chunk_elements)
     t0 = time.perf_counter()
-    E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check, pool=pool)
+    E, energies, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check, pool=pool)
     timing["assembly"] += time.perf_counter() - t0
     dets = level.det_stats(y, chunk)
-    floor = det_floor(dets, opts["min_det"])
-    history = [dict(energy=E, **terms)]
+    floor = det_floor(dets, opts.min_det)
+    history = [dict(energy=E, **energies)]
     it = 0
     cg_total = 0
     fresh = True  # Hs was assembled at the current y
@@ -235,22 +223,10 @@ def _solve_level(level: MapSystem, y, weights, opts, max_iterations, tolerance, 
     for it in range(1, max_iterations + 1):
         rep((it - 1) / max_iterations, f"Gauss-Newton iteration {it}")
         t0 = time.perf_counter()
-        d = level.d
         if fresh:
-            diag = Hs[:, level.centre_off]
-            mu = opts["damping"] * max(float(np.mean(np.trace(diag, axis1=1, axis2=2))) / d, 1e-300)
-            Hs[:, level.centre_off] += mu * np.eye(d)
-            H = level.product(Hs, pool)
-            precond = cons.block_preconditioner(Hs[:, level.centre_off].astype(float))
-            if coarse is not None:
-                precond = _with_correction(precond, coarse.correction(Hs), cons.n_free, d)
-
-        def apply_A(z):  # the product in the Hessian's precision (a cast, not an upcast of H)
-            Tz = cons.expand(z).reshape(-1).astype(HESSIAN_DTYPE)
-            return cons.reduce(H(Tz).reshape(-1, d).astype(float))
-
+            apply_A, precond = _step_system(level, Hs, coarse, opts.damping, pool)
         b = -cons.reduce(g)
-        z, ncg = _pcg(apply_A, b, precond, cons.project, opts["cg_tolerance"], int(opts["cg_max_iterations"]),
+        z, ncg = _pcg(apply_A, b, precond, cons.project, opts.cg_tolerance, int(opts.cg_max_iterations),
                        rep.check)
         cg_total += ncg
         dy = cons.expand(cons.project(z))
@@ -259,31 +235,51 @@ def _solve_level(level: MapSystem, y, weights, opts, max_iterations, tolerance, 
         if slope >= 0:
             break
         t0 = time.perf_counter()
-        step = _line_search(level, y, dy, E, slope, floor, weights, chunk, opts["min_det"],
+        step = _line_search(level, y, dy, E, slope, floor, weights, chunk, opts.min_det,
                             rep.check, pool)
         timing["line search"] += time.perf_counter() - t0
         if step is None:
             break
-        alpha, y_new, E_new, terms_new, g_new, dets_new = step
+        alpha, y_new, E_new, energies_new, g_new, dets_new = step
         rel = (E - E_new) / max(E, 1e-300)
-        y, dets, terms = y_new, dets_new, terms_new
-        floor = det_floor(dets, opts["min_det"])
-        history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **terms_new))
+        y, dets, energies = y_new, dets_new, energies_new
+        floor = det_floor(dets, opts.min_det)
+        history.append(dict(energy=E_new, step=alpha, cg_iterations=ncg, **energies_new))
         E = E_new
         if rel < tolerance or it == max_iterations:
             break
-        if opts["reuse_hessian"] and alpha == 1.0 and fresh:
+        if opts.reuse_hessian and alpha == 1.0 and fresh:
             # a full step was accepted: the model was good, so keep its Hessian for one more
             # step (the gradient is exact, it came with the line search's evaluation)
             g, fresh = g_new, False
             continue
         t0 = time.perf_counter()
-        H = Hs = precond = None  # the old Hessian goes before the new one is assembled
-        E, terms, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check,
+        apply_A = Hs = precond = None  # the old Hessian goes before the new one is assembled
+        E, energies, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check,
                                          pool=pool)
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
-    return y, history, len(history) - 1, cg_total, dets, terms
+    return y, history, len(history) - 1, cg_total, dets, energies
+
+
+def _step_system(level, Hs, coarse, damping, pool):
+    """The reduced Gauss-Newton operator of a step, damped by ``damping`` times its mean
+    diagonal so that unpinned rigid modes stay bounded, and its preconditioner (block
+    Jacobi, plus the ``coarse`` correction where there is one)."""
+    cons, d = level.cons, level.d
+    diag = Hs[:, level.centre_off]
+    mu = damping * max(float(np.mean(np.trace(diag, axis1=1, axis2=2))) / d, 1e-300)
+    Hs[:, level.centre_off] += mu * np.eye(d)
+    H = level.product(Hs, pool)
+    precond = cons.block_preconditioner(Hs[:, level.centre_off].astype(float))
+    if coarse is not None:
+        precond = _with_correction(precond, coarse.correction(Hs), cons.n_free, d)
+
+    def apply_A(z):  # the product in the Hessian's precision (a cast, not an upcast of H)
+        Tz = cons.expand(z).reshape(-1).astype(HESSIAN_DTYPE)
+        return cons.reduce(H(Tz).reshape(-1, d).astype(float))
+
+    return apply_A, precond
 
 
 def _second_thread():
@@ -297,11 +293,11 @@ def _second_thread():
 def _coarse_space(level, opts):
     """The level's `CoarseSpace`, or None where its systems are small enough for block
     Jacobi alone (fewer than ``coarse_space_from`` unknowns)."""
-    if level.cons.size < opts["coarse_space_from"]:
+    if level.cons.size < opts.coarse_space_from:
         return None
     coords = np.stack(np.unravel_index(level.active, level.grid.shape), axis=-1)
     return CoarseSpace(coords, level.bsr_indices.reshape(level.n, -1), level.cons.free_nodes,
-                       opts["coarse_space_size"])
+                       opts.coarse_space_size)
 
 
 def _with_correction(precond, correction, n_free, d):
@@ -323,7 +319,7 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, 
     energy by the Armijo fraction 1e-4 of ``slope``. The det F test is tried first: it
     costs a few per cent of an energy evaluation and refuses most steps near folding.
 
-    Returns (alpha, y, energy, terms, gradient, det stats) at the accepted step, or None.
+    Returns (alpha, y, energy, energies, gradient, det stats) at the accepted step, or None.
     """
     alpha = 1.0
     while alpha > 1e-4:
@@ -331,10 +327,10 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, 
         y_new = y + alpha * dy
         dets_new = level.det_stats(y_new, chunk)
         if det_floor(dets_new, min_det) >= floor:
-            E_new, terms_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
+            E_new, energies_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
                                                         check=check, pool=pool)
             if E_new <= E + 1e-4 * alpha * slope:
-                return alpha, y_new, E_new, terms_new, g_new, dets_new
+                return alpha, y_new, E_new, energies_new, g_new, dets_new
         alpha *= 0.5
     return None
 
@@ -347,10 +343,8 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, 
 DEFAULT_WEIGHTS = {t.name: t.default for t in terms.TERMS}
 
 
-def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
-              volume_weight=DEFAULT_WEIGHTS["volume"], rigidity_weight=DEFAULT_WEIGHTS["rigidity"],
-              levelset_weight=DEFAULT_WEIGHTS["levelset"], max_iterations=20, tolerance=1e-2, margin_cells=3, progress=None,
-              cancel=None, **opts) -> MapResult:
+def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progress=None,
+              cancel=None, **keywords) -> MapResult:
     """Map keyframe A's grid nodes onto keyframe B (thesis chapter 2).
 
     Parameters
@@ -362,34 +356,15 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     features_a, features_b : (N, d) array_like
         Feature points x'_i of A and their targets y'_i in B (row i pairs with
         row i), world units, inside the grid box. N may be 0.
-    volume_weight, rigidity_weight, levelset_weight : float
-        Weights of the three terms of eq. 2.6 (`keyframe_implicit.core.map.terms`).
-    max_iterations : int
-        Gauss-Newton iterations per level at most.
-    tolerance : float
-        Stop a level when an iteration lowers the energy by less than this
-        fraction.
-    margin_cells : float
-        Width (cells) of the map's margin: the cells outside A's material
-        solved with weight ``margin_weight``.
+    options : `options.MapOptions`, optional
+        All settings at once (the bake passes them so); keywords override them.
     progress, cancel : callables, see `keyframe_implicit.core.base.progress`.
-    **opts
-        ``margin_weight`` (0.1), ``min_det`` (0.2, see the module docstring),
-        ``feature_radius`` (world units; default 8 % of
-        the largest grid extent, never less than one cell diagonal; 0 gives
-        plain hard constraints on each feature's cell) -- see
-        `keyframe_implicit.core.map.constraints`; ``patch_rigidity`` (10, factor
-        on ``rigidity_weight`` in the cells inside one feature patch, see
-        the module docstring); ``coarse_nodes`` (24, nodes per
-        side of the coarsest level; a huge value disables coarse-to-fine),
-        ``cg_tolerance`` (3e-2), ``cg_max_iterations`` (300), ``damping``
-        (1e-6), ``chunk_elements`` (512, memory vs. speed of assembly),
-        ``extension_passes`` (8), ``reuse_hessian`` (True: after a full
-        accepted step, the next step reuses the Gauss-Newton matrix with the
-        new exact gradient), ``initial`` (an array grid.shape + (d,) to
-        start from instead of the RBF map; the constraints are re-imposed),
-        and the weight of any extra term registered
-        in `keyframe_implicit.core.map.terms.TERMS`.
+    **keywords
+        Any field of `options.MapOptions` (``max_iterations`` 20, ``tolerance`` 1 %,
+        ``margin_cells`` 3, ``margin_weight`` 0.1, ``feature_radius``, ``min_det`` 0.2,
+        ...: its docstring lists them with their defaults), and ``volume_weight``,
+        ``rigidity_weight``, ``levelset_weight`` (30, 1, 10: eq. 2.6's weights,
+        `terms`) or the weight of any term registered in `terms.TERMS`.
 
     Returns
     -------
@@ -404,12 +379,9 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
         When ``cancel()`` returned True.
     """
     t_start = time.perf_counter()
-    margin_cells = opts.pop("margin_cells", margin_cells)
     phi_a, phi_b, xa, yb = _check_inputs(phi_a, phi_b, grid, features_a, features_b)
-    options, weights = _options(opts, {"volume_weight": volume_weight, "rigidity_weight": rigidity_weight,
-                                       "levelset_weight": levelset_weight}, grid)
-    if int(max_iterations) < 0:
-        raise ValueError("max_iterations must be >= 0.")
+    options = _with_keywords(options, keywords).on_grid(grid)
+    weights = options.weights
     rep = Reporter(progress, cancel)
     timing = {"initial map": 0.0, "setup": 0.0, "assembly": 0.0, "linear solve": 0.0,
               "line search": 0.0, "extension": 0.0}
@@ -417,11 +389,11 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
     t0 = time.perf_counter()
     rep(0.0, "Initial map (radial basis functions)")
     init = initial_map(phi_a, phi_b, grid, xa, yb)
-    y0 = init.mapped if options["initial"] is None else options["initial"]
+    y0 = init.mapped if options.initial is None else options.initial
     timing["initial map"] = time.perf_counter() - t0
     disp0 = y0 - grid.points()
 
-    grids = coarse_to_fine(grid, int(options["coarse_nodes"]))
+    grids = coarse_to_fine(grid, int(options.coarse_nodes))
     nlev = len(grids)
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (grid.dim * i) for i in range(nlev)])
@@ -435,19 +407,18 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
                             else fields_on(phi_a, phi_b, disp0, grid, g))
             if not np.any(pa < 0):
                 continue  # material too thin for this coarse level
-            level = constrained_system(pa, pb, g, xa, yb, margin_cells, options, base)
+            level = constrained_system(pa, pb, g, xa, yb, options, base)
             y_start_full, y = start_map(level, base, corr, options)
             timing["setup"] += time.perf_counter() - t0
-            y, history, iters, cg_total, dets, terms = _solve_level(
-                level, y, weights, options, int(max_iterations), float(tolerance),
-                rep.sub(edges[li], edges[li + 1]), timing, pool)
+            y, history, iters, cg_total, dets, energies = _solve_level(
+                level, y, options, rep.sub(edges[li], edges[li + 1]), timing, pool)
             t0 = time.perf_counter()
-            corr = correction(level, y, y_start_full, base, int(options["extension_passes"]))
+            corr = correction(level, y, y_start_full, base, int(options.extension_passes))
             timing["extension"] += time.perf_counter() - t0
             level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
                                     iterations=iters, cg_iterations=cg_total, history=history))
     rep(1.0, "Volume map done")
-    stats = _map_stats(level, y, dets, terms, weights, level_stats, init)
+    stats = _map_stats(level, y, dets, energies, weights, level_stats, init)
     stats["seconds"] = dict(timing, total=time.perf_counter() - t_start)
     region = np.zeros(grid.size, dtype=bool)
     region[level.active] = True
@@ -455,50 +426,21 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *,
                      material=phi_a < 0, components=init.components)
 
 
-def _options(opts, weight_opts, grid):
-    """`DEFAULTS` updated by ``opts`` (checked; ``feature_radius`` resolved, ``initial``
-    an array), and the weight of every term of `TERMS` by its name: (options, weights).
-    ``weight_opts`` holds the named weight arguments."""
-    extra = {t.weight_option for t in terms.TERMS} - set(weight_opts)
-    options = dict(DEFAULTS)
-    for k, v in opts.items():
-        if k in options:
-            options[k] = v
-        elif k in extra:
-            weight_opts[k] = v
-        else:
-            raise ValueError(f"unknown option {k!r} for solve_map; known options: "
-                             f"{sorted(set(options) | extra)}.")
-    weights = {}
-    for t in terms.TERMS:
-        w = float(weight_opts.get(t.weight_option, t.default))
-        if not np.isfinite(w) or w < 0:
-            raise ValueError(f"{t.weight_option} must be a finite number >= 0, got {w}.")
-        weights[t.name] = w
-    patch_rigidity = float(options["patch_rigidity"])
-    if not np.isfinite(patch_rigidity) or patch_rigidity < 0:
-        raise ValueError(f"patch_rigidity must be a finite number >= 0 (a factor on rigidity_weight inside "
-                         f"the feature patches; 1 = plain material, default 10), got {patch_rigidity}.")
-    options["patch_rigidity"] = patch_rigidity
-    for name, least in (("coarse_space_from", 0), ("coarse_space_size", 1)):
-        v = options[name]
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
-            raise ValueError(f"{name} must be an integer >= {least}, got {v!r} (unknowns: "
-                             "coarse_space_from is the smallest system with a coarse correction, "
-                             "coarse_space_size the most coarse unknowns).")
-    options["margin_weight"] = float(options["margin_weight"])
-    if options["feature_radius"] is None:
-        options["feature_radius"] = 0.08 * float(np.max(grid.upper - grid.origin))
-    if options["initial"] is not None:
-        y0 = np.asarray(options["initial"], dtype=float)
-        if y0.shape != grid.shape + (grid.dim,) or not np.all(np.isfinite(y0)):
-            raise ValueError(f"initial must be a finite array of shape {grid.shape + (grid.dim,)} "
-                             "(y(x) of every node), e.g. the .mapped of an earlier solve.")
-        options["initial"] = y0
-    return options, weights
+def _with_keywords(options, keywords):
+    """``options`` (default `MapOptions`) with ``keywords`` in its place; ValueError on an
+    unknown keyword."""
+    if options is None:
+        return MapOptions.from_keywords(**keywords)
+    if not keywords:
+        return options
+    given = MapOptions.from_keywords(**keywords)
+    changed = {k: getattr(given, k) for k in keywords if k in DEFAULTS}
+    weights = dict(options.weights, **{n: given.weights[n] for o, n in weight_options().items()
+                                       if o in keywords})
+    return dataclasses.replace(options, weights=weights, **changed)
 
 
-def _map_stats(level, y, dets, terms, weights, level_stats, init):
+def _map_stats(level, y, dets, energies, weights, level_stats, init):
     """`MapResult.stats` (but its ``seconds``) from the finest level's last accepted iterate."""
     mind, cdet = dets
     res = level.cons.residual(y)
@@ -508,8 +450,8 @@ def _map_stats(level, y, dets, terms, weights, level_stats, init):
         cg_iterations=level_stats[-1]["cg_iterations"],
         history=level_stats[-1]["history"],
         levels=level_stats,
-        energy=float(sum(terms.values())),
-        terms=terms,
+        energy=float(sum(energies.values())),
+        terms=energies,
         weights=dict(weights),
         min_det=float(mind.min()) if len(mind) else 1.0,
         max_abs_det_minus_1=float(np.max(np.abs(cdet - 1))) if len(cdet) else 0.0,

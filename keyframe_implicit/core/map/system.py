@@ -261,7 +261,7 @@ class MapSystem:
         return apply
 
 
-def constrained_system(pa, pb, g, xa, yb, margin_cells, options, base):
+def constrained_system(pa, pb, g, xa, yb, options, base):
     """The `MapSystem` of grid ``g`` with feature patches no larger than the start allows.
 
     A patch moves its nodes by one affine map. Where the features ask for a kink at a
@@ -270,19 +270,20 @@ def constrained_system(pa, pb, g, xa, yb, margin_cells, options, base):
     start. The radius is then halved, down to the plain hard constraint on the
     feature's cell, until imposing the constraints folds nothing the start did not.
     """
-    d, chunk = g.dim, int(options["chunk_elements"])
+    d, chunk = g.dim, int(options.chunk_elements)
     diag = 1.01 * np.sqrt(d) * g.spacing  # a patch must hold its feature's cell
-    radius, margin_weight = options["feature_radius"], options["margin_weight"]
+    radius, margin_weight = options.feature_radius, options.margin_weight
     rad = max(float(radius), diag) if radius > 0 else 0.0
     floor = None  # the start's own det F floor: the region and its cells do not depend on rad
     while True:
-        level = MapSystem(pa, pb, g, xa, yb, margin_cells, margin_weight, rad, options["patch_rigidity"])
+        level = MapSystem(pa, pb, g, xa, yb, options.margin_cells, margin_weight, rad,
+                          options.patch_rigidity)
         if rad == 0.0 or level.cons.n_patch == 0:
             return level
         raw = base.reshape(-1, d)[level.active]
         if floor is None:
-            floor = det_floor(level.det_stats(raw, chunk), options["min_det"])
-        if det_floor(level.det_stats(level.cons.enforce(raw), chunk), options["min_det"]) >= floor:
+            floor = det_floor(level.det_stats(raw, chunk), options.min_det)
+        if det_floor(level.det_stats(level.cons.enforce(raw), chunk), options.min_det) >= floor:
             return level
         rad = rad / 2 if rad / 2 >= diag else 0.0
 
