@@ -108,7 +108,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="nodes per side (default: 64 and 128)")
     ap.add_argument("--frames", type=int, default=24)
-    ap.add_argument("--method", default="splat", choices=["splat", "idw"])
+    ap.add_argument("--method", default="lookup", choices=["lookup", "idw"])
     ap.add_argument("--solver", action="store_true", help="solve the map instead of the analytic one")
     args = ap.parse_args()
     if args.n is None:

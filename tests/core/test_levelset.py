@@ -98,13 +98,13 @@ def test_far_field_stays_outside(rigid):
 def test_inverse_lookup_beats_inverse_distance_weights(rigid):
     # the measurement behind the default: the thesis's eq. 3.2-3.3 smears the zero set
     grid, phi_a, phi_b, mapped, info, ib = rigid
-    splat = Inbetween.from_map(phi_a, phi_b, grid, mapped, transport="one-sided")
+    lookup = Inbetween.from_map(phi_a, phi_b, grid, mapped, transport="one-sided")
     idw = Inbetween.from_map(phi_a, phi_b, grid, mapped, transport="one-sided", resample="idw")
     errs = {}
-    for name, obj in (("splat", splat), ("idw", idw)):
+    for name, obj in (("lookup", lookup), ("idw", idw)):
         V, _ = extract_surface(obj.levelset(0.5), grid)
         errs[name] = np.abs(rigid_expected(V, 0.5, info)).mean()
-    assert errs["splat"] < 0.6 * errs["idw"]
+    assert errs["lookup"] < 0.6 * errs["idw"]
 
 
 @pytest.mark.parametrize("d", [2, 3])

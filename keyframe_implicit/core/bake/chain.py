@@ -116,8 +116,9 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         The helper to use instead of starting one (its caller closes it).
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
-        Passed to `maps.inbetween` (solver weights and options, ``margin_cells``,
-        ``resample``, ...) or to `Inbetween.from_map` when ``maps`` is given.
+        The fields of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...)
+        and of `motion.options.MotionOptions` (``transport``, ``resample``, ...), checked
+        before any work.
 
     Returns
     -------
@@ -198,40 +199,40 @@ def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
 class _Inbetweens:
     """Each segment's `levelset.Inbetween`, as `animate_chain` gets its maps: given
     (``maps``), solved with a helper a window of segments at a time
-    (`maps.solve_maps_shared`), or solved in this process (`maps.inbetween`)."""
+    (`maps.solve_maps_shared`), or solved in this process (`maps.pair_inbetweens`)."""
 
     def __init__(self, phis, grid, features, maps, options, cancel):
-        from .maps import split_options
+        from .maps import stage_options
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
-        self.options, self.cancel = options, cancel
-        self.mine, self.solver_options = split_options(options)
-        self.solver_options.pop("parallel", None)
+        self.cancel = cancel
+        options = {k: v for k, v in options.items() if k != "parallel"}
+        self.map_options, self.motion_options = stage_options(options)
         self._solved = {}  # segment -> its maps, solved ahead in a window
 
     def make(self, k, helper, split, rep):
         """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
         their recipe is known; progress to 0.5 of ``rep``."""
         from ..motion.levelset import Inbetween
-        from .maps import from_solved, inbetween, is_two_sided, solve_maps_shared
+        from .maps import from_solved, pair_inbetweens, solve_maps_shared
 
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
-                                      **self.options)
+                                      options=self.motion_options)
         if helper is None:
-            fa, fb = self.features[k]
-            return inbetween(a, b, self.grid, fa, fb, progress=rep.sub(0.0, 0.5), cancel=cancel,
-                             on_maps=split.start, **self.options)
+            return pair_inbetweens(a, b, self.grid, self.features[k], self.map_options,
+                                   self.motion_options, progress=rep.sub(0.0, 0.5),
+                                   cancel=cancel, on_maps=split.start)
         if k not in self._solved:
             window = range(k, min(k + _MAP_WINDOW, len(self.phis) - 1))
             self._solved.update(solve_maps_shared(
-                self.phis, self.grid, self.features, window, is_two_sided(self.mine), helper,
-                rep.sub(0.0, 0.4), cancel, self.solver_options))
+                self.phis, self.grid, self.features, window, self.motion_options.two_sided,
+                helper, rep.sub(0.0, 0.4), cancel, self.map_options))
         res, back, seconds = self._solved.pop(k)
         rep(0.4, "trajectories")
-        inb = from_solved(a, b, self.grid, res, back, self.mine, seconds, on_maps=split.start,
-                          cancel=cancel)
+        inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
+                          on_maps=split.start, cancel=cancel)
         rep(0.5, "in-betweens ready")
         return inb
 

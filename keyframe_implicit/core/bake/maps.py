@@ -17,16 +17,15 @@ from concurrent.futures import ThreadPoolExecutor
 from ..base.parallel import cores, share
 from ..base.progress import Reporter
 from ..map import solver
+from ..map.options import MapOptions
 from ..motion.levelset import Inbetween, Recipe
+from ..motion.options import MotionOptions
 
-__all__ = ["inbetween", "solve_maps_shared", "from_solved", "split_options", "is_two_sided"]
-
-_TRAJ_OPTIONS = ("trajectory_method", "trajectory_margin_cells", "trajectory_margin_weight")
-_LS_OPTIONS = ("transport", "keep_volume", "resample", "idw_radius", "newton_steps", "interpolation")
+__all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "from_solved", "stage_options"]
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
-              on_maps=None, **options):
+              on_maps=None, parallel=True, helper=None, **options):
     """Solve the maps between two keyframes and return their in-betweens.
 
     ``inbetween = solve_map (A -> B, and B -> A with the feature pairs swapped
@@ -44,60 +43,63 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         Called with the in-betweens' `Recipe` once the maps are solved, before this
         process builds its trajectories: a caller may hand it to another process
         (`parallel.Helper`), which builds its own copy meanwhile.
+    parallel : bool
+        Solve the two maps at once, in two threads, when two cores are free.
+    helper : `parallel.Helper`, optional
+        Solve the map B -> A in that process instead.
     **options
-        ``transport``, ``keep_volume``, ``trajectory_method``,
-        ``trajectory_margin_cells``, ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
-        ``newton_steps``, ``interpolation`` go to `Inbetween.from_map`;
-        ``parallel`` (True: solve the two maps at once, in two threads, when two
-        cores are free) or ``helper`` (a `parallel.Helper`: the map B -> A is
-        solved in that process instead); all others are passed to `solve_map`.
+        The fields of `motion.options.MotionOptions` (``transport``, ``resample``, ...)
+        and of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...).
 
     Returns
     -------
     Inbetween
     """
+    map_options, motion_options = stage_options(options)
+    return pair_inbetweens(phi_a, phi_b, grid, (features_a, features_b), map_options,
+                           motion_options, parallel=parallel, helper=helper, progress=progress,
+                           cancel=cancel, on_maps=on_maps)
+
+
+def stage_options(keywords):
+    """One set of keywords as the options of the two stages a pair goes through: those
+    `motion.options.MotionOptions` names, and the rest as `map.options.MapOptions`
+    (ValueError on a keyword neither takes)."""
+    motion = {k: v for k, v in keywords.items() if k in MotionOptions.names()}
+    rest = {k: v for k, v in keywords.items() if k not in motion}
+    return MapOptions.from_keywords(**rest), MotionOptions(**motion)
+
+
+def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *,
+                    parallel=True, helper=None, progress=None, cancel=None, on_maps=None):
+    """`inbetween` with its options as the two stages' objects (``features``: the pair
+    (points_a, points_b))."""
     rep = Reporter(progress, cancel)
-    mine, options = split_options(options)
-    parallel = options.pop("parallel", True)
-    helper = options.pop("helper", None)
-    two_sided = is_two_sided(mine)
+    two_sided = motion_options.two_sided
     t0 = time.perf_counter()
     if helper is not None:
-        res, back, _ = solve_maps_shared([phi_a, phi_b], grid, [(features_a, features_b)],
-                                         range(1), two_sided, helper, rep.sub(0.0, 0.8), cancel,
-                                         options)[0]
+        res, back, _ = solve_maps_shared([phi_a, phi_b], grid, [features], range(1), two_sided,
+                                         helper, rep.sub(0.0, 0.8), cancel, map_options)[0]
     else:
-        res, back = _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided,
-                                parallel, rep.sub(0.0, 0.8), cancel, options)
+        res, back = _solve_maps(phi_a, phi_b, grid, *features, two_sided, parallel,
+                                rep.sub(0.0, 0.8), cancel, map_options)
     rep(0.8, "trajectories")
-    out = from_solved(phi_a, phi_b, grid, res, back, mine, time.perf_counter() - t0,
+    out = from_solved(phi_a, phi_b, grid, res, back, motion_options, time.perf_counter() - t0,
                       on_maps=on_maps, cancel=cancel)
     rep(1.0, "in-betweens ready")
     return out
 
 
-def split_options(options):
-    """`inbetween`'s ``options`` as (those of `Inbetween.from_map`, the rest: `solve_map`'s,
-    ``parallel`` and ``helper``); ``options`` is left as it was."""
-    rest = dict(options)
-    mine = {k: rest.pop(k) for k in list(rest) if k in _TRAJ_OPTIONS + _LS_OPTIONS}
-    return mine, rest
-
-
-def is_two_sided(mine):
-    """Whether `from_map` options ``mine`` ask for the two-sided transport (two maps)."""
-    return mine.get("transport", "two-sided") == "two-sided"
-
-
-def from_solved(phi_a, phi_b, grid, res, back, mine, seconds, on_maps=None, cancel=None):
+def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,
+                cancel=None):
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
-    `solver.MapResult`; ``mine`` the `from_map` options (`split_options`); ``seconds`` the
-    time the maps took, for its stats. ``on_maps`` as in `inbetween`."""
+    `solver.MapResult`; ``seconds`` the time the maps took, for its stats. ``on_maps`` as
+    in `inbetween`."""
     st = {"map_seconds": seconds, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
-                  components=res.components, **mine)
+                  components=res.components, options=motion_options)
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,
@@ -105,7 +107,7 @@ def from_solved(phi_a, phi_b, grid, res, back, mine, seconds, on_maps=None, canc
 
 
 def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel, rep, cancel,
-                options):
+                map_options):
     """The map A -> B and, for the two-sided transport, B -> A (feature pairs swapped).
 
     The two solves are independent: with ``parallel`` and two cores free the
@@ -115,12 +117,12 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
     """
     if not two_sided:
         return solver.solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
-                         cancel=cancel, **options), None
+                         cancel=cancel, options=map_options), None
     if not (parallel and cores() >= 2):
         res = solver.solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
-                        cancel=cancel, **options)
+                        cancel=cancel, options=map_options)
         back = solver.solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),
-                         cancel=cancel, **options)
+                         cancel=cancel, options=map_options)
         return res, back
     failed = threading.Event()
 
@@ -129,17 +131,18 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         job = pool.submit(solver.solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
-                          **options)
+                          options=map_options)
         try:
             res = solver.solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
-                            cancel=cancel, **options)
+                            cancel=cancel, options=map_options)
         except BaseException:
             failed.set()
             raise
         return res, job.result()
 
 
-def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, cancel, options):
+def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, cancel,
+                      map_options):
     """The maps of the segments in ``window`` of a chain (keyframe fields ``phis``, feature
     pairs ``features`` per segment), shared by this process and the ``helper``.
 
@@ -166,10 +169,10 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     def here(job, stop):
         mine.append(job)
         part = rep.sub((len(mine) - 1) / len(jobs), len(mine) / len(jobs))
-        return solver.solve_map(*arguments(job), progress=part, cancel=stop, **options)
+        return solver.solve_map(*arguments(job), progress=part, cancel=stop, options=map_options)
 
     def there(job):
-        return solver.solve_map, arguments(job), options
+        return solver.solve_map, arguments(job), {"options": map_options}
 
     done, ends, _ = share(jobs, here, there, helper, check=rep.check, cancel=cancel)
     out, start = {}, t0

@@ -43,6 +43,7 @@ benchmarks/README.md.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -52,13 +53,13 @@ from scipy import ndimage
 from ..base.elements import inverse
 from ..base.grid import Grid
 from .isovolume import volume_offset
+from .options import MotionOptions
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
 
 __all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement"]
 
-TRANSPORTS = ("two-sided", "one-sided")
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
 
@@ -138,9 +139,8 @@ class Inbetween:
         level sets (timings in seconds, coverage, map agreement).
     """
 
-    def __init__(self, phi_a, phi_b, grid, forward, backward=None, *, keep_volume=True,
-                 resample="splat", idw_radius=1.5, stats=None, map_result=None,
-                 map_result_back=None):
+    def __init__(self, phi_a, phi_b, grid, forward, backward=None, *, options=None, stats=None,
+                 map_result=None, map_result_back=None):
         self.grid = grid
         self.phi_a = phi_a
         self.phi_b = phi_b
@@ -150,10 +150,9 @@ class Inbetween:
         self.mapped = forward.trajectories.mapped
         self.mapped_back = None if backward is None else backward.trajectories.mapped
         self.transport = "one-sided" if backward is None else "two-sided"
-        self.keep_volume = bool(keep_volume) and backward is not None
+        self.options = MotionOptions() if options is None else options
+        self.keep_volume = self.options.keep_volume and backward is not None
         self._end_volumes = None
-        self.resample = resample
-        self.idw_radius = float(idw_radius)
         self.map_result = map_result
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
@@ -172,11 +171,9 @@ class Inbetween:
 
     # ------------------------------------------------------------------
     @classmethod
-    def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, transport="two-sided",
-                 keep_volume=True, material=None, components=None, trajectory_method="global",
-                 trajectory_margin_cells=4.0, trajectory_margin_weight=0.1, resample="splat",
-                 idw_radius=1.5, newton_steps=6, interpolation="cubic", stats=None,
-                 map_result=None, map_result_back=None, cancel=None):
+    def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
+                 components=None, options=None, stats=None, map_result=None,
+                 map_result_back=None, cancel=None, **keywords):
         """In-betweens from given maps.
 
         Parameters
@@ -189,87 +186,43 @@ class Inbetween:
         mapped_back : ndarray, grid.shape + (d,), optional
             The map B -> A (two-sided transport); `invert_map` of ``mapped``
             when omitted.
-        transport : {"two-sided", "one-sided"}
-            Both keyframes' fields carried and blended (default), or the
-            thesis's eq. 3.4 on A's nodes only (module docstring).
-        keep_volume : bool
-            Two-sided only: shift each in-between by the iso-value that gives
-            it the linearly interpolated volume of the keyframes (`isovolume`).
         material : bool ndarray, optional
             A's material; ``phi_a < 0`` when omitted.
         components : int ndarray, optional
             Labels of A's material components (see `Trajectories`).
-        trajectory_method : {"global", "local"}
-            See `trajectory.Trajectories`.
-        trajectory_margin_cells : float
-            The trajectories' margin in cells around each keyframe's material
-            (`Trajectories` ``margin_cells``): the region each transport
-            carries (its field is truncated at its value on the border).
-        trajectory_margin_weight : float
-            Weight of margin cells in the trajectory solve.
-        resample : {"splat", "idw"}
-            How scattered values return to the grid; "idw" only with the
-            one-sided transport.
-        idw_radius : float
-            Search radius in cells for ``resample="idw"``.
-        newton_steps : int
-            Newton iterations of the inverse lookup.
-        interpolation : {"cubic", "linear"}
-            How Phi, Psi are read at off-grid points.
+        options : `options.MotionOptions`, optional
+            All settings at once (the bake passes them so); keywords override them.
+        stats, map_result, map_result_back : optional
+            Figures and results of the maps' solves, kept with the in-betweens.
         cancel : callable() -> bool, optional
             Polled by the trajectory solves and the transports, here and in every
             later `levelset` call; `progress.Cancelled` is raised once it returns True.
+        **keywords
+            Any field of `options.MotionOptions`: ``transport``, ``keep_volume``,
+            ``trajectory_method``, ``trajectory_margin_cells``,
+            ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
+            ``newton_steps``, ``interpolation`` (its docstring has their defaults).
         """
+        unknown = set(keywords) - MotionOptions.names()
+        if unknown:
+            raise TypeError(f"Inbetween.from_map got unexpected options {sorted(unknown)}.")
+        options = dataclasses.replace(options or MotionOptions(), **keywords)
         if not isinstance(grid, Grid):
             raise ValueError("grid must be a keyframe_implicit.core.Grid.")
         phi_a = grid.check_field(phi_a, "phi_a")
         phi_b = grid.check_field(phi_b, "phi_b")
         mapped = np.asarray(mapped, dtype=float)
-        if resample not in ("splat", "idw"):
-            raise ValueError(f'resample must be "splat" or "idw", got {resample!r}.')
-        if transport not in TRANSPORTS:
-            raise ValueError(f"transport must be one of {TRANSPORTS}, got {transport!r}.")
-        if resample == "idw" and transport != "one-sided":
-            raise ValueError('resample="idw" is the thesis\'s one-sided form: '
-                             'use it with transport="one-sided".')
         if not np.any(phi_b < 0):
             raise ValueError("phi_b has no node inside (< 0): keyframe B is empty on this grid.")
-        traj_opts = dict(method=trajectory_method, cancel=cancel,
-                         margin_cells=trajectory_margin_cells,
-                         margin_weight=trajectory_margin_weight)
-        lookup_opts = dict(interpolation=interpolation, newton_steps=newton_steps, cancel=cancel)
-        st = dict(stats or {})
         t0 = time.perf_counter()
         material = phi_a < 0 if material is None else material
-
-        def carried(field, y, mat, comps=None):
-            return Transport(field, Trajectories(grid, y, mat, comps, **traj_opts), **lookup_opts)
-
-        backward = None
-        if transport == "two-sided" and mapped_back is not None:
-            with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
-                back = pool.submit(carried, phi_b, np.asarray(mapped_back, dtype=float),
-                                   phi_b < 0)
-                forward = carried(phi_a, mapped, material, components)
-                backward = back.result()
-        else:
-            forward = carried(phi_a, mapped, material, components)
-            if transport == "two-sided":
-                backward = carried(phi_b, invert_map(grid, forward), phi_b < 0)
-        if backward is not None:
-            # one truncation for both, so that the far field is one value
-            w = min(forward.border_value, backward.border_value)
-            forward.truncation = backward.truncation = w
-        st["trajectory_setup_seconds"] = time.perf_counter() - t0
-        out = cls(phi_a, phi_b, grid, forward, backward, keep_volume=keep_volume,
-                  resample=resample, idw_radius=idw_radius, stats=st, map_result=map_result,
-                  map_result_back=map_result_back)
+        forward, backward = _transports(phi_a, phi_b, grid, mapped, mapped_back, material,
+                                        components, options, cancel)
+        st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
+        out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
+                  map_result=map_result, map_result_back=map_result_back)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
-            mapped_back=mapped_back, transport=transport, keep_volume=keep_volume,
-            material=material, components=components, trajectory_method=trajectory_method,
-            trajectory_margin_cells=traj_opts["margin_cells"],
-            trajectory_margin_weight=traj_opts["margin_weight"], resample=resample,
-            idw_radius=idw_radius, newton_steps=newton_steps, interpolation=interpolation))
+            mapped_back=mapped_back, material=material, components=components, options=options))
         return out
 
     def __reduce__(self):
@@ -298,7 +251,7 @@ class Inbetween:
         t0 = time.perf_counter()
         if self.backward is not None:
             field = self._two_sided(s)
-        elif self.resample == "splat":
+        elif self.options.resample == "lookup":
             field = self._one_sided(s)
         else:
             field = self._one_sided_idw(s)
@@ -366,7 +319,7 @@ class Inbetween:
         u = self.grid.to_index(self.grid.points().reshape(-1, self.grid.dim)[nodes])
         vals = np.minimum(self._one_sided_values(s)(u), self.outside_value)
         field, covered = idw_resample(self.grid, tr.node_positions(s, nodes), vals,
-                                      fill=self.outside_value, radius=self.idw_radius)
+                                      fill=self.outside_value, radius=self.options.idw_radius)
         self.stats["covered_nodes"] = int(covered.sum())
         return field
 
@@ -433,6 +386,32 @@ class Inbetween:
         dist, idx = dist.reshape(len(p), k), idx.reshape(len(p), k)
         w = weight[idx] / (dist ** 2 + (0.5 * h) ** 2)
         return _affine_fit_at(p, pos[idx], vel[idx], w, h)
+
+
+def _transports(phi_a, phi_b, grid, mapped, mapped_back, material, components, options, cancel):
+    """The forward transport of A's field along the map A -> B, and (two-sided) the backward
+    one of B's field along B -> A (`invert_map` of the forward one when not given), both
+    truncated at one value so that the far field is one value."""
+    traj = dict(options.trajectory_keywords(), cancel=cancel)
+    lookup = dict(options.lookup_keywords(), cancel=cancel)
+
+    def carried(field, y, mat, comps=None):
+        return Transport(field, Trajectories(grid, y, mat, comps, **traj), **lookup)
+
+    backward = None
+    if options.two_sided and mapped_back is not None:
+        with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
+            back = pool.submit(carried, phi_b, np.asarray(mapped_back, dtype=float), phi_b < 0)
+            forward = carried(phi_a, mapped, material, components)
+            backward = back.result()
+    else:
+        forward = carried(phi_a, mapped, material, components)
+        if options.two_sided:
+            backward = carried(phi_b, invert_map(grid, forward), phi_b < 0)
+    if backward is not None:
+        w = min(forward.border_value, backward.border_value)
+        forward.truncation = backward.truncation = w
+    return forward, backward
 
 
 def _from_recipe(args, kwargs):
