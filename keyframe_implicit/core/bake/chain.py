@@ -32,7 +32,8 @@ from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
 from ..surface.quality import frame_quality
 from ..surface.extract import extract_surface
-from ..surface.template import DetailTrack, _initial_template, track_template, uncovered_area
+from ..surface.options import SurfaceOptions
+from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
 
 __all__ = ["animate_chain", "ChainResult", "HELPER_PRELOAD"]
 
@@ -130,13 +131,12 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     nk = len(phis)
     t0 = time.perf_counter()
     if template is None:
-        verts, faces = _initial_template(phis[0], grid)
+        verts, faces = initial_template(phis[0], grid)
     else:
         verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
-    per_frame = surfaces and grid.dim == 3
-    what = dict(coverage=coverage, per_frame=per_frame, levelsets=levelsets,
-                keyframe_meshes=keyframe_meshes)
-    kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, what)
+    outputs = SurfaceOptions(coverage=coverage, surfaces=surfaces and grid.dim == 3,
+                             levelsets=levelsets)
+    kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, outputs)
     own = helper is None and processes > 1
     segments = _Inbetweens(phis, grid, features, maps, options, cancel)
     blas = one_blas_thread()
@@ -147,7 +147,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
             f0, f1 = frames[k], frames[k + 1]
             local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
-            split = _FrameSplit(helper, local, (f0, f1), k, (verts, faces), what)
+            split = _FrameSplit(helper, local, _Segment(k, (f0, f1), (verts, faces),
+                                                        keyframe_meshes, outputs))
             inb = segments.make(k, helper, split, seg)
             t_seg = time.perf_counter()
             kept.add(local - frames[0], split.run(inb, seg.sub(0.5, 1.0)))
@@ -239,30 +240,30 @@ class _Inbetweens:
 
 class _Kept:
     """What `animate_chain` keeps of every frame's record (`_frames`): the template's
-    vertices, the per-frame figures in ``stats``, and as ``what`` asks the level sets, the
-    frames' own meshes and their velocities."""
+    vertices, the per-frame figures in ``stats``, and as ``outputs`` (`SurfaceOptions`)
+    asks the level sets, the frames' own meshes and their velocities."""
 
-    def __init__(self, frames, template_shape, what):
-        self.frames, self.what = frames, what
+    def __init__(self, frames, template_shape, outputs):
+        self.frames, self.outputs = frames, outputs
         self.vertices = np.empty((frames.size,) + tuple(template_shape))
         self.stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [],
                       "uncovered_fraction": []}
-        if what["per_frame"]:
+        if outputs.surfaces:
             self.stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
         self.meshes, self.velocities, self.fields = [], [], []
 
     def add(self, rows, records):
         """Keep ``records``, those of the frames at ``rows`` of ``frames``, in order."""
-        what, st = self.what, self.stats
+        outputs, st = self.outputs, self.stats
         for row, rec in zip(rows, records):
             self.vertices[row] = rec["vertices"]
             st["max_abs_phi"].append(rec["max_abs_phi"])
-            if what["levelsets"]:
+            if outputs.levelsets:
                 self.fields.append(rec["levelset"])
-            if what["coverage"]:
+            if outputs.coverage:
                 st["uncovered_area"].append(rec["uncovered"][0])
                 st["uncovered_fraction"].append(rec["uncovered"][1])
-            if what["per_frame"]:
+            if outputs.surfaces:
                 for name in ("shape_keys", "mesh_sequence"):
                     st["quality"][name].append(rec[name])
                 self.meshes.append(rec["mesh"])
@@ -275,6 +276,19 @@ class _Kept:
 _MAP_WINDOW = 2
 
 
+@dataclass(frozen=True)
+class _Segment:
+    """What making segment ``k``'s frames needs besides its in-betweens: the keyframes'
+    timeline frames ``ends``, the ``template`` (vertices, faces) on its first frame, every
+    keyframe's own mesh (or None) and what to keep of each frame."""
+
+    k: int
+    ends: tuple
+    template: tuple
+    keyframe_meshes: list | None
+    outputs: SurfaceOptions
+
+
 class _FrameSplit:
     """One segment's frames (`_frames`), the later half in a ``helper`` process when there
     is one (and at least 4 frames) while this process does the first half.
@@ -285,14 +299,13 @@ class _FrameSplit:
 
     A keyframe's own frame (s = 0, 1) adds no work of its own: its level set is the
     keyframe's field, and the paths its velocity needs are its neighbours' (s = 0 solves
-    them first). So the split halves the in-betweens, the odd one to this process: a
-    25-frame segment's helper got 12 of the 23 in-betweens, and finished 4 s after this
-    process at 128 cells; now the two take 42.7 and 43.9 s.
+    them first). So the split halves the in-betweens, the odd one to this process.
     """
 
-    def __init__(self, helper, frames, ends, k, template, what):
+    def __init__(self, helper, frames, segment):
         self.helper = helper if helper is not None and len(frames) >= 4 else None
-        self.frames, self.ends, self.k, self.template, self.what = frames, ends, k, template, what
+        self.frames, self.segment = frames, segment
+        ends = segment.ends
         inner = (frames > ends[0]) & (frames < ends[1])
         self.half = int(np.count_nonzero(frames <= ends[0])) + (int(inner.sum()) + 1) // 2
         self.started = False
@@ -300,43 +313,37 @@ class _FrameSplit:
     def start(self, inbetweens):
         """Submit the later half to the helper (``inbetweens`` an `Inbetween` or its recipe)."""
         if self.helper is not None and not self.started:
-            self.helper.submit(_half, inbetweens, self.frames[self.half:], self.ends, self.k,
-                               self.template, self.what)
+            self.helper.submit(_half, inbetweens, self.frames[self.half:], self.segment)
             self.started = True
 
     def run(self, inb, rep):
         """Every frame's record, in order."""
         if self.helper is None:
-            return _frames(inb, self.frames, self.ends, self.k, self.template, self.what, rep)
+            return _frames(inb, self.frames, self.segment, rep)
         self.start(inb)
         n, half = len(self.frames), self.half
-        first = _half(inb, self.frames[:half], self.ends, self.k, self.template, self.what,
-                      rep.sub(0.0, half / n))
+        first = _half(inb, self.frames[:half], self.segment, rep.sub(0.0, half / n))
         rest = self.helper.result(check=rep.check)
         rep(1.0, f"frames {self.frames[half]}-{self.frames[-1]} (second process)")
         return first + rest
 
 
-def _half(inb, frames, ends, k, template, what, rep=None):
+def _half(inb, frames, segment, rep=None):
     """`_frames` in one of the two processes that share a segment's frames: each has one
     core, so its two transports carry one after the other (`Inbetween.threads`)."""
     inb.threads = 1
-    return _frames(inb, frames, ends, k, template, what, rep)
+    return _frames(inb, frames, segment, rep)
 
 
-def _frames(inb, frames, ends, k, template, what, rep=None):
-    """Each timeline frame of segment ``k`` (keyframes on frames ``ends``) as a dict: the
-    template's ``vertices`` and ``max_abs_phi``; as ``what`` asks, the ``levelset``
-    (float32), the ``uncovered`` area and fraction, and the frame's own ``mesh`` with its
-    ``velocity`` (world units per frame) and both outputs' quality (``shape_keys``,
-    ``mesh_sequence``)."""
+def _frames(inb, frames, segment, rep=None):
+    """Each timeline frame of a `_Segment` as a dict: the template's ``vertices`` and
+    ``max_abs_phi``; as its ``outputs`` ask, the ``levelset`` (float32), the ``uncovered``
+    area and fraction, and the frame's own ``mesh`` with its ``velocity`` (world units per
+    frame) and both outputs' quality (``shape_keys``, ``mesh_sequence``)."""
     rep = rep or Reporter()
-    f0, f1 = ends
-    verts, faces = template
-    grid = inb.grid
-    kf_meshes = what["keyframe_meshes"]
+    (f0, f1), (verts, faces), k = segment.ends, segment.template, segment.k
+    kf_meshes = segment.keyframe_meshes
     detail = None if kf_meshes is None else DetailTrack(inb, verts, kf_meshes[k + 1])
-    step = 1.0 / float(f1 - f0)  # the neighbouring frames' paths are kept for the velocity
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
         s = (f - f0) / float(f1 - f0)
@@ -347,27 +354,36 @@ def _frames(inb, frames, ends, k, template, what, rep=None):
             p, err = detail(s)
             rec = dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0)
         rep.check()
-        p = rec["vertices"]
-        if what["levelsets"]:
-            rec["levelset"] = inb.levelset(s).astype(np.float32)
-        if what["coverage"] or what["per_frame"]:
-            ls = inb.levelset(s)
-            surf = extract_surface(ls, grid)
-            rep.check()
-        if what["coverage"]:
-            unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
-            rec["uncovered"] = (unc, unc / tot if tot > 0 else 0.0)
-            rep.check()
-        if what["per_frame"]:
-            own = _frame_mesh(surf, kf_meshes, k, s)
-            rec["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
-            rec["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
-            rep.check()
-            rec["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
-            rec["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
+        rec.update(_frame_outputs(inb, s, segment, rec["vertices"], rep))
         records.append(rec)
         rep((i + 1) / len(frames), f"frame {f} ({i + 1}/{len(frames)})")
     return records
+
+
+def _frame_outputs(inb, s, segment, p, rep):
+    """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
+    are ``p``: its level set, uncovered area, own mesh, velocity and quality figures."""
+    outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
+    out = {}
+    if outputs.levelsets:
+        out["levelset"] = inb.levelset(s).astype(np.float32)
+    if outputs.coverage or outputs.surfaces:
+        ls = inb.levelset(s)
+        surf = extract_surface(ls, grid)
+        rep.check()
+    if outputs.coverage:
+        unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
+        out["uncovered"] = (unc, unc / tot if tot > 0 else 0.0)
+        rep.check()
+    if outputs.surfaces:
+        step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
+        own = _frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
+        out["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
+        out["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
+        rep.check()
+        out["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
+        out["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
+    return out
 
 
 def _frame_mesh(surface, keyframe_meshes, k, s):

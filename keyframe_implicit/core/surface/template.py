@@ -30,7 +30,7 @@ from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient
 from .extract import extract_surface, mesh_area
 
-__all__ = ["track_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
+__all__ = ["track_template", "initial_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
 
 
 class TemplateTrack:
@@ -169,7 +169,9 @@ def uncovered_area(levelset, grid, vertices, faces, tol=None, surface=None):
     return float(size[dist > tol].sum()), float(size.sum())
 
 
-def _initial_template(levelset, grid):
+def initial_template(levelset, grid):
+    """The default template: the zero set of ``levelset`` as a mesh (3D), or its contour
+    loops joined into one list of segments (2D)."""
     surf = extract_surface(levelset, grid)
     if grid.dim == 3:
         return surf
@@ -219,7 +221,7 @@ def track_template(inb, times, *, template=None, projection_steps=4, coverage=Tr
     grid = inb.grid
     t0 = time.perf_counter()
     if template is None:
-        verts0, faces = _initial_template(inb.levelset(0.0), grid)
+        verts0, faces = initial_template(inb.levelset(0.0), grid)
     else:
         verts0 = np.asarray(template[0], dtype=float)
         faces = np.asarray(template[1], dtype=np.int64)
