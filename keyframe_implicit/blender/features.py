@@ -77,11 +77,6 @@ def pairs(scene):
     return dict(sorted(found.items(), key=lambda kv: (kv[1].segment, _pair_number(kv[0]), kv[0])))
 
 
-def pairs_of_segment(scene, segment):
-    """The `Pair` objects of one segment, in order."""
-    return [p for p in pairs(scene).values() if p.segment == segment]
-
-
 def _int(value, default):
     try:
         return int(value)
@@ -266,8 +261,8 @@ def pair_empties(scene, settings, first, second, segment=-1):
     return pid
 
 
-def on_keyframe_removed(scene, index, count_before):
-    """Keep pairs consistent after keyframe ``index`` was removed from a list of ``count_before``.
+def on_keyframe_removed(scene, index):
+    """Keep pairs consistent after keyframe ``index`` was removed from the list.
 
     Pairs touching that keyframe (segments index-1 and index) lose one side, so
     they are deleted; pairs of later segments move down one segment. Returns

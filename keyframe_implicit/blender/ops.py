@@ -94,7 +94,7 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
         if not 0 <= index < n:
             self.report({"ERROR"}, f"No keyframe {index + 1}: there are {n}.")
             return {"CANCELLED"}
-        gone = features.on_keyframe_removed(context.scene, index, n)
+        gone = features.on_keyframe_removed(context.scene, index)
         settings.keyframes.remove(index)
         settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
         msg = f"Removed keyframe {index + 1}."
