@@ -192,7 +192,7 @@ def _link_like(scene, obj, like):
     """Link ``obj`` into the first collection of ``like`` that is in the scene (else the scene's)."""
     target = scene.collection
     if like is not None:
-        scene_colls = set(_scene_collections(scene))
+        scene_colls = set(scene_collections(scene))
         for coll in like.users_collection:
             if coll in scene_colls:
                 target = coll
@@ -200,7 +200,12 @@ def _link_like(scene, obj, like):
     target.objects.link(obj)
 
 
-def _scene_collections(scene):
+def scene_collections(scene):
+    """Every collection in ``scene``'s tree, its master collection first.
+
+    Linking an object into a collection puts it in the scene only when that collection is
+    one of these (`_link_like`, and the output's collection in `output`).
+    """
     stack = [scene.collection]
     while stack:
         coll = stack.pop()
