@@ -6,7 +6,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.progress import Cancelled
-from . import bake, features, result_view, scene_io, validate
+from . import bake, features, result_view, validate
 
 _OPTS = {"REGISTER", "UNDO"}
 # Redo-panel ("Adjust Last Operation") hygiene: a property the panel fills in itself is not
@@ -350,7 +350,7 @@ class KFI_OT_bake(bpy.types.Operator):
         if context.window is None:
             return self.execute(context)
         try:
-            inputs = scene_io.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
+            inputs = bake.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

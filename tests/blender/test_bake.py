@@ -124,7 +124,7 @@ def test_cancel_mid_bake_leaves_scene_unchanged(scene, kfi):
         if fraction > 0.0:  # the first stage is under way: cancel mid-bake
             job.cancel()  # exactly what ESC does in the modal operator
 
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
                        on_progress=observer)
     job.start()  # worker thread, as from invoke()
     job.join(120)
@@ -244,7 +244,7 @@ def test_modal_bake_esc_cancels_and_changes_nothing(scene, kfi):
     kfi.build_spheres(TWO)
     state = kfi.snapshot()
     started = []
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
                        on_progress=lambda j, f, m: started.append(m) or _wait_for_esc(j))
     me, ctx, reports = _modal_operator(job, scene)
     job.start()
@@ -276,7 +276,7 @@ def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
     from keyframe_implicit.blender import ops
 
     kfi.build_spheres(TWO)
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     me, ctx, reports = _modal_operator(job, scene)
     job.start()
     assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}
@@ -295,7 +295,7 @@ def test_modal_bake_writes_over_several_turns_and_esc_there_changes_nothing(scen
     kfi.build_spheres(TWO)
     state = kfi.snapshot()
     meshes = set(bpy.data.meshes)
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     me, ctx, reports = _modal_operator(job, scene)
     me._write_budget = 0.0  # one piece a turn (the operator's budget writes this one in one)
     job.start()
@@ -317,7 +317,7 @@ def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(sce
     from keyframe_implicit.blender import ops
 
     kfi.build_spheres(TWO)
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     me, ctx, _ = _modal_operator(job, scene)  # the job is not started: its text stays put
     regions = {}
     areas = []
@@ -360,7 +360,7 @@ def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
     before = kfi.mesh_hash(cube.data)
     n_meshes = len(bpy.data.meshes)
 
-    inp = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
+    inp = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
     assert inp.resolution == 48 and inp.weights["rigidity"] == 3.0 and inp.frames == [1, 5]
     ka = inp.keyframes[0]
     ref, tris = kfi.evaluated_arrays(cube)  # what Blender evaluates: 26 verts after subsurf
@@ -374,7 +374,7 @@ def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
     assert inp.pair_ids == [["0.0", "0.1"]]
     # reading never touches the keyframes' data nor leaves temporary meshes behind
     assert kfi.mesh_hash(cube.data) == before and len(bpy.data.meshes) == n_meshes
-    assert scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 24).resolution == 24
+    assert bake.collect(scene, bpy.context.evaluated_depsgraph_get(), 24).resolution == 24
 
 
 def test_keyframe_emptied_by_modifiers_fails_cleanly(scene, kfi):
