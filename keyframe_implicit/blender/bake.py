@@ -90,6 +90,8 @@ class BakeJob:
 
     @property
     def cancel_requested(self):
+        """Whether `cancel` was called: what a progress observer or the modal operator can
+        ask before the job has reached its end."""
         return self._cancel.is_set()
 
     # -- running -----------------------------------------------------------
@@ -143,10 +145,14 @@ class BakeJob:
 
     @property
     def finished(self):
+        """Whether the job has ended (DONE, CANCELLED or FAILED) and its thread with it, so
+        that `result`, `error` and `apply` can be read safely."""
         return self.state in (DONE, CANCELLED, FAILED) and (
             self._thread is None or not self._thread.is_alive())
 
     def join(self, timeout=None):
+        """Wait up to ``timeout`` seconds (None: for ever) for the thread `start` began; at
+        once when the job was never started."""
         if self._thread is not None:
             self._thread.join(timeout)
 
@@ -171,6 +177,7 @@ class BakeJob:
             return self.fraction, self.message
 
     def error_message(self):
+        """What the user reads about the failure (`failure_text`); "" when nothing failed."""
         return "" if self.error is None else failure_text(self.error)
 
     # -- writing back (main thread only) ------------------------------------

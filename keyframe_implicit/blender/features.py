@@ -39,6 +39,7 @@ class Pair:
 
     @property
     def complete(self):
+        """Whether both sides have their Empty: only a complete pair guides the bake."""
         return self.a is not None and self.b is not None
 
 

@@ -311,6 +311,9 @@ class KFI_OT_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
+        """Bake only one at a time, and only a setup without blocking problems (the panel's
+        list, `validate.problems`: read without the meshes, cheap on every redraw); the
+        button's tooltip says why not."""
         if _running:
             cls.poll_message_set("A bake is already running (ESC cancels it).")
             return False
@@ -331,6 +334,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"WARNING"}, note)
 
     def execute(self, context):
+        """Blocking bake (scripts, ``blender -b``, no window): `bake.bake_scene`."""
         notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
@@ -347,6 +351,8 @@ class KFI_OT_bake(bpy.types.Operator):
         return self._done(context, obj, notes=notes)
 
     def invoke(self, context, event):
+        """From the UI: read and check the scene once (`bake.collect`), then bake in the
+        background while the modal handler polls (ESC cancels)."""
         if context.window is None:
             return self.execute(context)
         try:
@@ -389,6 +395,8 @@ class KFI_OT_bake(bpy.types.Operator):
             _running.remove(self._job)
 
     def modal(self, context, event):
+        """Each turn of the main loop: ESC cancels; a timer event polls the job, shows its
+        progress and, once it is done, writes the result a piece at a time."""
         job = self._job
         if event.type == "ESC" and event.value == "PRESS":
             if self._writer is not None:  # the result is half written: take it out again
@@ -455,7 +463,9 @@ class KFI_OT_bake(bpy.types.Operator):
                               + "; ".join(shown) + ". " + obj.get("kfi_report", ""))
         return {"FINISHED"}
 
-    def cancel(self, context):  # window closed / file loaded while running
+    def cancel(self, context):
+        """Blender ends the operator (window closed, file loaded) while it runs: stop the job
+        and take out what was written."""
         if self._job is not None:
             self._job.cancel()
         if self._writer is not None:
