@@ -20,7 +20,7 @@ import time
 import bpy
 
 import keyframe_implicit
-from keyframe_implicit.blender import bake, scene_io
+from keyframe_implicit.blender import bake
 from keyframe_implicit.core.bake import pipeline
 
 POLL = 0.02
@@ -75,7 +75,7 @@ def main(resolutions):
     scene = two_spheres()
     print(f"{'res':>4} {'mode':<10} {'seconds':>8} {'max gap between 20 ms polls':>28}")
     for res in resolutions:
-        inputs = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), res)
+        inputs = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), res)
         for mode, kind in (("process", bake.BakeJob), ("thread", InThreadJob)):
             seconds, gap = polled(kind(inputs))
             print(f"{res:>4} {mode:<10} {seconds:8.2f} {gap * 1000:25.0f} ms", flush=True)

@@ -5,9 +5,9 @@ Module map (operators and panels are thin; logic lives in plain functions):
 =============  ================================================================
 ``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
 ``features``   feature-point pairs as Empties (create, pair, find, remove)
-``validate``   problems of a setup, with what to do
-``scene_io``   scene -> numpy (evaluated meshes in world space, feature points)
-``bake``       `BakeJob` (runs the core, cancel path) and blocking `bake_scene`
+``scene_io``   scene -> `BakeInput`, the bake read once (meshes, points, facts)
+``validate``   problems of a `BakeInput` (a setup), with what to do
+``bake``       `collect` (read, check), `BakeJob` (the core, cancel), `bake_scene`
 ``output``     numpy -> mesh object with one shape key per frame
 ``fcurves``    F-curves on Blender 4.2 (Action.fcurves) and 4.4+ (slotted actions)
 ``materials``  shader nodes on Blender 4.x (``use_nodes``) and 5.0+ (always on)
@@ -22,9 +22,9 @@ _HANDLERS = ("depsgraph_update_post", "load_post")
 
 def _forget_surfaces(scene=None, depsgraph=None):
     """Handler: kept pre-bake surface checks are stale after geometry updates and loads."""
-    from . import validate
+    from . import scene_io
 
-    validate.forget_surfaces(scene, depsgraph)
+    scene_io.forget_surfaces(scene, depsgraph)
 
 
 def _class_lists():

@@ -1,4 +1,8 @@
-"""Baking: scene -> `BakeInput` -> core.animate (worker process) -> output (main thread).
+"""Baking: scene -> `BakeInput` (read once, checked) -> core.animate (worker process) ->
+output (main thread).
+
+`collect` reads the scene once (`scene_io.read`) into a plain description of the bake and
+checks that description (`validate.raise_on_errors`); `BakeJob` bakes the same description.
 
 The core runs in a worker process (`keyframe_implicit.worker`): Blender's main loop only
 polls it, and a crash or an out-of-memory kill there leaves the session and the scene as
@@ -13,7 +17,7 @@ Blocking use (scripts, ``blender -b``)::
 
 Background use (what the modal operator does)::
 
-    job = BakeJob(scene_io.collect(scene, depsgraph))
+    job = BakeJob(collect(scene, depsgraph))
     job.start()            # a thread that talks to the worker process
     ... job.poll(), job.fraction, job.message, job.cancel() ...
     if job.state == DONE: obj = job.apply(scene)   # or a step per turn: job.apply_steps(scene)
@@ -25,7 +29,7 @@ import time
 
 from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
-from . import output, scene_io, volumes
+from . import output, scene_io, validate, volumes
 
 READY, RUNNING, DONE, CANCELLED, FAILED = "READY", "RUNNING", "DONE", "CANCELLED", "FAILED"
 
@@ -86,6 +90,8 @@ class BakeJob:
 
     @property
     def cancel_requested(self):
+        """Whether `cancel` was called: what a progress observer or the modal operator can
+        ask before the job has reached its end."""
         return self._cancel.is_set()
 
     # -- running -----------------------------------------------------------
@@ -139,10 +145,14 @@ class BakeJob:
 
     @property
     def finished(self):
+        """Whether the job has ended (DONE, CANCELLED or FAILED) and its thread with it, so
+        that `result`, `error` and `apply` can be read safely."""
         return self.state in (DONE, CANCELLED, FAILED) and (
             self._thread is None or not self._thread.is_alive())
 
     def join(self, timeout=None):
+        """Wait up to ``timeout`` seconds (None: for ever) for the thread `start` began; at
+        once when the job was never started."""
         if self._thread is not None:
             self._thread.join(timeout)
 
@@ -167,6 +177,7 @@ class BakeJob:
             return self.fraction, self.message
 
     def error_message(self):
+        """What the user reads about the failure (`failure_text`); "" when nothing failed."""
         return "" if self.error is None else failure_text(self.error)
 
     # -- writing back (main thread only) ------------------------------------
@@ -201,6 +212,34 @@ class BakeJob:
         return obj
 
 
+def collect(scene, depsgraph, resolution=0):
+    """The bake ``scene``'s settings describe: read once and checked.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    depsgraph : bpy.types.Depsgraph
+        Evaluates the keyframe objects.
+    resolution : int, optional
+        The grid resolution; 0 or less means the scene setting.
+
+    Returns
+    -------
+    scene_io.BakeInput
+        What `BakeJob` bakes: the one reading of the scene (`scene_io.read`), the same
+        object the checks passed.
+
+    Raises
+    ------
+    ValueError
+        What is wrong and what to do, when the checks (`validate.raise_on_errors`) find a
+        blocking problem. The scene is left on the frame it was on.
+    """
+    inputs = scene_io.read(scene, depsgraph, resolution)
+    validate.raise_on_errors(inputs)
+    return inputs
+
+
 def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None):
     """Blocking bake of ``scene``'s setup; returns the output object.
 
@@ -220,7 +259,7 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None
         else:
             depsgraph = scene.view_layers[0].depsgraph
             depsgraph.update()
-    job = BakeJob(scene_io.collect(scene, depsgraph, resolution), on_progress=on_progress)
+    job = BakeJob(collect(scene, depsgraph, resolution), on_progress=on_progress)
     job.run()
     if job.state == CANCELLED:
         raise Cancelled("Bake cancelled; the scene is unchanged.")

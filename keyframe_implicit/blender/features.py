@@ -39,6 +39,7 @@ class Pair:
 
     @property
     def complete(self):
+        """Whether both sides have their Empty: only a complete pair guides the bake."""
         return self.a is not None and self.b is not None
 
 
@@ -75,11 +76,6 @@ def pairs(scene):
             found[f"{pid}#{obj.name}"] = Pair(pid, seg, a=obj if side == "A" else None,
                                               b=None if side == "A" else obj)
     return dict(sorted(found.items(), key=lambda kv: (kv[1].segment, _pair_number(kv[0]), kv[0])))
-
-
-def pairs_of_segment(scene, segment):
-    """The `Pair` objects of one segment, in order."""
-    return [p for p in pairs(scene).values() if p.segment == segment]
 
 
 def _int(value, default):
@@ -197,7 +193,7 @@ def _link_like(scene, obj, like):
     """Link ``obj`` into the first collection of ``like`` that is in the scene (else the scene's)."""
     target = scene.collection
     if like is not None:
-        scene_colls = set(_scene_collections(scene))
+        scene_colls = set(scene_collections(scene))
         for coll in like.users_collection:
             if coll in scene_colls:
                 target = coll
@@ -205,7 +201,12 @@ def _link_like(scene, obj, like):
     target.objects.link(obj)
 
 
-def _scene_collections(scene):
+def scene_collections(scene):
+    """Every collection in ``scene``'s tree, its master collection first.
+
+    Linking an object into a collection puts it in the scene only when that collection is
+    one of these (`_link_like`, and the output's collection in `output`).
+    """
     stack = [scene.collection]
     while stack:
         coll = stack.pop()
@@ -266,8 +267,8 @@ def pair_empties(scene, settings, first, second, segment=-1):
     return pid
 
 
-def on_keyframe_removed(scene, index, count_before):
-    """Keep pairs consistent after keyframe ``index`` was removed from a list of ``count_before``.
+def on_keyframe_removed(scene, index):
+    """Keep pairs consistent after keyframe ``index`` was removed from the list.
 
     Pairs touching that keyframe (segments index-1 and index) lose one side, so
     they are deleted; pairs of later segments move down one segment. Returns

@@ -6,7 +6,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, features, result_view, scene_io, validate
+from . import bake, features, result_view, validate
 
 _OPTS = {"REGISTER", "UNDO"}
 # Redo-panel ("Adjust Last Operation") hygiene: a property the panel fills in itself is not
@@ -94,7 +94,7 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
         if not 0 <= index < n:
             self.report({"ERROR"}, f"No keyframe {index + 1}: there are {n}.")
             return {"CANCELLED"}
-        gone = features.on_keyframe_removed(context.scene, index, n)
+        gone = features.on_keyframe_removed(context.scene, index)
         settings.keyframes.remove(index)
         settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
         msg = f"Removed keyframe {index + 1}."
@@ -311,6 +311,9 @@ class KFI_OT_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
+        """Bake only one at a time, and only a setup without blocking problems (the panel's
+        list, `validate.problems`: read without the meshes, cheap on every redraw); the
+        button's tooltip says why not."""
         if _running:
             cls.poll_message_set("A bake is already running (ESC cancels it).")
             return False
@@ -331,6 +334,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"WARNING"}, note)
 
     def execute(self, context):
+        """Blocking bake (scripts, ``blender -b``, no window): `bake.bake_scene`."""
         notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
@@ -347,10 +351,12 @@ class KFI_OT_bake(bpy.types.Operator):
         return self._done(context, obj, notes=notes)
 
     def invoke(self, context, event):
+        """From the UI: read and check the scene once (`bake.collect`), then bake in the
+        background while the modal handler polls (ESC cancels)."""
         if context.window is None:
             return self.execute(context)
         try:
-            inputs = scene_io.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
+            inputs = bake.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -389,6 +395,8 @@ class KFI_OT_bake(bpy.types.Operator):
             _running.remove(self._job)
 
     def modal(self, context, event):
+        """Each turn of the main loop: ESC cancels; a timer event polls the job, shows its
+        progress and, once it is done, writes the result a piece at a time."""
         job = self._job
         if event.type == "ESC" and event.value == "PRESS":
             if self._writer is not None:  # the result is half written: take it out again
@@ -455,7 +463,9 @@ class KFI_OT_bake(bpy.types.Operator):
                               + "; ".join(shown) + ". " + obj.get("kfi_report", ""))
         return {"FINISHED"}
 
-    def cancel(self, context):  # window closed / file loaded while running
+    def cancel(self, context):
+        """Blender ends the operator (window closed, file loaded) while it runs: stop the job
+        and take out what was written."""
         if self._job is not None:
             self._job.cancel()
         if self._writer is not None:

@@ -44,7 +44,7 @@ import numpy as np
 
 from ..core.surface.meshdata import FRAME_ATTRIBUTE, SHAPE_KEYS, resolve_output
 from ..core.surface.quality import describe_worst
-from . import fcurves
+from . import fcurves, features
 
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
@@ -269,20 +269,10 @@ def _ensure_collection(scene, name):
         coll = bpy.data.collections.new(name)
         coll[COLLECTION_TAG] = True
         created = True
-    if not _in_scene(scene, coll):
+    if coll not in features.scene_collections(scene):
         scene.collection.children.link(coll)
         linked = True
     return coll, created, linked
-
-
-def _in_scene(scene, coll):
-    stack = [scene.collection]
-    while stack:
-        c = stack.pop()
-        if c == coll:
-            return True
-        stack.extend(c.children)
-    return False
 
 
 def remove_output(obj):
@@ -316,8 +306,6 @@ def remove_output(obj):
 
 def _uses(scene, settings, obj):
     """How the setup still reaches ``obj``: as a keyframe or as the parent of a feature point."""
-    from . import features
-
     found = [f"keyframe {i}" for i, kf in enumerate(settings.keyframes, start=1) if kf.object == obj]
     found += [f"feature point '{e.name}'" for e in features.feature_objects(scene) if e.parent == obj]
     return found

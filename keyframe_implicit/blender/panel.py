@@ -66,7 +66,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         op = col.operator("keyframe_implicit.move_keyframe", icon="TRIA_DOWN", text="")
         op.index, op.direction = settings.active_keyframe_index, "DOWN"
 
-        found = validate.problems(scene, settings, context.view_layer.depsgraph)
+        found = validate.problems(scene, context.view_layer.depsgraph)
         if found:
             box = layout.box()
             for p in found:

@@ -1,4 +1,11 @@
-"""Scene -> numpy: keyframe meshes (evaluated, world space) and feature points.
+"""Scene -> a plain description of the bake (`BakeInput`), read once (`read`).
+
+`read` is the one function that reads a bake's setup from the scene: the keyframe list,
+the feature pairs, the settings, what the pre-bake checks need (as plain facts: each
+keyframe object's kind and surface counts, which feature Empties are not parented to
+their keyframe objects, whether the OpenVDB export can run) and, for a bake, the
+keyframes' evaluated meshes and the feature points. `validate` checks that description
+and `bake` bakes it; neither reads the scene again.
 
 Only reads; never modifies the keyframe objects or their data. Each keyframe is
 read on its own frame: its object's transform, shape keys and modifiers may be
@@ -21,25 +28,156 @@ import numpy as np
 
 from ..core.surface.attributes import MeshAttributes
 from ..core.bake.pipeline import Keyframe
-from . import features, validate
+from . import features, volumes
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Counts of a keyframe object's evaluated mesh that tell whether it can be a keyframe.
+
+    Read once per state of the object (`cached_surface`) so that the checks
+    (`validate.surface_problem`) can run on every redraw of the panel.
+
+    Attributes
+    ----------
+    faces : int
+        Number of polygons; 0 means there is nothing else to count.
+    open_edges : int
+        Edges with one face: they lie on a hole.
+    shared_edges : int
+        Edges with three or more faces: non-manifold.
+    volume : float
+        |Volume| the triangles enclose, about the centre of the hole edges when there are
+        holes, so their missing caps add next to nothing (`_volume`).
+    extent : float
+        The largest side of the vertices' bounding box (what a volume is compared with).
+    modified : bool
+        Whether the counts are of the mesh after the object's modifiers.
+    """
+
+    faces: int
+    open_edges: int = 0
+    shared_edges: int = 0
+    volume: float = 0.0
+    extent: float = 0.0
+    modified: bool = False
+
+
+@dataclass(frozen=True)
+class ListedKeyframe:
+    """One entry of the keyframe list as read: what the checks need to know of it.
+
+    Attributes
+    ----------
+    frame : int
+        The entry's timeline frame.
+    name : str or None
+        Its object's name; None when the entry has no object.
+    kind : str
+        Its object's type ("MESH", "CURVE", ...); "" without an object.
+    in_scene : bool
+        Whether the object is in the scene that is read.
+    surface : Surface or None
+        The surface counts of a mesh object in the scene, else None.
+    """
+
+    frame: int
+    name: str | None = None
+    kind: str = ""
+    in_scene: bool = False
+    surface: Surface | None = None
+
+    @property
+    def readable(self):
+        """Whether its mesh can be read for a bake: a mesh object in the scene."""
+        return self.kind == "MESH" and self.in_scene
+
+
+@dataclass(frozen=True)
+class ListedPair:
+    """One feature pair of the scene, or a lone Empty (`features.pairs`), as read.
+
+    Attributes
+    ----------
+    pair_id : str
+        The pair id ("<segment>.<n>").
+    segment : int
+        The pair lies between keyframe ``segment`` and ``segment + 1`` (from 0).
+    a, b : str or None
+        The names of the Empties on side A and side B; None for a missing side.
+    unparented : tuple of str
+        The sides ("A", "B") of a complete pair of an existing segment whose Empty is not
+        parented to its keyframe's object (a fact only the objects tell, read with them).
+    """
+
+    pair_id: str
+    segment: int
+    a: str | None = None
+    b: str | None = None
+    unparented: tuple = ()
+
+    @property
+    def complete(self):
+        """Whether both sides have an Empty."""
+        return self.a is not None and self.b is not None
 
 
 @dataclass
 class BakeInput:
-    """Everything the core needs, copied out of the scene (plain numpy, thread-safe)."""
+    """A plain description of a bake, read from the scene once (`read`).
+
+    Everything the checks (`validate.check`) and the core need, copied out of the scene:
+    plain values and numpy arrays, safe to hand to another thread.
+
+    Attributes
+    ----------
+    keyframes : list of core.pipeline.Keyframe
+        The keyframes' evaluated meshes in world space, each read on its frame; empty when
+        the meshes were not read (`read` with ``meshes=False``, or an entry of the list
+        that is not a mesh object in the scene).
+    features : list of (ndarray, ndarray)
+        Per segment, the feature points (N, 3) of side A and side B; empty with the meshes.
+    resolution : int
+        The grid resolution of this bake.
+    weights : dict
+        The objective's weights (`props.KFI_Settings.weights`).
+    material_names : list of str
+        The keyframes' materials, first use first (with the meshes).
+    pair_ids : list of list of str
+        Per segment, the ids of its complete pairs in row order.
+    feature_names : list of list of (str, str)
+        Per segment, the (A, B) Empty names of each row, for the core's messages.
+    levelsets : bool
+        Keep every frame's level set (the OpenVDB volume).
+    output_mode : str
+        The output setting when the bake started.
+    listed_keyframes : list of ListedKeyframe
+        The keyframe list as read, for the checks.
+    listed_pairs : list of ListedPair
+        Every feature pair and lone Empty, sorted as `features.pairs` sorts them.
+    scene_frames : tuple of int
+        The scene's (frame_start, frame_end).
+    volume_problem : str
+        Why the OpenVDB export asked for cannot run ("" when it can, `volumes.problem`).
+    """
 
     keyframes: list
-    features: list  # per segment (points_a (N,3), points_b (N,3))
+    features: list
     resolution: int
     weights: dict
-    material_names: list = field(default_factory=list)  # the keyframes' materials, first use first
-    pair_ids: list = field(default_factory=list)  # per segment, the pair ids in row order
-    feature_names: list = field(default_factory=list)  # per segment, (Empty A, Empty B) per row
-    levelsets: bool = False  # keep every frame's level set (the OpenVDB volume)
-    output_mode: str = "AUTO"  # the output setting when the bake started
+    material_names: list = field(default_factory=list)
+    pair_ids: list = field(default_factory=list)
+    feature_names: list = field(default_factory=list)
+    levelsets: bool = False
+    output_mode: str = "AUTO"
+    listed_keyframes: list = field(default_factory=list)
+    listed_pairs: list = field(default_factory=list)
+    scene_frames: tuple = (1, 250)
+    volume_problem: str = ""
 
     @property
     def frames(self):
+        """The frames of the keyframes read, in list order."""
         return [k.frame for k in self.keyframes]
 
 
@@ -100,13 +238,88 @@ def mesh_arrays(obj, depsgraph, attributes=False):
     return verts, tris.astype(np.int64)
 
 
-def _segment_pairs(scene, n_seg):
-    """The complete feature pairs of each segment, in order."""
-    rows = [[] for _ in range(n_seg)]
-    for pair in features.pairs(scene).values():
-        if pair.complete and 0 <= pair.segment < n_seg:
-            rows[pair.segment].append(pair)
-    return rows
+def read_surface(obj, depsgraph):
+    """The `Surface` counts of ``obj``'s evaluated mesh (its own mesh without modifiers).
+
+    Parameters
+    ----------
+    obj : bpy.types.Object
+        A mesh object.
+    depsgraph : bpy.types.Depsgraph
+        Evaluates an object with modifiers.
+
+    Returns
+    -------
+    Surface
+        Faces per edge from one ``foreach_get`` and a ``bincount``, and the enclosed volume:
+        cheap enough for the panel, which asks through `cached_surface`.
+    """
+    modified = len(obj.modifiers) > 0
+    ob = obj.evaluated_get(depsgraph) if modified else obj
+    mesh = ob.to_mesh() if modified else obj.data
+    try:
+        return _count_surface(mesh, modified)
+    finally:
+        if modified:
+            ob.to_mesh_clear()
+
+
+def _count_surface(mesh, modified):
+    if len(mesh.polygons) == 0:
+        return Surface(faces=0, modified=modified)
+    faces_per_edge = np.bincount(_get(mesh.loops, "edge_index", len(mesh.loops), np.int32),
+                                 minlength=len(mesh.edges))
+    co = _get(mesh.vertices, "co", len(mesh.vertices), np.float64, 3)
+    on_hole = faces_per_edge == 1
+    return Surface(faces=len(mesh.polygons), open_edges=int(np.count_nonzero(on_hole)),
+                   shared_edges=int(np.count_nonzero(faces_per_edge > 2)),
+                   volume=_volume(mesh, co, on_hole), extent=float(np.ptp(co, axis=0).max()),
+                   modified=modified)
+
+
+def _volume(mesh, co, on_hole):
+    """|Volume| enclosed by the triangles, about the centre of the hole edges (if any)."""
+    if on_hole.any():
+        ends = _get(mesh.edges, "vertices", len(mesh.edges), np.int32, 2)
+        origin = co[ends[on_hole].ravel()].mean(axis=0)
+    else:
+        origin = co.mean(axis=0)
+    mesh.calc_loop_triangles()
+    tris = _get(mesh.loop_triangles, "vertices", len(mesh.loop_triangles), np.int32, 3)
+    a, b, c = (co[tris[:, k]] - origin for k in range(3))
+    return abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
+
+
+_surfaces = {}  # cheap state of a keyframe object -> read_surface's answer
+
+
+def cached_surface(obj, depsgraph):
+    """`read_surface`, kept per cheap state of ``obj`` (its mesh, counts and modifiers).
+
+    The panel and the Bake button's poll read the setup on every redraw; the counts are
+    kept until a depsgraph update changes some geometry (`forget_surfaces`).
+    """
+    mesh = obj.data
+    key = (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
+           tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers))
+    if key not in _surfaces:
+        _surfaces[key] = read_surface(obj, depsgraph)
+    return _surfaces[key]
+
+
+def forget_surfaces(scene=None, depsgraph=None):
+    """Drop the kept surface counts: after a geometry update, a file load, re-registering.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene, optional
+        Unused; the handlers pass it.
+    depsgraph : bpy.types.Depsgraph, optional
+        A depsgraph update: the counts go only if it updated some geometry. None forgets
+        them in any case.
+    """
+    if depsgraph is None or any(u.is_updated_geometry for u in depsgraph.updates):
+        _surfaces.clear()
 
 
 def _world(obj, depsgraph):
@@ -171,17 +384,14 @@ def _on_frames(scene):
             scene.frame_set(start[0], subframe=start[1])
 
 
-def read_keyframes(scene, settings, depsgraph):
-    """Keyframe meshes and feature points, each evaluated on its keyframe's frame (on the
+def _read_on_frames(scene, kfs, rows, depsgraph):
+    """The keyframes' meshes and the feature points, each on its keyframe's frame (on the
     current frame where nothing read there depends on the frame: `frame_dependent`).
 
-    Returns (keyframes, features, pair ids): the `Keyframe` list, per segment
-    (points_a (N, 3), points_b (N, 3)) in world space -- side A read on keyframe
-    i's frame, side B on keyframe i+1's, where the Empties sit on their keyframe
-    objects -- and per segment the pair ids in row order.
+    Returns (keyframes, features): the `Keyframe` list and, per segment, (points_a (N, 3),
+    points_b (N, 3)) in world space -- side A read on keyframe i's frame, side B on
+    keyframe i+1's, where the Empties sit on their keyframe objects.
     """
-    kfs = list(settings.keyframes)
-    rows = _segment_pairs(scene, max(len(kfs) - 1, 0))
     keyframes = []
     side_a = [[] for _ in rows]
     side_b = [[] for _ in rows]
@@ -193,10 +403,6 @@ def read_keyframes(scene, settings, depsgraph):
             if any(frame_dependent(obj) for obj in read_here):
                 go(int(kf.frame))
             verts, tris, attrs = mesh_arrays(kf.object, depsgraph, attributes=True)
-            if len(tris) == 0:
-                raise ValueError(f"Keyframe {i} ('{kf.object.name}', frame {kf.frame}) has no "
-                                 "faces after modifiers on that frame: check its modifier stack "
-                                 "(a keyframe must be a closed surface).")
             keyframes.append(Keyframe(vertices=verts, faces=tris, frame=int(kf.frame),
                                       name=kf.object.name, attributes=attrs))
             if i < len(rows):
@@ -205,39 +411,93 @@ def read_keyframes(scene, settings, depsgraph):
                 side_b[i - 1] = [_world(p.b, depsgraph) for p in rows[i - 1]]
     feats = [(np.array(a, dtype=np.float64).reshape(-1, 3), np.array(b, dtype=np.float64).reshape(-1, 3))
              for a, b in zip(side_a, side_b)]
-    return keyframes, feats, [[p.pair_id for p in seg] for seg in rows]
+    return keyframes, feats
 
 
-def feature_names(scene, settings):
-    """Per segment, the (A, B) Empty names of each pair in row order (for messages)."""
-    rows = _segment_pairs(scene, max(len(settings.keyframes) - 1, 0))
-    return [[(p.a.name, p.b.name) for p in seg] for seg in rows]
+def _segment_rows(found, n_seg):
+    """The complete feature pairs (`features.Pair`) of each segment, in order."""
+    rows = [[] for _ in range(n_seg)]
+    for pair in found:
+        if pair.complete and 0 <= pair.segment < n_seg:
+            rows[pair.segment].append(pair)
+    return rows
 
 
-def collect(scene, depsgraph, resolution=0):
-    """Validate ``scene``'s setup and copy it out as a `BakeInput`.
+def _listed_keyframe(scene, kf, depsgraph):
+    """A `ListedKeyframe` of one entry of the keyframe list."""
+    obj = kf.object
+    if obj is None:
+        return ListedKeyframe(int(kf.frame))
+    in_scene = obj.name in scene.objects
+    surface = cached_surface(obj, depsgraph) if obj.type == "MESH" and in_scene else None
+    return ListedKeyframe(int(kf.frame), obj.name, obj.type, in_scene, surface)
 
-    ``resolution`` <= 0 means the scene setting. Raises ValueError (what is
-    wrong and what to do) when validation finds a blocking problem. The scene
-    is evaluated on each keyframe's frame where something read there may change with
-    time (`frame_dependent`), and left on the frame it was on.
+
+def _listed_pair(pair, objects):
+    """A `ListedPair` of a `features.Pair`; ``objects`` are the keyframe list's objects."""
+    unparented = ()
+    if pair.complete and 0 <= pair.segment < len(objects) - 1:
+        sides = (("A", pair.a, objects[pair.segment]), ("B", pair.b, objects[pair.segment + 1]))
+        unparented = tuple(side for side, e, kf in sides if kf is not None and e.parent != kf)
+    return ListedPair(pair.pair_id, pair.segment, pair.a.name if pair.a is not None else None,
+                      pair.b.name if pair.b is not None else None, unparented)
+
+
+def _material_names(objects):
+    """The keyframe objects' active materials' names, first use first."""
+    names = []
+    for obj in objects:
+        mat = obj.active_material if obj.material_slots else None
+        if mat is not None and mat.name not in names:
+            names.append(mat.name)
+    return names
+
+
+def read(scene, depsgraph=None, resolution=0, meshes=True):
+    """Read the bake ``scene``'s settings describe, once, into a `BakeInput`.
+
+    The one reading of a bake's setup: `validate.check` checks what it returns and
+    `bake.BakeJob` bakes it. Reading refuses nothing (the checks do) and changes nothing:
+    the scene is evaluated on each keyframe's frame where something read there may change
+    with time (`frame_dependent`), and left on the frame it was on.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    depsgraph : bpy.types.Depsgraph, optional
+        Evaluates the keyframe objects; default: the scene's first view layer's.
+    resolution : int, optional
+        The grid resolution; 0 or less means the scene setting.
+    meshes : bool, optional
+        Also read the keyframes' meshes, materials and the feature points (a bake), when
+        every entry of the keyframe list is a mesh object in the scene. False reads only
+        what the checks need, cheaply enough for every redraw of the panel.
+
+    Returns
+    -------
+    BakeInput
     """
     settings = scene.keyframe_implicit
-    validate.raise_on_errors(scene, settings)
-    keyframes, feats, ids = read_keyframes(scene, settings, depsgraph)
-    materials = []
-    for kf in settings.keyframes:
-        mat = kf.object.active_material if kf.object.material_slots else None
-        if mat is not None and mat.name not in materials:
-            materials.append(mat.name)
-    return BakeInput(
-        keyframes=keyframes,
-        features=feats,
+    if depsgraph is None:
+        depsgraph = scene.view_layers[0].depsgraph
+    kfs = list(settings.keyframes)
+    objects = [kf.object for kf in kfs]
+    found = list(features.pairs(scene).values())
+    rows = _segment_rows(found, max(len(kfs) - 1, 0))
+    inputs = BakeInput(
+        keyframes=[], features=[],
         resolution=int(resolution) if resolution and resolution > 0 else int(settings.resolution),
         weights=settings.weights(),
-        material_names=materials,
-        pair_ids=ids,
-        feature_names=feature_names(scene, settings),
+        pair_ids=[[p.pair_id for p in seg] for seg in rows],
+        feature_names=[[(p.a.name, p.b.name) for p in seg] for seg in rows],
         levelsets=bool(settings.volume_export),
         output_mode=str(settings.output_mode),
+        listed_keyframes=[_listed_keyframe(scene, kf, depsgraph) for kf in kfs],
+        listed_pairs=[_listed_pair(p, objects) for p in found],
+        scene_frames=(int(scene.frame_start), int(scene.frame_end)),
+        volume_problem=volumes.problem(settings),
     )
+    if meshes and all(k.readable for k in inputs.listed_keyframes):
+        inputs.keyframes, inputs.features = _read_on_frames(scene, kfs, rows, depsgraph)
+        inputs.material_names = _material_names(objects)
+    return inputs

@@ -1,24 +1,25 @@
-"""Checks run before baking and shown in the sidebar.
+"""Checks run before baking and shown in the sidebar, on the bake as read (`scene_io.read`).
 
-`problems` returns every issue of a scene setup as `Problem` objects whose
-message says what is wrong AND what to do. ERROR problems block the bake;
-WARNING problems are hints (e.g. fewer than 4 feature pairs is allowed by the
-core but gives the solver a poor start).
+`check` returns every issue of a bake's description (`scene_io.BakeInput`) as `Problem`
+objects whose message says what is wrong AND what to do. ERROR problems block the bake;
+WARNING problems are hints (e.g. fewer than 4 feature pairs is allowed by the core but
+gives the solver a poor start). The checks read nothing from the scene: what only the
+scene's objects can tell (a keyframe object's kind, its surface counts, a feature Empty's
+parent) comes as plain facts of the reading. `problems` reads a scene's setup and checks
+it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
 
-The surface checks (`surface_check`) are cheap topology counts on each
-keyframe's evaluated mesh: a keyframe that encloses no volume (a plane) is
-refused before any grid is built; holes and non-manifold edges, which the
-core reads anyway, are pointed out. The panel and the Bake button's poll ask
-on every redraw, so answers are kept until a depsgraph update changes some
-geometry (`forget_surfaces`, a handler registered with the add-on). Keyframes
-are numbered from 1 in list order, as the core's messages number them.
+The surface checks (`surface_problem`) judge cheap topology counts of each keyframe's
+evaluated mesh (`scene_io.Surface`): a keyframe that encloses no volume (a plane) is
+refused before any grid is built; holes and non-manifold edges, which the core reads
+anyway (generalised winding numbers, core/fields/sdf.py), are pointed out. The panel and the
+Bake button's poll ask on every redraw, so the counts are kept until a depsgraph update
+changes some geometry (`scene_io.cached_surface`). Keyframes are numbered from 1 in list
+order, as the core's messages number them.
 """
 
 from dataclasses import dataclass
 
-import numpy as np
-
-from . import features, volumes
+from . import scene_io
 
 ERROR = "ERROR"
 WARNING = "WARNING"
@@ -33,44 +34,100 @@ def count(n, noun):
 
 @dataclass(frozen=True)
 class Problem:
-    level: str  # ERROR or WARNING
+    """One issue of a setup, as the panel lists it and a refused bake reports it.
+
+    Attributes
+    ----------
+    level : str
+        `ERROR` (blocks the bake) or `WARNING` (a hint).
+    message : str
+        What is wrong and what to do.
+    segment : int
+        The segment it concerns, -1 for the whole setup.
+    """
+
+    level: str
     message: str
-    segment: int = -1  # the segment it concerns, -1 for the whole setup
+    segment: int = -1
 
     @property
     def icon(self):
+        """The panel's icon for its level."""
         return "ERROR" if self.level == ERROR else "INFO"
 
 
-def problems(scene, settings=None, depsgraph=None):
+def problems(scene, depsgraph=None):
     """All problems of ``scene``'s keyframe_implicit setup, errors first.
 
-    ``depsgraph`` (default: the scene's first view layer's) gives the evaluated
-    meshes of keyframes with modifiers for the surface checks.
+    Reads the setup without the keyframes' meshes (`scene_io.read` with
+    ``meshes=False``, surface counts kept between calls) and checks it (`check`): cheap
+    enough for the panel's every redraw.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    depsgraph : bpy.types.Depsgraph, optional
+        Gives the evaluated meshes of keyframes with modifiers for the surface checks;
+        default: the scene's first view layer's.
+
+    Returns
+    -------
+    list of Problem
     """
-    if settings is None:
-        settings = scene.keyframe_implicit
+    return check(scene_io.read(scene, depsgraph, meshes=False))
+
+
+def check(inputs):
+    """All problems of a bake's description, errors first.
+
+    Parameters
+    ----------
+    inputs : scene_io.BakeInput
+        The bake as read (`scene_io.read`); its keyframes' meshes are not needed.
+
+    Returns
+    -------
+    list of Problem
+        In the order the setup is read (keyframes, frames, feature pairs, export), errors
+        before warnings.
+    """
+    listed = inputs.listed_keyframes
+    out = _keyframe_problems(listed)
+    out += _frame_problems([k.frame for k in listed], inputs.scene_frames)
+    out += _pair_problems(inputs.listed_pairs, listed)
+    if inputs.volume_problem:
+        out.append(Problem(ERROR, inputs.volume_problem))
+    out.sort(key=lambda p: p.level != ERROR)
+    return out
+
+
+def _keyframe_problems(listed):
+    """Too few keyframes; entries without a mesh object in the scene; unsound surfaces."""
     out = []
-    kfs = list(settings.keyframes)
-    if len(kfs) < 2:
-        out.append(Problem(ERROR, f"{count(len(kfs), 'keyframe').capitalize()}: add at least "
+    if len(listed) < 2:
+        out.append(Problem(ERROR, f"{count(len(listed), 'keyframe').capitalize()}: add at least "
                                   "two (select a mesh, set the frame, press Add Keyframe)."))
-    for i, kf in enumerate(kfs, start=1):
-        name = f"Keyframe {i} '{kf.object.name}'" if kf.object is not None else f"Keyframe {i}"
-        if kf.object is None:
+    for i, kf in enumerate(listed, start=1):
+        name = f"Keyframe {i} '{kf.name}'" if kf.name is not None else f"Keyframe {i}"
+        if kf.name is None:
             out.append(Problem(ERROR, f"{name} (frame {kf.frame}) has no object: pick a mesh "
                                       "object or remove the keyframe."))
-        elif kf.object.type != "MESH":
+        elif kf.kind != "MESH":
             out.append(Problem(ERROR, f"{name} is not a mesh: convert it (Object > Convert > "
                                       "Mesh) or pick a mesh object."))
-        elif kf.object.name not in scene.objects:
+        elif not kf.in_scene:
             out.append(Problem(ERROR, f"{name} is not in this scene: link it into the scene or "
                                       "pick another object."))
         else:
-            found = _cached_surface_check(kf.object, _depsgraph(scene, depsgraph))
+            found = surface_problem(kf.surface)
             if found:
                 out.append(Problem(found[0], f"{name} {found[1]}"))
-    frames = [kf.frame for kf in kfs]
+    return out
+
+
+def _frame_problems(frames, scene_frames):
+    """Two keyframes on one frame; a list out of frame order; frames outside the scene's."""
+    out = []
     seen = {}
     for i, f in enumerate(frames, start=1):
         if f in seen:
@@ -82,16 +139,23 @@ def problems(scene, settings=None, depsgraph=None):
             out.append(Problem(ERROR, f"Keyframe {i + 1} (frame {frames[i]}) comes after keyframe "
                                       f"{i} (frame {frames[i - 1]}) in the list: order the list "
                                       "by frame (Move Up/Down) or change the frames."))
+    start, end = scene_frames
     for i, f in enumerate(frames, start=1):
-        if not scene.frame_start <= f <= scene.frame_end:
+        if not start <= f <= end:
             out.append(Problem(WARNING, f"Keyframe {i} is on frame {f}, outside the scene's "
-                                        f"frames {scene.frame_start}-{scene.frame_end}: Bake "
-                                        "widens the frame range to cover it."))
-    n_seg = max(len(kfs) - 1, 0)
-    counts = [0] * n_seg
-    for pair in features.pairs(scene).values():
-        name = (pair.a or pair.b).name
-        if not 0 <= pair.segment < n_seg:
+                                        f"frames {start}-{end}: Bake widens the frame range to "
+                                        "cover it."))
+    return out
+
+
+def _pair_problems(pairs, listed):
+    """Pairs of missing segments, lone Empties, Empties off their keyframe objects, and
+    segments with few pairs."""
+    out = []
+    counts = [0] * max(len(listed) - 1, 0)
+    for pair in pairs:
+        name = pair.a if pair.a is not None else pair.b
+        if not 0 <= pair.segment < len(counts):
             out.append(Problem(ERROR, f"Feature '{name}' is for keyframes {pair.segment + 1} and "
                                       f"{pair.segment + 2}, which do not exist: remove the pair."))
             continue
@@ -99,14 +163,11 @@ def problems(scene, settings=None, depsgraph=None):
             out.append(Problem(ERROR, f"Feature '{name}' has no partner: delete it, or select it "
                                       "with another Empty and press Pair Selected.", pair.segment))
             continue
-        kf_a = kfs[pair.segment].object
-        kf_b = kfs[pair.segment + 1].object
-        bad = [(s, e, kf) for s, e, kf in (("A", pair.a, kf_a), ("B", pair.b, kf_b))
-               if kf is not None and e.parent != kf]
-        for side, e, kf in bad:
-            out.append(Problem(WARNING, f"'{e.name}' is not parented to keyframe "
-                                        f"{pair.segment + 1 + (side == 'B')} '{kf.name}': it will not "
-                                        "follow that object; parent it (Ctrl+P > Keep Transform).",
+        for side in pair.unparented:
+            empty, number = (pair.a, pair.segment + 1) if side == "A" else (pair.b, pair.segment + 2)
+            out.append(Problem(WARNING, f"'{empty}' is not parented to keyframe {number} "
+                                        f"'{listed[number - 1].name}': it will not follow that "
+                                        "object; parent it (Ctrl+P > Keep Transform).",
                                pair.segment))
         counts[pair.segment] += 1
     for seg, n in enumerate(counts):
@@ -115,104 +176,68 @@ def problems(scene, settings=None, depsgraph=None):
                                         f"{count(n, 'feature pair')}: {MIN_PAIRS_HINT} or more on "
                                         "distinctive points guide the motion better (Add Feature "
                                         "Pair).", seg))
-    volume = volumes.problem(settings)
-    if volume:
-        out.append(Problem(ERROR, volume))
-    out.sort(key=lambda p: p.level != ERROR)
     return out
 
 
-def _depsgraph(scene, depsgraph):
-    return depsgraph if depsgraph is not None else scene.view_layers[0].depsgraph
+def surface_problem(surface):
+    """``(level, message)`` about a keyframe's surface, or None if it is sound.
 
+    Parameters
+    ----------
+    surface : scene_io.Surface
+        The counts of the keyframe object's evaluated mesh.
 
-def surface_check(obj, depsgraph):
-    """``(level, message)`` about ``obj``'s surface as a keyframe, or None if it is sound.
-
-    Counts faces per edge on the evaluated mesh (one ``foreach_get`` and a
-    ``bincount``): an edge with one face lies on a hole, one with three or more
-    is non-manifold. The core reads both as solids (generalised winding
-    numbers, core/fields/sdf.py), so they are warnings; what it cannot read is a
-    surface that encloses no volume, such as a plane. For an open mesh the
-    volume (divergence theorem) is taken about the centre of its hole edges,
-    so the holes' missing caps add next to nothing. Objects without modifiers
-    are read directly.
+    Returns
+    -------
+    tuple of (str, str) or None
+        An edge with one face lies on a hole, one with three or more is non-manifold: the
+        core reads both as solids, so they are a `WARNING`. What it cannot read is a
+        surface that encloses no volume, such as a plane: an `ERROR`. The message follows
+        the keyframe's name ("Keyframe 2 'Plane' ...").
     """
-    ob = obj.evaluated_get(depsgraph) if obj.modifiers else obj
-    mesh = ob.to_mesh() if obj.modifiers else obj.data
-    try:
-        return _surface_problem(mesh, " after its modifiers" if obj.modifiers else "")
-    finally:
-        if obj.modifiers:
-            ob.to_mesh_clear()
-
-
-_surfaces = {}  # cheap state of a keyframe object -> surface_check's answer
-
-
-def _cached_surface_check(obj, depsgraph):
-    mesh = obj.data
-    key = (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
-           tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers))
-    if key not in _surfaces:
-        _surfaces[key] = surface_check(obj, depsgraph)
-    return _surfaces[key]
-
-
-def forget_surfaces(scene=None, depsgraph=None):
-    """Drop the kept surface checks: after a geometry update, a file load, re-registering."""
-    if depsgraph is None or any(u.is_updated_geometry for u in depsgraph.updates):
-        _surfaces.clear()
-
-
-def _surface_problem(mesh, after=""):
-    if len(mesh.polygons) == 0:
+    after = " after its modifiers" if surface.modified else ""
+    if surface.faces == 0:
         return ERROR, f"has no faces{after}: a keyframe must be a closed surface."
-    edge_of_loop = np.empty(len(mesh.loops), dtype=np.int32)
-    mesh.loops.foreach_get("edge_index", edge_of_loop)
-    faces_per_edge = np.bincount(edge_of_loop, minlength=len(mesh.edges))
-    co = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
-    mesh.vertices.foreach_get("co", co)
-    co = co.reshape(-1, 3)
-    on_hole = faces_per_edge == 1
-    n_open = int(np.count_nonzero(on_hole))
-    if _volume(mesh, co, on_hole) <= 1e-6 * float(np.ptp(co, axis=0).max()) ** 3:
-        if n_open:
+    if surface.volume <= 1e-6 * surface.extent ** 3:
+        if surface.open_edges:
             return ERROR, ("is open and encloses no volume: close it with Mesh > Clean Up > "
                            "Fill Holes, or give it thickness with a Solidify modifier.")
         return ERROR, "encloses no volume (it is flat): give it thickness with a Solidify modifier."
-    if n_open:
-        return WARNING, (f"has holes ({n_open} open edges): the bake fills small ones; to be "
-                         "sure, close them with Mesh > Clean Up > Fill Holes.")
-    shared = int(np.count_nonzero(faces_per_edge > 2))
-    if shared:
-        return WARNING, (f"is non-manifold ({shared} edges shared by 3 or more faces): if its "
-                         "parts come out wrong, find them with Select > Select All by Trait > "
-                         "Non Manifold.")
+    if surface.open_edges:
+        return WARNING, (f"has holes ({surface.open_edges} open edges): the bake fills small ones; "
+                         "to be sure, close them with Mesh > Clean Up > Fill Holes.")
+    if surface.shared_edges:
+        return WARNING, (f"is non-manifold ({surface.shared_edges} edges shared by 3 or more "
+                         "faces): if its parts come out wrong, find them with Select > Select All "
+                         "by Trait > Non Manifold.")
     return None
 
 
-def _volume(mesh, co, on_hole):
-    """|Volume| enclosed by the triangles, about the centre of the hole edges (if any)."""
-    if on_hole.any():
-        ends = np.empty(len(mesh.edges) * 2, dtype=np.int32)
-        mesh.edges.foreach_get("vertices", ends)
-        origin = co[ends.reshape(-1, 2)[on_hole].ravel()].mean(axis=0)
-    else:
-        origin = co.mean(axis=0)
-    mesh.calc_loop_triangles()
-    tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-    mesh.loop_triangles.foreach_get("vertices", tris)
-    a, b, c = (co[tris[k::3]] - origin for k in range(3))
-    return abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
-
-
 def errors(found):
+    """The `ERROR` problems among ``found`` (those that block a bake), in order."""
     return [p for p in found if p.level == ERROR]
 
 
-def raise_on_errors(scene, settings=None):
-    """Raise ValueError listing every blocking problem (what is wrong and what to do)."""
-    errs = errors(problems(scene, settings))
+def raise_on_errors(inputs):
+    """Refuse to bake a description with blocking problems.
+
+    Parameters
+    ----------
+    inputs : scene_io.BakeInput
+        The bake as read, with its keyframes' meshes (`scene_io.read`).
+
+    Raises
+    ------
+    ValueError
+        Listing every blocking problem of `check` (what is wrong and what to do); else
+        naming the first keyframe whose mesh, read on its own frame, has no faces (its
+        modifiers may empty it on that frame only).
+    """
+    errs = errors(check(inputs))
     if errs:
         raise ValueError("Cannot bake: " + " ".join(p.message for p in errs))
+    for i, kf in enumerate(inputs.keyframes):
+        if len(kf.faces) == 0:
+            raise ValueError(f"Keyframe {i} ('{kf.name}', frame {kf.frame}) has no faces after "
+                             "modifiers on that frame: check its modifier stack (a keyframe must "
+                             "be a closed surface).")

@@ -4,7 +4,7 @@ import bpy
 import numpy as np
 import pytest
 
-from keyframe_implicit.blender import bake, fcurves, output, scene_io
+from keyframe_implicit.blender import bake, fcurves, features, output, scene_io, validate
 from keyframe_implicit.core.base.progress import Cancelled
 
 # Two unit spheres (equal volume), the second moved along x: frames 1..7.
@@ -124,7 +124,7 @@ def test_cancel_mid_bake_leaves_scene_unchanged(scene, kfi):
         if fraction > 0.0:  # the first stage is under way: cancel mid-bake
             job.cancel()  # exactly what ESC does in the modal operator
 
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
                        on_progress=observer)
     job.start()  # worker thread, as from invoke()
     job.join(120)
@@ -244,7 +244,7 @@ def test_modal_bake_esc_cancels_and_changes_nothing(scene, kfi):
     kfi.build_spheres(TWO)
     state = kfi.snapshot()
     started = []
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
                        on_progress=lambda j, f, m: started.append(m) or _wait_for_esc(j))
     me, ctx, reports = _modal_operator(job, scene)
     job.start()
@@ -276,7 +276,7 @@ def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
     from keyframe_implicit.blender import ops
 
     kfi.build_spheres(TWO)
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     me, ctx, reports = _modal_operator(job, scene)
     job.start()
     assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}
@@ -295,7 +295,7 @@ def test_modal_bake_writes_over_several_turns_and_esc_there_changes_nothing(scen
     kfi.build_spheres(TWO)
     state = kfi.snapshot()
     meshes = set(bpy.data.meshes)
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     me, ctx, reports = _modal_operator(job, scene)
     me._write_budget = 0.0  # one piece a turn (the operator's budget writes this one in one)
     job.start()
@@ -317,7 +317,7 @@ def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(sce
     from keyframe_implicit.blender import ops
 
     kfi.build_spheres(TWO)
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     me, ctx, _ = _modal_operator(job, scene)  # the job is not started: its text stays put
     regions = {}
     areas = []
@@ -360,7 +360,7 @@ def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
     before = kfi.mesh_hash(cube.data)
     n_meshes = len(bpy.data.meshes)
 
-    inp = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
+    inp = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
     assert inp.resolution == 48 and inp.weights["rigidity"] == 3.0 and inp.frames == [1, 5]
     ka = inp.keyframes[0]
     ref, tris = kfi.evaluated_arrays(cube)  # what Blender evaluates: 26 verts after subsurf
@@ -374,7 +374,7 @@ def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
     assert inp.pair_ids == [["0.0", "0.1"]]
     # reading never touches the keyframes' data nor leaves temporary meshes behind
     assert kfi.mesh_hash(cube.data) == before and len(bpy.data.meshes) == n_meshes
-    assert scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 24).resolution == 24
+    assert bake.collect(scene, bpy.context.evaluated_depsgraph_get(), 24).resolution == 24
 
 
 def test_keyframe_emptied_by_modifiers_fails_cleanly(scene, kfi):
@@ -387,3 +387,68 @@ def test_keyframe_emptied_by_modifiers_fails_cleanly(scene, kfi):
     with pytest.raises(RuntimeError, match="no faces after its modifiers"):
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
     assert kfi.snapshot() == state
+
+
+def test_keyframe_emptied_by_modifiers_on_its_own_frame_only_fails_cleanly(scene, kfi):
+    _, b = kfi.build_spheres(TWO)
+    b.vertex_groups.new(name="all").add(range(len(b.data.vertices)), 1.0, "REPLACE")
+    mask = b.modifiers.new("Mask", "MASK")
+    mask.vertex_group = "all"  # every face on frame 1, where the panel's checks look ...
+    mask.keyframe_insert("invert_vertex_group", frame=1)
+    mask.invert_vertex_group = True  # ... none on frame 7, KeyB's, where the bake reads it
+    mask.keyframe_insert("invert_vertex_group", frame=7)
+    scene.frame_set(1)
+    assert not validate.errors(validate.problems(scene))
+    state = kfi.snapshot()
+    with pytest.raises(ValueError, match=r"\('KeyB', frame 7\) has no faces after modifiers on "
+                                         "that frame: check its modifier stack"):
+        bake.bake_scene(scene, kfi.RES)
+    assert scene.frame_current == 1 and kfi.snapshot() == state
+
+
+def _spy(calls, real):
+    """``real``, recording each call's result in ``calls``."""
+    def spy(*args, **kwargs):
+        calls.append(real(*args, **kwargs))
+        return calls[-1]
+    return spy
+
+
+def test_a_bake_reads_the_scene_once_then_checks_and_bakes_that_reading(scene, kfi, monkeypatch):
+    kfi.build_spheres(TWO)
+    reads, walks, checked, baked = [], [], [], []
+    monkeypatch.setattr(scene_io, "read", _spy(reads, scene_io.read))
+    monkeypatch.setattr(features, "pairs", _spy(walks, features.pairs))
+    real_check = validate.raise_on_errors
+    monkeypatch.setattr(validate, "raise_on_errors",
+                        lambda inputs: checked.append(inputs) or real_check(inputs))
+
+    class Worker:  # the worker process's stand-in: keeps what it is given to bake, then stops
+        def __init__(self, arguments):
+            baked.append(arguments)
+
+        def result(self, progress):
+            raise Cancelled("stopped by the test")
+
+        def cancel(self):
+            pass
+
+    monkeypatch.setattr(bake, "Worker", Worker)
+    with pytest.raises(Cancelled):
+        bake.bake_scene(scene, kfi.RES)
+    assert len(reads) == 1 and len(walks) == 1  # one reading, one walk over the feature pairs
+    assert len(checked) == 1 and checked[0] is reads[0]  # the checks ran on that reading ...
+    assert baked[0]["keyframes"] is reads[0].keyframes  # ... and the bake got the same
+    assert baked[0]["features"] is reads[0].features and len(reads[0].keyframes) == 2
+
+
+def test_the_problem_list_reads_no_meshes(scene, kfi, monkeypatch):
+    kfi.build_spheres(TWO)
+    scene.frame_end = 5  # keyframe B on frame 7: a problem to find
+    meshes = []
+    monkeypatch.setattr(scene_io, "mesh_arrays", _spy(meshes, scene_io.mesh_arrays))
+    found = validate.problems(scene)
+    assert [p.message for p in found] == [
+        "Keyframe 2 is on frame 7, outside the scene's frames 1-5: Bake widens the frame "
+        "range to cover it."]
+    assert meshes == []  # the panel asks on every redraw: frames and meshes are the bake's

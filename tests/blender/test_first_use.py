@@ -69,10 +69,10 @@ def test_bake_selects_result_hides_keyframes_covers_range_and_undo_restores(scen
 def test_rebake_with_hidden_keyframes_reads_the_same_shapes(scene, kfi):
     a, _ = kfi.build_spheres(TWO)
     a.modifiers.new("Subdivision", "SUBSURF").levels = 1  # only the evaluated mesh has these
-    first = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES)
+    first = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES)
     assert bpy.ops.keyframe_implicit.bake(resolution=kfi.RES) == {"FINISHED"}
     assert a.hide_get()
-    again = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES)
+    again = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES)
     for k0, k1 in zip(first.keyframes, again.keyframes):
         np.testing.assert_array_equal(k0.vertices, k1.vertices)
         np.testing.assert_array_equal(k0.faces, k1.faces)
@@ -208,6 +208,11 @@ def test_open_plane_is_refused_before_any_work(scene, kfi, monkeypatch):
                for p in found)
 
 
+def _surface_check(obj, depsgraph):
+    """The surface check of one object: its counts read, then judged."""
+    return validate.surface_problem(scene_io.read_surface(obj, depsgraph))
+
+
 def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, kfi):
     tets = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (0, -1, 0), (0, 0, -1)]
     two_tets = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3),  # share edge 0-1 with
@@ -226,14 +231,14 @@ def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, 
     bm.to_mesh(holed.data)
     bm.free()
     dg = bpy.context.evaluated_depsgraph_get()
-    level, msg = validate.surface_check(bow, dg)
+    level, msg = _surface_check(bow, dg)
     assert level == validate.WARNING  # the core reads it as a solid
     assert msg.startswith("is non-manifold (1 edges shared by 3") and "Non Manifold" in msg
-    level, msg = validate.surface_check(holed, dg)
+    level, msg = _surface_check(holed, dg)
     assert level == validate.WARNING and msg.startswith("has holes (8 open edges)"), msg
-    assert validate.surface_check(pillow, dg) == (
+    assert _surface_check(pillow, dg) == (
         validate.ERROR, "encloses no volume (it is flat): give it thickness with a Solidify modifier.")
-    assert validate.surface_check(ball, dg) is None
+    assert _surface_check(ball, dg) is None
     _keyframe(bow, 1)
     _keyframe(pillow, 9)
     errs = [p.message for p in validate.errors(validate.problems(scene))]

@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 import pytest
 
-from keyframe_implicit.blender import bake, output, scene_io
+from keyframe_implicit.blender import bake, output
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
 
@@ -61,7 +61,7 @@ def test_rebake_unreferenced_output_is_still_replaced(scene, kfi):
 
 
 def _collect(scene):
-    return scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
+    return bake.collect(scene, bpy.context.evaluated_depsgraph_get(), 0)
 
 
 def _keyed_on_two_frames(obj, owner, prop, values, frames=(1, 9)):

@@ -135,10 +135,10 @@ def test_panels_draw_baked_scene(scene, kfi):
 
 
 def test_panel_shows_a_running_bake(scene, kfi):
-    from keyframe_implicit.blender import bake, ops, scene_io
+    from keyframe_implicit.blender import bake, ops
 
     kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (1.5, 0, 0), 1, 4)])
-    job = bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     job._progress(0.42, "solving the volume map")
     ops._running.append(job)
     try:

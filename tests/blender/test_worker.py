@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 import pytest
 
-from keyframe_implicit.blender import bake, scene_io
+from keyframe_implicit.blender import bake
 from keyframe_implicit.core.bake import pipeline
 from keyframe_implicit.core.surface.meshdata import resolve_output
 
@@ -37,7 +37,7 @@ FAULT = """
 
 
 def _job(scene, kfi, **kwargs):
-    return bake.BakeJob(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+    return bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
                         **kwargs)
 
 
@@ -104,7 +104,7 @@ def test_worker_failure_is_told_clearly_and_changes_nothing(scene, kfi, in_worke
 def test_core_refusal_keeps_its_text(scene, kfi):
     kfi.build_spheres(TWO)
     state = kfi.snapshot()
-    inputs = scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), 4000)
+    inputs = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), 4000)
     with pytest.raises(ValueError) as here:  # the core's own refusal, in this process
         pipeline.animate(inputs.keyframes, inputs.features, resolution=4000)
     job = bake.BakeJob(inputs)
@@ -166,7 +166,7 @@ def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypa
         if kind is _InThreadJob:  # the same stage, in this process's core
             monkeypatch.setattr(pipeline, "animate", pipeline.animate)
             exec(compile(__import__("textwrap").dedent(fault), "fault", "exec"), {})
-        job = kind(scene_io.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+        job = kind(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
         me, ctx, reports = _modal_operator(job, scene)
         job.start()
         assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}, reports
