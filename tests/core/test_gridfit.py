@@ -146,8 +146,7 @@ def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     """A turning sphere through `animate` with its helper process, in a fresh interpreter:
     the peak resident sets of both processes against the model, at two sizes. The model
     is fitted on Python 3.13 / numpy 2 to the benchmark's cases (benchmarks/README.md,
-    "The trajectories' right-hand side without its matrix": 11.2 % at most on sixteen
-    rows); here it meets the other Python and numpy line too (3.11 / numpy 1). The sphere is
+    "Scale and the memory model": 11.2 % at most on sixteen rows); here it meets the other Python and numpy line too (3.11 / numpy 1). The sphere is
     lighter than those cases for its grid, and below 64 cells the two interpreters are
     most of the peak (constants of earlier fits were 20-28 % high at 56-64 cells); with the
     current constants the model is low by 19.0 % at 72 cells and by 0.2 % at 88 (3.13 /

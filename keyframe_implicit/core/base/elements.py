@@ -147,7 +147,7 @@ def deformation_gradient(Y: np.ndarray, G: np.ndarray) -> np.ndarray:
 
     One matrix product of the corners as rows (E, 2**d d) with the constant operator of
     `_corner_operator`: a single BLAS call, where a stack of E Q small products costs
-    several times as much (benchmarks/README.md, "F in one matrix product").
+    several times as much.
     """
     E, K, d = Y.shape
     return (Y.reshape(E, K * d) @ _corner_operator(G)).reshape(E, len(G), d, d)

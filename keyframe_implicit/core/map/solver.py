@@ -4,7 +4,7 @@
 in `keyframe_implicit.core.base.elements`) subject to the feature constraints of
 eq. 2.8 / 2.14-2.20 (`keyframe_implicit.core.map.constraints`), starting from the
 RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.map.rbf`). The measurements
-behind every default below are in benchmarks/README.md ("Solver").
+behind every default below are in benchmarks/README.md ("Map solver").
 
 Algorithm
 ---------

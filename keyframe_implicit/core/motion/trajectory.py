@@ -206,7 +206,7 @@ class Trajectories:
     tolerance : float
         Global method: CG stops when the residual of every coordinate is below
         ``tolerance`` times its right-hand side's norm (the default keeps positions
-        within about 1e-4 cells of the exact solve; benchmarks/README.md, "Trajectories").
+        within about 1e-4 cells of the exact solve; benchmarks/README.md, "Trajectory solves").
     cancel : callable() -> bool, optional
         Polled during the setup and every CG iteration; `progress.Cancelled`
         is raised once it returns True.

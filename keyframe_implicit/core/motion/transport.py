@@ -145,8 +145,8 @@ def _corner_gather(grid, node_positions, corner_of_cell):
     corners of cells c0:c1 (2^d, d, c1 - c0): ``node_positions`` (N, d) in world units,
     ``corner_of_cell`` (C, 2^d) rows into it. The nodes go to index units once, then each
     coordinate is gathered into its own rows, rather than gathering the cells' corners
-    (C, 2^d, d) and laying them out again (benchmarks/README.md, "The idle core in
-    Gauss-Newton's assembly")."""
+    (C, 2^d, d) and laying them out again (benchmarks/README.md, "Inverse lookup in
+    runs of candidates")."""
     u = np.ascontiguousarray(grid.to_index(node_positions).T)  # (d, N)
 
     def corners_of(c0, c1):
