@@ -190,11 +190,9 @@ def test_property_group_contract(scene):
     item = s.keyframes.add()
     assert {"object", "frame"} <= set(item.bl_rna.properties.keys())
     # the panel starts from the solver's measured weights, not a guess of its own
-    from keyframe_implicit.core.map.solver import solve_map
-    import inspect
+    from keyframe_implicit.core.map.options import MapOptions
 
-    sig = inspect.signature(solve_map).parameters
-    assert s.weights() == {k: sig[f"{k}_weight"].default for k in ("volume", "rigidity", "levelset")}
+    assert s.weights() == MapOptions().weights  # what solve_map uses when given none
     assert s.weights() == {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
     assert "DEFAULT_CLOSED" in panel.KFI_PT_advanced.bl_options
 

@@ -49,6 +49,37 @@ from ..base.sampling import cell_weights
 __all__ = ["FeatureConstraints"]
 
 
+def _patches(x, xa, cell_nodes, radius, spacing):
+    """Which features get an affine patch, its radius, and its nodes among ``x`` (the
+    solved nodes): a feature's patch must reach past its own cell and may not reach half
+    way to another feature; a patch that shares a node with another patch or with a hard
+    feature's cell becomes a hard constraint. Returns (is_patch, rho, members)."""
+    N = len(xa)
+    reach = np.linalg.norm(x[cell_nodes] - xa[:, None, :], axis=-1).max(axis=1) if N else np.zeros(0)
+    rho = np.full(N, float(radius))
+    if N > 1:
+        dist = np.linalg.norm(xa[:, None] - xa[None], axis=-1)
+        np.fill_diagonal(dist, np.inf)
+        rho = np.minimum(rho, 0.5 * dist.min(axis=1))
+    is_patch = rho >= reach * (1 + 1e-9) + 1e-12 * spacing
+    tree = cKDTree(x) if N else None
+    members = [np.asarray(tree.query_ball_point(xa[i], rho[i]), dtype=np.int64) if is_patch[i]
+               else np.zeros(0, np.int64) for i in range(N)]
+    for _ in range(N + 1):
+        owner = np.zeros(len(x), dtype=np.int64)
+        for i in range(N):
+            if is_patch[i]:
+                owner[members[i]] += 1
+            else:
+                owner[cell_nodes[i]] += 1
+        bad = [i for i in range(N) if is_patch[i] and np.any(owner[members[i]] > 1)]
+        if not bad:
+            break
+        for i in bad:
+            is_patch[i] = False
+    return is_patch, rho, members
+
+
 class FeatureConstraints:
     """Null-space parameterisation of the feature constraints on the solved nodes.
 
@@ -83,29 +114,7 @@ class FeatureConstraints:
             raise ValueError("internal: a feature cell is not in the solved region")
         self.cell_nodes, self.cell_w = cell_nodes, w
 
-        # patch radius per feature, demote to hard when the patch cannot work
-        reach = np.linalg.norm(self.x[cell_nodes] - xa[:, None, :], axis=-1).max(axis=1) if N else np.zeros(0)
-        rho = np.full(N, float(radius))
-        if N > 1:
-            dist = np.linalg.norm(xa[:, None] - xa[None], axis=-1)
-            np.fill_diagonal(dist, np.inf)
-            rho = np.minimum(rho, 0.5 * dist.min(axis=1))
-        is_patch = rho >= reach * (1 + 1e-9) + 1e-12 * grid.spacing
-        tree = cKDTree(self.x) if N else None
-        members = [np.asarray(tree.query_ball_point(xa[i], rho[i]), dtype=np.int64) if is_patch[i]
-                   else np.zeros(0, np.int64) for i in range(N)]
-        for _ in range(N + 1):
-            owner = np.zeros(self.n, dtype=np.int64)
-            for i in range(N):
-                if is_patch[i]:
-                    owner[members[i]] += 1
-                else:
-                    owner[cell_nodes[i]] += 1
-            bad = [i for i in range(N) if is_patch[i] and np.any(owner[members[i]] > 1)]
-            if not bad:
-                break
-            for i in bad:
-                is_patch[i] = False
+        is_patch, rho, members = _patches(self.x, xa, cell_nodes, radius, grid.spacing)
         self.is_patch = is_patch
         self.rho = np.where(is_patch, rho, 0.0)
         pid = np.full(self.n, -1, dtype=np.int64)

@@ -224,6 +224,54 @@ def rigid_alignment(points_a, phi_b, grid: Grid, target_points, features_a=None,
     return best
 
 
+def _rigid_map(mask, fa, fb, phi_b, labels_b, centroids_b, grid, pts):
+    """The map of one component of A (``mask``) whose features cannot carry an RBF: the rigid
+    motion onto the component of B its features (or, without any, its centroid) point at
+    (`rigid_alignment`), plus a Gaussian RBF correction that lands the features exactly
+    where that is well conditioned. Returns y at every point of ``pts``."""
+    nb = len(centroids_b)
+    comp_pts = grid.to_world(np.argwhere(mask))
+    if len(fb):
+        tlab = _nearest_label(labels_b, grid, fb)
+        target = np.bincount(tlab, minlength=nb + 1)[1:].argmax() + 1
+    else:
+        ca = comp_pts.mean(axis=0)
+        target = int(np.argmin(np.sum((centroids_b - ca) ** 2, axis=1))) + 1
+    target_pts = grid.to_world(np.argwhere(labels_b == target))
+    R, t = rigid_alignment(comp_pts, phi_b, grid, target_pts, fa, fb)
+    y = pts @ R.T + t
+    if len(fa):
+        resid = fb - (fa @ R.T + t)
+        if np.max(np.abs(resid)) > 0:
+            _, _, s = _principal_frame(comp_pts)
+            sigma = max(float(np.sqrt(np.sum(s ** 2))), 2 * grid.spacing)
+            rigid = y
+            y = _guarded(lambda: rigid + RBFInterpolator(
+                fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)(pts),
+                grid, mask.reshape(-1))
+            if y is None:  # an ill-conditioned correction: the solver's constraints do it
+                y = rigid
+    return y
+
+
+def _blend(maps, labels, pts):
+    """One map from the components' maps: each component's own map on its material, and
+    between them the maps weighted by 1 / distance^4 to each component."""
+    num = np.zeros_like(pts)
+    den = np.zeros(len(pts))
+    out = np.zeros_like(pts)
+    flat = labels.reshape(-1)
+    for k in range(1, len(maps) + 1):
+        dist = ndimage.distance_transform_edt(labels != k).reshape(-1)
+        w = np.where(dist > 0, 1.0 / np.maximum(dist, 1e-12) ** 4, 0.0)
+        num += w[:, None] * maps[k - 1]
+        den += w
+        out[flat == k] = maps[k - 1][flat == k]
+    outside = flat == 0
+    out[outside] = num[outside] / den[outside, None]
+    return out
+
+
 def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
     """Initial map y(x) of every node (eq. 2.1-2.5 per component, rigid fallback).
 
@@ -258,27 +306,7 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
                 maps.append(y)
                 methods.append("rbf")
                 continue
-        comp_pts = grid.to_world(np.argwhere(mask))
-        if len(fb):
-            tlab = _nearest_label(labels_b, grid, fb)
-            target = np.bincount(tlab, minlength=nb + 1)[1:].argmax() + 1
-        else:
-            ca = comp_pts.mean(axis=0)
-            target = int(np.argmin(np.sum((centroids_b - ca) ** 2, axis=1))) + 1
-        target_pts = grid.to_world(np.argwhere(labels_b == target))
-        R, t = rigid_alignment(comp_pts, phi_b, grid, target_pts, fa, fb)
-        y = pts @ R.T + t
-        if len(fa):
-            resid = fb - (fa @ R.T + t)
-            if np.max(np.abs(resid)) > 0:
-                _, _, s = _principal_frame(comp_pts)
-                sigma = max(float(np.sqrt(np.sum(s ** 2))), 2 * grid.spacing)
-                rigid = y
-                y = _guarded(lambda: rigid + RBFInterpolator(
-                    fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)(pts),
-                    grid, mask.reshape(-1))
-                if y is None:  # an ill-conditioned correction: the solver's constraints do it
-                    y = rigid
+        y = _rigid_map(mask, fa, fb, phi_b, labels_b, centroids_b, grid, pts)
         maps.append(y)
         methods.append("rigid")
 
@@ -287,16 +315,5 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
         return InitialMap(pts.reshape(shape).copy(), labels, methods, comp_of)
     if n == 1:
         return InitialMap(maps[0].reshape(shape), labels, methods, comp_of)
-    num = np.zeros_like(pts)
-    den = np.zeros(len(pts))
-    out = np.zeros_like(pts)
-    flat = labels.reshape(-1)
-    for k in range(1, n + 1):
-        dist = ndimage.distance_transform_edt(labels != k).reshape(-1)
-        w = np.where(dist > 0, 1.0 / np.maximum(dist, 1e-12) ** 4, 0.0)
-        num += w[:, None] * maps[k - 1]
-        den += w
-        out[flat == k] = maps[k - 1][flat == k]
-    outside = flat == 0
-    out[outside] = num[outside] / den[outside, None]
+    out = _blend(maps, labels, pts)
     return InitialMap(out.reshape(shape), labels, methods, comp_of)

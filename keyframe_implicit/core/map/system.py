@@ -32,8 +32,57 @@ HESSIAN_DTYPE = np.float32
 #: (`MapSystem._element_halves`, `MapSystem.product`).
 _SPLIT_FROM = 4096
 
+def _solved_cells(phi_a, grid, xa, margin_cells, margin_weight):
+    """The cells the map is solved on: A's material (Phi < 0 at the cell's centre, weight
+    1), its margin of ``margin_cells`` cells (weight ``margin_weight``) and every feature
+    point's cell. Returns (material, weight, solved), each of the cells' shape."""
+    h, cs = grid.spacing, elements.corners(grid.dim)
+    centre = np.zeros(tuple(n - 1 for n in grid.shape))  # Phi at each cell's centre
+    for v in elements.corner_views(phi_a):
+        centre += v
+    centre /= len(cs)
+    mat = centre < 0
+    margin = ((~mat) & (centre < margin_cells * h) if (margin_weight > 0 and margin_cells > 0)
+              else np.zeros_like(mat))
+    weight = np.where(mat, 1.0, np.where(margin, margin_weight, 0.0))
+    forced = np.zeros(centre.shape, dtype=bool)
+    if len(xa):
+        flat, _ = cell_weights(grid, xa)
+        base = np.stack(np.unravel_index(flat[:, 0], grid.shape), axis=-1)
+        forced[tuple(base.T)] = True
+    return mat, weight, mat | margin | forced
+
+
+def _stencil(grid, active, idx, cs):
+    """The 3**d neighbour stencil of the solved nodes (``active``, grid indices ``idx``):
+    its offsets, the centre's column, each element's corner pairs as stencil columns, and
+    the BSR pattern over the whole stencil."""
+    d, n, K = grid.dim, len(active), len(cs)
+    offs = np.array(list(np.ndindex(*(3,) * d))) - 1  # lexicographic -> sorted columns
+    lookup = np.full(grid.size, -1, dtype=np.int64)
+    lookup[active] = np.arange(n)
+    nbr = np.full((n, len(offs)), -1, dtype=np.int32)
+    for o, off in enumerate(offs):
+        q = idx + off
+        ok = np.all((q >= 0) & (q < np.asarray(grid.shape)), axis=1)
+        nbr[ok, o] = lookup[np.ravel_multi_index(tuple(q[ok].T), grid.shape)]
+    centre_off = int(np.flatnonzero(np.all(offs == 0, axis=1))[0])
+    code = {tuple(o): i for i, o in enumerate(offs.tolist())}
+    # offset of corner c' seen from corner c: block [c, c'] of an element is stencil block
+    # (node of c, pair_off[c, c'])
+    pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
+                         for c1 in range(K)], dtype=np.int32)
+    # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
+    # its block stays zero, so the stencil array is the BSR data without a copy
+    own = np.broadcast_to(np.arange(n, dtype=np.int32)[:, None], nbr.shape)
+    bsr_indices = np.where(nbr >= 0, nbr, own).reshape(-1)
+    bsr_indptr = (np.arange(n + 1) * len(offs)).astype(np.int32)
+    return offs, centre_off, pair_off, bsr_indices, bsr_indptr
+
+
 class MapSystem:
-    """Region, elements, stencil and constraints of one grid level."""
+    """Eq. 2.6 on one grid of the hierarchy: the solved region (its nodes `active`, its
+    cells `elem`), the elements' quadrature, the node stencil and the feature constraints."""
 
     def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, margin_cells, margin_weight, radius,
                  patch_rigidity=1.0):
@@ -43,21 +92,7 @@ class MapSystem:
         h = grid.spacing
         self.eps = 1.5 * h  # eq. 2.7
         cs = elements.corners(d)
-        centre = np.zeros(tuple(n - 1 for n in grid.shape))  # Phi at each cell's centre
-        for v in elements.corner_views(phi_a):
-            centre += v
-        centre /= len(cs)
-        cshape = centre.shape
-        mat = centre < 0
-        margin = ((~mat) & (centre < margin_cells * h) if (margin_weight > 0 and margin_cells > 0)
-                  else np.zeros_like(mat))
-        weight = np.where(mat, 1.0, np.where(margin, margin_weight, 0.0))
-        forced = np.zeros(cshape, dtype=bool)
-        if len(xa):
-            flat, _ = cell_weights(grid, xa)
-            base = np.stack(np.unravel_index(flat[:, 0], grid.shape), axis=-1)
-            forced[tuple(base.T)] = True
-        act_cell = mat | margin | forced
+        mat, weight, act_cell = _solved_cells(phi_a, grid, xa, margin_cells, margin_weight)
         cells = np.argwhere(act_cell)  # (E, d)
         self.cell_weight = weight[act_cell]
         self.cell_material = mat[act_cell]
@@ -77,28 +112,9 @@ class MapSystem:
             self.node_weight += np.bincount(self.elem[:, c], weights=self.cell_weight * h ** d / K,
                                             minlength=self.n)
         self.h_phi = heaviside(phi_a.reshape(-1)[active], self.eps)
-        # 3**d neighbour stencil
-        offs = np.array(list(np.ndindex(*(3,) * d))) - 1  # lexicographic -> sorted columns
-        self.offsets = offs
-        lookup = np.full(grid.size, -1, dtype=np.int64)
-        lookup[active] = np.arange(self.n)
         idx = np.stack(np.unravel_index(active, grid.shape), axis=-1)
-        nbr = np.full((self.n, len(offs)), -1, dtype=np.int32)
-        for o, off in enumerate(offs):
-            q = idx + off
-            ok = np.all((q >= 0) & (q < np.asarray(grid.shape)), axis=1)
-            nbr[ok, o] = lookup[np.ravel_multi_index(tuple(q[ok].T), grid.shape)]
-        self.centre_off = int(np.flatnonzero(np.all(offs == 0, axis=1))[0])
-        code = {tuple(o): i for i, o in enumerate(offs.tolist())}
-        # offset of corner c' seen from corner c: block [c, c'] of an element is stencil block
-        # (node of c, pair_off[c, c'])
-        self.pair_off = np.array([[code[tuple((cs[c2] - cs[c1]).tolist())] for c2 in range(K)]
-                                  for c1 in range(K)], dtype=np.int32)
-        # BSR pattern over the whole stencil: a missing neighbour points at the node itself and
-        # its block stays zero, so the stencil array is the BSR data without a copy
-        own = np.broadcast_to(np.arange(self.n, dtype=np.int32)[:, None], nbr.shape)
-        self.bsr_indices = np.where(nbr >= 0, nbr, own).reshape(-1)
-        self.bsr_indptr = (np.arange(self.n + 1) * len(offs)).astype(np.int32)
+        (self.offsets, self.centre_off, self.pair_off, self.bsr_indices,
+         self.bsr_indptr) = _stencil(grid, active, idx, cs)
         self.cons = FeatureConstraints(grid, active, xa, yb, radius)
         self.x = grid.to_world(idx)
         # cells inside one feature patch: their F is the patch's affine A_i (see `patch_rigidity`)

@@ -182,6 +182,39 @@ def _cell_polar(y, lc, h):
 
 
 # ----------------------------------------------------------------------------
+def _checked(grid, mapped, material, components, method, margin_cells, margin_weight):
+    """`Trajectories`' inputs checked, as (map, material, components labels on the
+    material only); ValueError saying which to fix."""
+    if not isinstance(grid, Grid):
+        raise ValueError("grid must be a keyframe_implicit.core.Grid.")
+    d = grid.dim
+    y = np.asarray(mapped, dtype=float)
+    if y.shape != grid.shape + (d,):
+        raise ValueError(f"mapped has shape {y.shape}; expected grid.shape + (d,) = "
+                         f"{grid.shape + (d,)} (one mapped position per node).")
+    if not np.all(np.isfinite(y)):
+        raise ValueError("mapped contains NaN or infinite positions; the map must be finite.")
+    mat = np.asarray(material, dtype=bool)
+    if mat.shape != grid.shape:
+        raise ValueError(f"material has shape {mat.shape}; expected grid shape {grid.shape}.")
+    if not mat.any():
+        raise ValueError("material is empty: keyframe A has no node with Phi < 0; "
+                         "check the sign convention (negative inside) and the grid.")
+    if method not in ("global", "local"):
+        raise ValueError(f'method must be "global" or "local", got {method!r}.')
+    if not margin_cells >= 1:
+        raise ValueError(f"margin_cells must be at least 1 cell, got {margin_cells}.")
+    if not 0 < margin_weight <= 1:
+        raise ValueError(f"margin_weight must lie in (0, 1], got {margin_weight}.")
+    if components is None:
+        components, _ = ndimage.label(mat)
+    components = np.asarray(components)
+    if components.shape != grid.shape:
+        raise ValueError(f"components has shape {components.shape}; expected {grid.shape}.")
+    components = np.where(mat, components, 0).astype(np.int64)
+    return y, mat, components
+
+
 class Trajectories:
     """As-rigid-as-possible node paths x(s) from x to the map y(x) (section 3.1).
 
@@ -223,33 +256,9 @@ class Trajectories:
                  margin_cells=4.0, margin_weight=0.1, tolerance=1e-5, cancel=None):
         import time
 
-        if not isinstance(grid, Grid):
-            raise ValueError("grid must be a keyframe_implicit.core.Grid.")
+        y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
+                                      margin_weight)
         d = grid.dim
-        y = np.asarray(mapped, dtype=float)
-        if y.shape != grid.shape + (d,):
-            raise ValueError(f"mapped has shape {y.shape}; expected grid.shape + (d,) = "
-                             f"{grid.shape + (d,)} (one mapped position per node).")
-        if not np.all(np.isfinite(y)):
-            raise ValueError("mapped contains NaN or infinite positions; the map must be finite.")
-        mat = np.asarray(material, dtype=bool)
-        if mat.shape != grid.shape:
-            raise ValueError(f"material has shape {mat.shape}; expected grid shape {grid.shape}.")
-        if not mat.any():
-            raise ValueError("material is empty: keyframe A has no node with Phi < 0; "
-                             "check the sign convention (negative inside) and the grid.")
-        if method not in ("global", "local"):
-            raise ValueError(f'method must be "global" or "local", got {method!r}.')
-        if not margin_cells >= 1:
-            raise ValueError(f"margin_cells must be at least 1 cell, got {margin_cells}.")
-        if not 0 < margin_weight <= 1:
-            raise ValueError(f"margin_weight must lie in (0, 1], got {margin_weight}.")
-        if components is None:
-            components, _ = ndimage.label(mat)
-        components = np.asarray(components)
-        if components.shape != grid.shape:
-            raise ValueError(f"components has shape {components.shape}; expected {grid.shape}.")
-        components = np.where(mat, components, 0).astype(np.int64)
 
         self.grid = grid
         self.method = method
