@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from keyframe_implicit import examples  # noqa: E402
+from keyframe_implicit import shapes  # noqa: E402
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf  # noqa: E402
 from keyframe_implicit.core.bake.gridfit import fit_grid  # noqa: E402
 from keyframe_implicit.core.fields.mesh import triangulate  # noqa: E402
@@ -43,7 +43,7 @@ def rot_z(angle):
 
 def uv_sphere(n_lat, radius=1.0, bump=None):
     """Vertices and triangles of a UV sphere; ``bump(theta, phi)`` is added to the radius."""
-    v, polys = examples.uv_sphere(n_lat, radius, bump)
+    v, polys = shapes.uv_sphere(n_lat, radius, bump)
     return v, triangulate(polys, len(v))
 
 

@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from keyframe_implicit.core import Grid, mesh_to_sdf
-from keyframe_implicit.examples import icosphere
+from keyframe_implicit.shapes import icosphere
 from keyframe_implicit.core.fields.triangles import point_triangle_distance
 from keyframe_implicit.core.fields.winding import winding_number
 

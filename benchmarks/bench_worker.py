@@ -14,7 +14,6 @@ Usage: ``python benchmarks/bench_worker.py [RESOLUTION ...]`` from the repositor
 """
 
 import sys
-import threading
 import time
 
 import bpy

@@ -37,6 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .core.bake.pipeline import Keyframe
+from .core.surface.extract import loop_area, mesh_volume
+from .shapes import (capsule_sdf, match_volume, mesh_of, rigid_motion, rotation, round_box_sdf,
+                     round_cylinder_sdf, smooth_union, sphere_sdf)
 
 __all__ = [
     "Example",
@@ -49,16 +52,11 @@ __all__ = [
     "merge",
     "bend",
     "splash",
-    "mesh_volume",
-    "rotation",
-    "icosphere",
 ]
 
 NAMES = ("rigid", "merge", "bend", "splash")
 NAMES_2D = ("merge", "bend", "splash")
 
-# grid step of the marching-cubes meshes (metres): ~1-4 thousand triangles per keyframe
-_MESH_STEP = 0.09
 
 
 @dataclass
@@ -112,163 +110,10 @@ class Example2D:
     @property
     def areas(self):
         """Enclosed area of each keyframe (sum over its polygons)."""
-        return [sum(polygon_area(p) for p in polys) for polys in self.shapes]
+        return [sum(loop_area(p) for p in polys) for polys in self.shapes]
 
 
 # --------------------------------------------------------------------------- geometry
-def icosphere(n_sub, radius=1.0, center=(0.0, 0.0, 0.0)):
-    """Icosahedron subdivided n_sub times, projected on the sphere, outward faces."""
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    v /= np.linalg.norm(v, axis=1)[:, None]
-    for _ in range(n_sub):
-        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        ue, inv = np.unique(e, axis=0, return_inverse=True)
-        mid = v[ue[:, 0]] + v[ue[:, 1]]
-        mid /= np.linalg.norm(mid, axis=1)[:, None]
-        m = len(v) + inv.reshape(3, -1).T
-        v = np.concatenate([v, mid])
-        a, b, c = f.T
-        ab, bc, ca = m.T
-        f = np.concatenate([np.stack(x, 1) for x in
-                            ([a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca])])
-    return v * radius + np.asarray(center), f
-
-
-def uv_sphere(n_lat, radius=1.0, bump=None):
-    """A UV sphere: quads, and triangle fans at the poles; ``bump(theta, phi)`` adds to r.
-
-    Returns vertices (V, 3) and polygons (a list of index lists, quads first).
-    """
-    n_lon = 2 * n_lat
-    th = np.linspace(0, np.pi, n_lat + 1)[1:-1]
-    ph = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    r = radius + (0.0 if bump is None else bump(T, P))
-    ring = np.stack([r * np.sin(T) * np.cos(P), r * np.sin(T) * np.sin(P), r * np.cos(T)], -1)
-    v = np.concatenate([[[0, 0, radius]], ring.reshape(-1, 3), [[0, 0, -radius]]])
-    idx = 1 + np.arange(n_lat - 1)[:, None] * n_lon + np.arange(n_lon)[None]
-    nxt = np.roll(idx, -1, axis=1)
-    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], -1).reshape(-1, 4)
-    top = np.stack([np.zeros(n_lon, int), idx[0], nxt[0]], -1)
-    bottom = np.stack([np.full(n_lon, len(v) - 1), nxt[-1], idx[-1]], -1)
-    return v, [list(q) for q in quads] + [list(t) for t in top] + [list(t) for t in bottom]
-
-
-def rotation(axis, degrees):
-    """3x3 rotation matrix about `axis` (any non-zero 3-vector) by `degrees` (right hand)."""
-    axis = np.asarray(axis, dtype=float)
-    axis = axis / np.linalg.norm(axis)
-    a = np.radians(degrees)
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(a) * k + (1.0 - np.cos(a)) * (k @ k)
-
-
-def mesh_volume(vertices, faces):
-    """Signed volume enclosed by a closed triangle mesh (divergence theorem).
-
-    Positive when the triangles are wound counter-clockwise seen from outside.
-    """
-    v = np.asarray(vertices, dtype=float)
-    f = np.asarray(faces, dtype=np.int64)
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
-
-
-def polygon_area(points):
-    """Signed area of a closed polygon (shoelace); positive when counter-clockwise."""
-    p = np.asarray(points, dtype=float)
-    q = np.roll(p, -1, axis=0)
-    return float(0.5 * np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]))
-
-
-# signed distance primitives (negative inside); p is (..., 3)
-def _sphere(p, centre, radius):
-    return np.linalg.norm(p - np.asarray(centre, float), axis=-1) - radius
-
-
-def _capsule(p, a, b, radius):
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    ab = b - a
-    t = np.clip(((p - a) @ ab) / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1) - radius
-
-
-def _round_box(p, centre, half, radius):
-    q = np.abs(p - np.asarray(centre, float)) - (np.asarray(half, float) - radius)
-    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
-    inside = np.minimum(q.max(axis=-1), 0.0)
-    return outside + inside - radius
-
-
-def _round_cylinder(p, centre, radius, half_height, rounding):
-    """Vertical (z) cylinder with rounded rims."""
-    d = p - np.asarray(centre, float)
-    q = np.stack([np.hypot(d[..., 0], d[..., 1]) - (radius - rounding),
-                  np.abs(d[..., 2]) - (half_height - rounding)], axis=-1)
-    return (np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0)
-            - rounding)
-
-
-def _smooth_union(d1, d2, k):
-    """Polynomial smooth minimum: blends two distance fields over a band of width k."""
-    h = np.clip(0.5 + 0.5 * (d2 - d1) / k, 0.0, 1.0)
-    return d2 * (1.0 - h) + d1 * h - k * h * (1.0 - h)
-
-
-def _mesh_sdf(sdf, lo, hi, step=_MESH_STEP):
-    """Mesh the zero level set of `sdf` inside the box [lo, hi] by marching cubes.
-
-    Returns closed, outward-wound (V, 3) float64 vertices and (F, 3) int64 faces. The box is
-    padded by two steps so the surface never touches the grid boundary (closed mesh).
-    """
-    from skimage.measure import marching_cubes
-
-    lo = np.asarray(lo, float) - 2 * step
-    hi = np.asarray(hi, float) + 2 * step
-    n = np.ceil((hi - lo) / step).astype(int) + 1
-    axes = [lo[i] + step * np.arange(n[i]) for i in range(3)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
-    field_ = sdf(pts)
-    # keep nodes off the exact zero so marching cubes makes no degenerate triangles
-    field_ = np.where(np.abs(field_) < 1e-7, 1e-7, field_)
-    verts, faces, _, _ = marching_cubes(field_, level=0.0, spacing=(step, step, step))
-    verts = verts.astype(np.float64) + lo
-    faces = faces.astype(np.int64)
-    if mesh_volume(verts, faces) < 0:
-        faces = faces[:, ::-1].copy()
-    return verts, faces
-
-
-def _solve_volume(make, target, p0, p1, tol=1e-4, iterations=12):
-    """Secant search on a scalar shape parameter so the mesh made by `make(p)` has volume `target`.
-
-    `make(p)` returns (vertices, faces). Stops at relative volume error `tol`.
-    """
-    v0 = mesh_volume(*make(p0)) - target
-    mesh = make(p1)
-    v1 = mesh_volume(*mesh) - target
-    for _ in range(iterations):
-        if abs(v1) <= tol * target or v1 == v0:
-            break
-        p0, p1 = p1, p1 - v1 * (p1 - p0) / (v1 - v0)
-        v0 = v1
-        mesh = make(p1)
-        v1 = mesh_volume(*mesh) - target
-    return mesh
-
-
-def _rigid(points, rot, centre, move):
-    """Rotate `points` by `rot` about `centre`, then translate by `move`."""
-    centre = np.asarray(centre, float)
-    return (np.asarray(points, float) - centre) @ rot.T + centre + np.asarray(move, float)
-
-
 # --------------------------------------------------------------------------- 3D examples
 def rigid():
     """An L-shaped block with a knob turns 90 degrees about z, rises and slides (fig. 4.1).
@@ -279,18 +124,18 @@ def rigid():
     points on the faces, all moved by the same rigid motion.
     """
     def sdf(p):
-        long_arm = _round_box(p, (0.0, 0.0, 0.0), (1.0, 0.3, 0.3), 0.12)
-        short_arm = _round_box(p, (0.7, 0.0, 0.55), (0.3, 0.3, 0.6), 0.12)
-        knob = _sphere(p, (-0.55, -0.3, 0.15), 0.24)
-        return _smooth_union(_smooth_union(long_arm, short_arm, 0.1), knob, 0.08)
+        long_arm = round_box_sdf(p, (0.0, 0.0, 0.0), (1.0, 0.3, 0.3), 0.12)
+        short_arm = round_box_sdf(p, (0.7, 0.0, 0.55), (0.3, 0.3, 0.6), 0.12)
+        knob = sphere_sdf(p, (-0.55, -0.3, 0.15), 0.24)
+        return smooth_union(smooth_union(long_arm, short_arm, 0.1), knob, 0.08)
 
-    va, fa = _mesh_sdf(sdf, (-1.0, -0.55, -0.3), (1.0, 0.3, 1.15))
+    va, fa = mesh_of(sdf, (-1.0, -0.55, -0.3), (1.0, 0.3, 1.15))
     shift_a = np.array([-1.2, 0.0, 0.0])
     va = va + shift_a
     rot = rotation((0.0, 0.0, 1.0), 90.0)
     centre = np.array([-1.2, 0.0, 0.3])
     move = np.array([2.4, 0.4, 0.4])
-    vb = _rigid(va, rot, centre, move)
+    vb = rigid_motion(va, rot, centre, move)
 
     names = ["tip_long", "tip_short", "corner", "knob", "long_top", "long_bottom",
              "short_side", "long_front"]
@@ -304,7 +149,7 @@ def rigid():
         [0.99, 0.0, 0.5],     # outer side of the short arm
         [0.2, -0.29, 0.0],    # front face of the long arm
     ]) + shift_a
-    pb = _rigid(pa, rot, centre, move)
+    pb = rigid_motion(pa, rot, centre, move)
     return Example(
         "rigid",
         [Keyframe(va, fa, 1), Keyframe(vb, fa.copy(), 25)],
@@ -326,16 +171,16 @@ def merge():
     ca, cb = np.array([-1.1, 0.0, 0.0]), np.array([1.1, 0.0, 0.0])
 
     def sdf_a(p):
-        return np.minimum(_sphere(p, ca, r), _sphere(p, cb, r))
+        return np.minimum(sphere_sdf(p, ca, r), sphere_sdf(p, cb, r))
 
-    va, fa = _mesh_sdf(sdf_a, (-1.8, -0.7, -0.7), (1.8, 0.7, 0.7))
+    va, fa = mesh_of(sdf_a, (-1.8, -0.7, -0.7), (1.8, 0.7, 0.7))
     half = 0.35  # half-length of the merged capsule's axis
 
     def make_b(radius):
-        return _mesh_sdf(lambda p: _capsule(p, (-half, 0, 0), (half, 0, 0), radius),
+        return mesh_of(lambda p: capsule_sdf(p, (-half, 0, 0), (half, 0, 0), radius),
                          (-half - 1.0, -1.0, -1.0), (half + 1.0, 1.0, 1.0))
 
-    vb, fb = _solve_volume(make_b, mesh_volume(va, fa), 0.7, 0.72)
+    vb, fb = match_volume(make_b, mesh_volume(va, fa), 0.7, 0.72)
     rb = float(np.max(np.abs(vb[:, 1])))  # the merged blob's radius, read off the mesh
     names = ["left_pole", "right_pole", "left_centre", "right_centre",
              "left_top", "right_top", "left_front", "right_front"]
@@ -371,19 +216,19 @@ def bend():
     rot = rotation((0.0, -1.0, 0.0), 90.0)  # takes +x to +z
 
     def sdf_a(p):
-        rod = _capsule(p, (-1.5, 0, 0), (1.5, 0, 0), r)
-        return _smooth_union(rod, _sphere(p, (0, 0, 0), 1.2 * r), 0.1)
+        rod = capsule_sdf(p, (-1.5, 0, 0), (1.5, 0, 0), r)
+        return smooth_union(rod, sphere_sdf(p, (0, 0, 0), 1.2 * r), 0.1)
 
     def make_b(radius):
         def sdf(p):
-            fixed = _capsule(p, (-1.5, 0, 0), (0, 0, 0), radius)
-            moving = _capsule(p, (0, 0, 0), (0, 0, 1.5), radius)
-            return _smooth_union(np.minimum(fixed, moving),
-                                 _sphere(p, (0, 0, 0), 1.2 * radius), 0.1)
-        return _mesh_sdf(sdf, (-1.5 - r, -r * 1.3, -r * 1.3), (r * 1.3, r * 1.3, 1.5 + r))
+            fixed = capsule_sdf(p, (-1.5, 0, 0), (0, 0, 0), radius)
+            moving = capsule_sdf(p, (0, 0, 0), (0, 0, 1.5), radius)
+            return smooth_union(np.minimum(fixed, moving),
+                                 sphere_sdf(p, (0, 0, 0), 1.2 * radius), 0.1)
+        return mesh_of(sdf, (-1.5 - r, -r * 1.3, -r * 1.3), (r * 1.3, r * 1.3, 1.5 + r))
 
-    va, fa = _mesh_sdf(sdf_a, (-1.5 - r, -r * 1.3, -r * 1.3), (1.5 + r, r * 1.3, r * 1.3))
-    vb, fb = _solve_volume(make_b, mesh_volume(va, fa), r, r * 1.01)
+    va, fa = mesh_of(sdf_a, (-1.5 - r, -r * 1.3, -r * 1.3), (1.5 + r, r * 1.3, r * 1.3))
+    vb, fb = match_volume(make_b, mesh_volume(va, fa), r, r * 1.01)
     names = ["end_fixed", "end_moving", "joint", "mid_fixed", "mid_moving",
              "moving_side", "moving_top", "fixed_top"]
     pa = np.array([
@@ -418,19 +263,19 @@ def splash():
 
     def pool(p, top=0.0):
         h = (top + depth) / 2
-        return _round_cylinder(p, (0, 0, top - h), R, h, 0.1)
+        return round_cylinder_sdf(p, (0, 0, top - h), R, h, 0.1)
 
     lo, hi = (-R, -R, -depth), (R, R, 2.2)
     drop_z = 1.4
 
     def sdf_0(p):
-        return np.minimum(pool(p), _sphere(p, (0, 0, drop_z), rd))
+        return np.minimum(pool(p), sphere_sdf(p, (0, 0, drop_z), rd))
 
-    v0, f0 = _mesh_sdf(sdf_0, lo, hi)
+    v0, f0 = mesh_of(sdf_0, lo, hi)
     target = mesh_volume(v0, f0)
 
     def make_1(radius):  # droplet resting on the surface, joined by a small neck
-        return _mesh_sdf(lambda p: _smooth_union(pool(p), _sphere(p, (0, 0, radius * 0.95), radius),
+        return mesh_of(lambda p: smooth_union(pool(p), sphere_sdf(p, (0, 0, radius * 0.95), radius),
                                                  0.08), lo, (R, R, 1.0))
 
     def make_2(height):  # a bump: a flattened ellipsoid (semi-axes 0.6, 0.6, height) on the pool
@@ -438,16 +283,16 @@ def splash():
 
         def sdf(p):
             q = p / np.array([0.6, 0.6, height])
-            return _smooth_union(pool(p), (np.linalg.norm(q, axis=-1) - 1.0) * min(0.6, height),
+            return smooth_union(pool(p), (np.linalg.norm(q, axis=-1) - 1.0) * min(0.6, height),
                                  0.05)
-        return _mesh_sdf(sdf, lo, (R, R, 1.0))
+        return mesh_of(sdf, lo, (R, R, 1.0))
 
     def make_3(top):
-        return _mesh_sdf(lambda p: pool(p, top), lo, (R, R, 0.3))
+        return mesh_of(lambda p: pool(p, top), lo, (R, R, 0.3))
 
-    v1, f1 = _solve_volume(make_1, target, rd, rd * 0.98)
-    v2, f2 = _solve_volume(make_2, target, 0.2, 0.25)
-    v3, f3 = _solve_volume(make_3, target, 0.03, 0.04)
+    v1, f1 = match_volume(make_1, target, rd, rd * 0.98)
+    v2, f2 = match_volume(make_2, target, 0.2, 0.25)
+    v3, f3 = match_volume(make_3, target, 0.03, 0.04)
     top3 = float(v3[:, 2].max())
     bump_top = float(v2[:, 2].max())
     drop1_top = float(v1[:, 2].max())

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit import examples
+from keyframe_implicit import shapes
 from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf
 from keyframe_implicit.core.surface.attributes import (MeshAttributes, closest_points, concatenate,
                                                transfer)
@@ -18,11 +18,11 @@ def rot_z(angle):
 
 
 def uv_sphere(n_lat, radius=1.0, bump=None):
-    """`keyframe_implicit.examples.uv_sphere` with its attributes.
+    """`keyframe_implicit.shapes.uv_sphere` with its attributes.
 
     Returns vertices, polygons (list), and MeshAttributes with a UV map (a seam at phi = 0)
     and two materials (faces with x > 0 use slot 1)."""
-    v, polys = examples.uv_sphere(n_lat, radius, bump)
+    v, polys = shapes.uv_sphere(n_lat, radius, bump)
     total = np.array([len(p) for p in polys])
     loops = np.concatenate(polys)
     attrs = MeshAttributes(np.concatenate([[0], np.cumsum(total)[:-1]]), total, loops)

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit import examples
+from keyframe_implicit.core.surface.extract import loop_area, mesh_volume
 
 
 @pytest.fixture(scope="module", params=examples.NAMES)
@@ -39,7 +40,7 @@ def test_meshes_are_closed_and_consistently_wound(ex):
 
 def test_meshes_point_outward(ex):
     for k in ex.keyframes:
-        assert examples.mesh_volume(k.vertices, k.faces) > 0.1
+        assert mesh_volume(k.vertices, k.faces) > 0.1
         # a point just outside the top-most vertex along +z is outside (winding ~0),
         # the centroid of a thin layer below it is inside
         top = k.vertices[np.argmax(k.vertices[:, 2])]
@@ -122,7 +123,7 @@ def test_2d_examples_ccw_equal_area_and_features(name):
     for polys in ex.shapes:
         for p in polys:
             assert p.ndim == 2 and p.shape[1] == 2
-            assert examples.polygon_area(p) > 0  # counter-clockwise
+            assert loop_area(p) > 0  # counter-clockwise
     areas = np.array(ex.areas)
     assert np.all(np.abs(areas / areas[0] - 1.0) < 0.02), areas
     from matplotlib.path import Path

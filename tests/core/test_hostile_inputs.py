@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Keyframe, animate
-from keyframe_implicit.examples import icosphere
+from keyframe_implicit.shapes import icosphere
 
 RES = 16
 

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from keyframe_implicit.core import Grid, Keyframe, animate, mesh_to_sdf
-from keyframe_implicit.examples import icosphere
+from keyframe_implicit.shapes import icosphere
 
 FIXED = settings(derandomize=True, database=None, deadline=None, max_examples=30,
                  suppress_health_check=[HealthCheck.too_slow])

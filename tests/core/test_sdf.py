@@ -11,7 +11,7 @@ from keyframe_implicit.core.fields.winding import winding_number
 
 
 # -- test meshes built with numpy --------------------------------------------------
-from keyframe_implicit.examples import icosphere  # noqa: E402
+from keyframe_implicit.shapes import icosphere  # noqa: E402
 
 BOX_V = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
 # outward quads of the unit box (vertex index = 4x + 2y + z)

@@ -10,7 +10,7 @@ import pytest
 
 from keyframe_implicit.core import Grid, mesh_to_sdf
 from keyframe_implicit.core.fields.mesh import orient_faces
-from keyframe_implicit.examples import icosphere
+from keyframe_implicit.shapes import icosphere
 
 N = 40
 
