@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Triangles", "corner_radius", "point_triangle_distance", "row_dot"]
+__all__ = ["Triangles", "corner_radius", "nearest_candidates", "point_triangle_distance",
+           "proper", "row_dot"]
 
 
 def row_dot(a, b):
@@ -132,3 +133,20 @@ def point_triangle_distance(p, a, b, c):
     n = len(p)
     tris = np.stack([np.arange(n), np.arange(n, 2 * n), np.arange(2 * n, 3 * n)], axis=1)
     return Triangles(v, tris).distance(p, np.arange(n))
+
+
+def proper(vertices, triangles):
+    """Indices of the triangles (T, 3) of non-zero area: those a closest point can be on."""
+    v, t = vertices, triangles
+    return np.flatnonzero(np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]),
+                                         axis=1) > 0)
+
+
+def nearest_candidates(points, vertices, triangles, candidates):
+    """Rows (P, k) into ``triangles`` of the k = min(candidates, T) triangles whose
+    centroids lie nearest each point: where the exact kernel looks for the closest one."""
+    from scipy.spatial import cKDTree
+
+    k = min(int(candidates), len(triangles))
+    _, idx = cKDTree(vertices[triangles].mean(axis=1)).query(points, k=k, workers=-1)
+    return idx.reshape(len(points), k)

@@ -122,23 +122,21 @@ class MeshAttributes:
 def closest_points(points, vertices, triangles, candidates=16):
     """Closest points on a triangle mesh: (P, 3) points, (P,) triangle, (P, 3) barycentrics.
 
-    Exact point-triangle closest points (`sdf` kernel) over the ``candidates``
-    triangles whose centroids lie nearest, the nearest of them kept.
+    Exact point-triangle closest points (`triangles.Triangles`) over the ``candidates``
+    triangles whose centroids lie nearest (`triangles.nearest_candidates`), the nearest
+    of them kept; `quality.mesh_distance` measures distances the same way.
     """
-    from scipy.spatial import cKDTree
-
-    from ..fields.triangles import Triangles
+    from ..fields.triangles import Triangles, nearest_candidates, proper
 
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v = np.asarray(vertices, dtype=float).reshape(-1, 3)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    keep = np.flatnonzero(np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]],
-                                                  v[t[:, 2]] - v[t[:, 0]]), axis=1) > 0)
+    keep = proper(v, t)
     if len(keep) == 0:
         raise ValueError("the mesh has no triangle of non-zero area.")
-    k = min(int(candidates), len(keep))
-    _, idx = cKDTree(v[t[keep]].mean(axis=1)).query(p, k=k, workers=-1)
-    cand = keep[idx.reshape(len(p), k)].reshape(-1)
+    idx = nearest_candidates(p, v, t[keep], candidates)
+    k = idx.shape[1]
+    cand = keep[idx].reshape(-1)
     kernel = Triangles(v, t[keep])
     local = np.searchsorted(keep, cand)
     q = kernel.closest_point(np.repeat(p, k, axis=0), local).reshape(len(p), k, 3)

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.sampling import sample_with_gradient
+from ..fields.triangles import Triangles, nearest_candidates, proper
 from .extract import extract_surface, mesh_area
 
 __all__ = ["LIMITS", "frame_quality", "keyframe_distance", "mesh_distance", "failures",
@@ -44,7 +45,7 @@ def _triangles(vertices, faces):
     """Float vertices and the triangles of non-zero area."""
     v = np.asarray(vertices, dtype=float).reshape(-1, 3)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    return v, f[mesh_area(v, f, per_face=True) > 0] if len(f) else f
+    return v, f[proper(v, f)] if len(f) else f
 
 
 def mesh_distance(points, vertices, faces, candidates=16):
@@ -54,19 +55,14 @@ def mesh_distance(points, vertices, faces, candidates=16):
     per triangle of the mesh, not per pair) to the ``candidates`` triangles whose
     centroids are nearest; the smallest is taken.
     """
-    from scipy.spatial import cKDTree
-
-    from ..fields.triangles import Triangles
-
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     v, f = _triangles(vertices, faces)
     if len(f) == 0:
         return np.full(len(p), np.inf)
     if len(p) == 0:
         return np.zeros(0)
-    k = min(int(candidates), len(f))
-    _, idx = cKDTree(v[f].mean(axis=1)).query(p, k=k, workers=-1)
-    idx = idx.reshape(len(p), k)
+    idx = nearest_candidates(p, v, f, candidates)
+    k = idx.shape[1]
     d = Triangles(v, f).distance(np.repeat(p, k, axis=0), idx.reshape(-1))
     return d.reshape(len(p), k).min(axis=1)
 
