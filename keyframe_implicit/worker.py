@@ -1,4 +1,4 @@
-"""The bake in a worker process: `core.pipeline.animate` in a Python process of its own.
+"""The bake in a worker process: `core.bake.pipeline.animate` in a Python process of its own.
 
 Why a process and not a thread of Blender's: the core's long numpy/scipy calls hold the
 GIL, so a thread stalls Blender's main loop for as long as each call lasts, and a crash or
@@ -108,7 +108,7 @@ def _python_path():
 
 
 class Worker:
-    """One worker process running `core.pipeline.animate` on ``arguments`` (started at once).
+    """One worker process running `core.bake.pipeline.animate` on ``arguments`` (started at once).
 
     Parameters
     ----------

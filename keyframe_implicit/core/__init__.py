@@ -47,7 +47,7 @@ _EXPORTS = {
     "animate_chain": "bake.chain",
     "animate": "bake.pipeline",
     "Keyframe": "bake.pipeline",
-    "Animation": "bake.pipeline",
+    "Animation": "bake.animation",
     "Cancelled": "base.progress",
     "Reporter": "base.progress",
 }

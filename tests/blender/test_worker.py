@@ -11,6 +11,7 @@ import pytest
 
 from keyframe_implicit.blender import bake
 from keyframe_implicit.core.bake import pipeline
+from keyframe_implicit.core.bake.animation import Animation
 from keyframe_implicit.core.surface.meshdata import resolve_output
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
@@ -124,7 +125,7 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     mine = pipeline.animate(**job._arguments())
     np.testing.assert_allclose(job.result.vertices, mine.vertices, rtol=0, atol=1e-5)
     np.testing.assert_array_equal(job.result.faces, mine.faces)
-    assert type(job.result) is pipeline.Animation  # mapped onto this process's classes
+    assert type(job.result) is Animation  # mapped onto this process's classes
     kind, _ = resolve_output(scene.keyframe_implicit.output_mode, job.result.stats)
     assert list(job.result.prepared) == [kind]  # the output's mesh came made from the worker
     out = job.apply(scene)

@@ -23,7 +23,7 @@ term, so velocities jump at every inner keyframe.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,39 +33,13 @@ from ..base.progress import Reporter
 from ..surface.quality import frame_quality
 from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
+from .animation import Animation
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
 
-__all__ = ["animate_chain", "ChainResult", "HELPER_PRELOAD"]
+__all__ = ["animate_chain", "HELPER_PRELOAD"]
 
 #: What a helper process imports as it starts: everything a chain's work sends it.
 HELPER_PRELOAD = (__name__,)
-
-
-@dataclass
-class ChainResult:
-    """Result of `animate_chain`.
-
-    frames : (n,) int array, every timeline frame from the first keyframe's to the last's.
-    vertices : (n, V, d) float array, template vertices on every frame (world units).
-    faces : (F, 3) int triangles (3D) or (E, 2) segments (2D), the same on every frame.
-    stats : dict: ``segments`` (one dict per keyframe pair: map / trajectory / level-set
-        figures), per-frame lists ``max_abs_phi``, ``uncovered_area``,
-        ``uncovered_fraction``, and ``seconds``; with surfaces, ``quality``: per output
-        ("shape_keys", "mesh_sequence") a list of `quality.frame_quality` dicts, one per frame.
-    surfaces : list of (V_f, 3) float32 vertices and (F_f, 3) int32 triangles, each
-        frame's own surface (empty when not asked for).
-    velocities : list of (V_f, 3) float32, velocity of every vertex of ``surfaces`` in
-        world units per frame.
-    levelsets : list of float32 arrays of grid.shape, each frame's level set (when asked for).
-    """
-
-    frames: np.ndarray
-    vertices: np.ndarray
-    faces: np.ndarray
-    stats: dict = field(default_factory=dict)
-    surfaces: list = field(default_factory=list)
-    velocities: list = field(default_factory=list)
-    levelsets: list = field(default_factory=list)
 
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
@@ -123,7 +97,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
 
     Returns
     -------
-    ChainResult
+    `animation.Animation`
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
     rep = Reporter(progress, cancel)
@@ -166,8 +140,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             helper.close()
     kept.stats.update(seconds=time.perf_counter() - t0, vertices=int(len(verts)),
                       faces=int(len(faces)))
-    return ChainResult(kept.frames, kept.vertices, faces, kept.stats, kept.meshes,
-                       kept.velocities, kept.fields)
+    return Animation(kept.frames, kept.vertices, faces, grid, kept.stats, kept.meshes,
+                     kept.velocities, kept.fields)
 
 
 def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):

@@ -7,9 +7,10 @@ of every adjacent pair, and tracks one template mesh through all frames.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from ..base.progress import Reporter
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
 
-__all__ = ["Keyframe", "Animation", "animate"]
+__all__ = ["Keyframe", "animate"]
 
 
 @dataclass
@@ -38,77 +39,6 @@ class Keyframe:
     frame: int
     name: str = ""
     attributes: object = None
-
-
-@dataclass
-class Animation:
-    """Result of `animate`.
-
-    frames : (n,) int array, every timeline frame from the first keyframe's to the last's.
-    vertices : (n, V, 3) float32 array, the template's vertex positions on each frame.
-    faces : (F, 3) int array, the template's triangles (the same on every frame).
-    grid : the `Grid` used.
-    stats : dict of figures (timings, solver iterations, volumes, uncovered area, ...), and
-        ``quality``: per output ("shape_keys", "mesh_sequence") one dict of
-        `quality.frame_quality` figures per frame (keyframe frames also carry
-        `quality.keyframe_distance` to the keyframe mesh given), ``output`` /
-        ``output_reason``: the output `quality.choose_output` picks.
-    surfaces : list, per frame, of (V_f, 3) float32 vertices and (F_f, 3) int32 triangles:
-        the frame's own surface (topology free), world units.
-    velocities : list, per frame, of (V_f, 3) float32: velocity of every vertex of
-        ``surfaces`` in world units per frame (the trajectories' rate, eq. 3.1).
-    levelsets : list, per frame, of float32 arrays of grid.shape: the in-between level sets
-        (eq. 3.4), kept when `animate` is called with ``levelsets=True``.
-    attributes : `attributes.MeshAttributes` of ``vertices`` / ``faces`` (polygons, UVs,
-        materials, ...) when the template is the first keyframe's own mesh, else None
-        (``faces`` are then its polygons' fan triangles).
-    keyframe_attributes : dict timeline frame -> `attributes.MeshAttributes` of the keyframe
-        mesh that frame's surface is (with the artist's mesh, a keyframe's frame in
-        ``surfaces`` is the keyframe's own mesh).
-    prepared : dict output kind -> `meshdata.MeshData`, the output meshes made so far
-        (`output_mesh`; the worker process makes the one the bake will store).
-    """
-
-    frames: np.ndarray
-    vertices: np.ndarray
-    faces: np.ndarray
-    grid: object
-    stats: dict = field(default_factory=dict)
-    surfaces: list = field(default_factory=list)
-    velocities: list = field(default_factory=list)
-    levelsets: list = field(default_factory=list)
-    attributes: object = None
-    keyframe_attributes: dict = field(default_factory=dict)
-    prepared: dict = field(default_factory=dict)
-
-    def output_mesh(self, kind):
-        """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),
-        made once (`meshdata.output_mesh`) and kept in ``prepared``."""
-        if kind not in self.prepared:
-            from ..surface.meshdata import output_mesh
-
-            self.prepared[kind] = output_mesh(self, kind)
-        return self.prepared[kind]
-
-    def surface_attributes(self, i):
-        """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
-
-        Each surface vertex's source is its closest point on the tracked template of the
-        same frame, whose barycentric position on its triangle is a point of keyframe A's
-        mesh: UVs and colours are read there (`attributes.transfer`, seams kept out of
-        triangles), the material from the source face. Computed on demand: a bake stored as
-        shape keys never needs it.
-        """
-        if self.attributes is None or not self.surfaces:
-            return None
-        own = self.keyframe_attributes.get(int(self.frames[i]))
-        if own is not None:  # a keyframe's frame shows the keyframe's own mesh
-            return own
-        from ..surface.attributes import transfer
-
-        return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
-
-
 
 
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
@@ -274,13 +204,13 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         _choose_output(stats, keyframes, chain, grid.spacing, artist is not None)
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
-    return Animation(frames=np.asarray(chain.frames, dtype=np.int64),
-                     vertices=np.asarray(chain.vertices, dtype=np.float32),
-                     faces=np.asarray(chain.faces, dtype=np.int64), grid=grid, stats=stats,
-                     surfaces=chain.surfaces, velocities=chain.velocities,
-                     levelsets=chain.levelsets, attributes=None if artist is None else artist[2],
-                     keyframe_attributes={} if artist is None else
-                     _keyframe_attributes(keyframes, surfaces, artist[2]))
+    return dataclasses.replace(
+        chain, frames=np.asarray(chain.frames, dtype=np.int64),
+        vertices=np.asarray(chain.vertices, dtype=np.float32),
+        faces=np.asarray(chain.faces, dtype=np.int64), stats=stats,
+        attributes=None if artist is None else artist[2],
+        keyframe_attributes={} if artist is None else
+        _keyframe_attributes(keyframes, surfaces, artist[2]))
 
 
 def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding_cells,

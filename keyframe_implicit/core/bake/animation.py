@@ -1,0 +1,81 @@
+"""The result of a bake: one tracked mesh per timeline frame, and each frame's own surface."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Animation"]
+
+
+@dataclass
+class Animation:
+    """Result of `animate` and `chain.animate_chain`: the tracked template on every frame,
+    and each frame's own surface.
+
+    frames : (n,) int array, every timeline frame from the first keyframe's to the last's.
+    vertices : (n, V, d) float array, the template's vertex positions on each frame
+        (float32 from `animate`).
+    faces : (F, 3) int triangles (3D) or (E, 2) segments (2D), the template's, the same
+        on every frame.
+    grid : the `Grid` used.
+    stats : dict of figures (timings, solver iterations, volumes, uncovered area, ...), and
+        ``quality``: per output ("shape_keys", "mesh_sequence") one dict of
+        `quality.frame_quality` figures per frame (keyframe frames also carry
+        `quality.keyframe_distance` to the keyframe mesh given), ``output`` /
+        ``output_reason``: the output `quality.choose_output` picks.
+    surfaces : list, per frame, of (V_f, 3) float32 vertices and (F_f, 3) int32 triangles:
+        the frame's own surface (topology free), world units.
+    velocities : list, per frame, of (V_f, 3) float32: velocity of every vertex of
+        ``surfaces`` in world units per frame (the trajectories' rate, eq. 3.1).
+    levelsets : list, per frame, of float32 arrays of grid.shape: the in-between level sets
+        (eq. 3.4), kept when `animate` is called with ``levelsets=True``.
+    attributes : `attributes.MeshAttributes` of ``vertices`` / ``faces`` (polygons, UVs,
+        materials, ...) when the template is the first keyframe's own mesh, else None
+        (``faces`` are then its polygons' fan triangles).
+    keyframe_attributes : dict timeline frame -> `attributes.MeshAttributes` of the keyframe
+        mesh that frame's surface is (with the artist's mesh, a keyframe's frame in
+        ``surfaces`` is the keyframe's own mesh).
+    prepared : dict output kind -> `meshdata.MeshData`, the output meshes made so far
+        (`output_mesh`; the worker process makes the one the bake will store).
+    """
+
+    frames: np.ndarray
+    vertices: np.ndarray
+    faces: np.ndarray
+    grid: object
+    stats: dict = field(default_factory=dict)
+    surfaces: list = field(default_factory=list)
+    velocities: list = field(default_factory=list)
+    levelsets: list = field(default_factory=list)
+    attributes: object = None
+    keyframe_attributes: dict = field(default_factory=dict)
+    prepared: dict = field(default_factory=dict)
+
+    def output_mesh(self, kind):
+        """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),
+        made once (`meshdata.output_mesh`) and kept in ``prepared``."""
+        if kind not in self.prepared:
+            from ..surface.meshdata import output_mesh
+
+            self.prepared[kind] = output_mesh(self, kind)
+        return self.prepared[kind]
+
+    def surface_attributes(self, i):
+        """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
+
+        Each surface vertex's source is its closest point on the tracked template of the
+        same frame, whose barycentric position on its triangle is a point of keyframe A's
+        mesh: UVs and colours are read there (`attributes.transfer`, seams kept out of
+        triangles), the material from the source face. Computed on demand: a bake stored as
+        shape keys never needs it.
+        """
+        if self.attributes is None or not self.surfaces:
+            return None
+        own = self.keyframe_attributes.get(int(self.frames[i]))
+        if own is not None:  # a keyframe's frame shows the keyframe's own mesh
+            return own
+        from ..surface.attributes import transfer
+
+        return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
