@@ -145,10 +145,13 @@ class Grid:
         return np.all((p >= self.origin + margin) & (p <= self.upper - margin), axis=-1)
 
     def check_field(self, field, name: str = "field") -> np.ndarray:
-        """Return ``field`` as a float array, or raise ValueError naming what is wrong."""
+        """Return ``field`` as a float array, or raise ValueError naming what is wrong and
+        what to do about it."""
         arr = np.asarray(field, dtype=float)
         if arr.shape != self.shape:
-            raise ValueError(f"{name} has shape {arr.shape} but the grid has shape {self.shape}.")
+            raise ValueError(f"{name} has shape {arr.shape} but the grid has shape {self.shape}; "
+                             "sample every keyframe on the one grid.")
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} contains NaN or infinite values; resample the keyframe.")
+            raise ValueError(f"{name} contains NaN or infinite values; resample that keyframe "
+                             "(is its mesh closed and inside the grid?).")
         return arr

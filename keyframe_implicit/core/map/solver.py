@@ -127,13 +127,7 @@ def _check_inputs(phi_a, phi_b, grid, features_a, features_b):
     d = grid.dim
     out = []
     for name, phi in (("phi_a", phi_a), ("phi_b", phi_b)):
-        arr = np.asarray(phi, dtype=float)
-        if arr.shape != grid.shape:
-            raise ValueError(f"{name} has shape {arr.shape} but the grid has shape {grid.shape}; "
-                             "sample both keyframes on the grid passed to solve_map.")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} contains NaN or infinite values; resample that keyframe "
-                             "(is its mesh closed and inside the grid?).")
+        arr = grid.check_field(phi, name)
         if not np.any(arr < 0):
             raise ValueError(f"{name} has no negative value: that keyframe is empty on this grid. "
                              "Check the mesh is closed and lies inside the grid box.")
