@@ -190,17 +190,26 @@ class KFI_OT_pair_selected(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class KFI_OT_remove_feature_pair(bpy.types.Operator):
-    """Delete both Empties of a feature pair"""
+class _OnePair:
+    """Mixin of the operators on one feature pair: its id, or the active feature Empty's
+    pair from a menu or F3 (else a dialog asks for the id)."""
 
-    bl_idname = "keyframe_implicit.remove_feature_pair"
-    bl_label = "Remove Feature Pair"
     bl_options = _OPTS
 
     pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
 
     def invoke(self, context, event):
-        return _invoke_with_pair(self, context)
+        """Take the active feature Empty's pair, or ask for the id."""
+        if not _resolve_pair(self, context):
+            return context.window_manager.invoke_props_dialog(self)
+        return self.execute(context)
+
+
+class KFI_OT_remove_feature_pair(_OnePair, bpy.types.Operator):
+    """Delete both Empties of a feature pair"""
+
+    bl_idname = "keyframe_implicit.remove_feature_pair"
+    bl_label = "Remove Feature Pair"
 
     def execute(self, context):
         _resolve_pair(self, context)
@@ -212,17 +221,11 @@ class KFI_OT_remove_feature_pair(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class KFI_OT_select_pair(bpy.types.Operator):
+class KFI_OT_select_pair(_OnePair, bpy.types.Operator):
     """Select both Empties of a feature pair"""
 
     bl_idname = "keyframe_implicit.select_pair"
     bl_label = "Select Pair"
-    bl_options = _OPTS
-
-    pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
-
-    def invoke(self, context, event):
-        return _invoke_with_pair(self, context)
 
     def execute(self, context):
         _resolve_pair(self, context)
@@ -245,13 +248,6 @@ def _resolve_pair(op, context):
     if not op.pair and features.is_feature(context.active_object):
         op.pair = str(context.active_object[features.PAIR])
     return bool(op.pair)
-
-
-def _invoke_with_pair(op, context):
-    """From a menu or F3: the active feature Empty's pair, else ask for the id."""
-    if not _resolve_pair(op, context):
-        return context.window_manager.invoke_props_dialog(op)
-    return op.execute(context)
 
 
 class KFI_MT_menu(bpy.types.Menu):
