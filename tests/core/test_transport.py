@@ -78,19 +78,19 @@ def test_corners_gathered_from_nodes_are_the_cells_corners_in_index_units(d):
 
 
 @pytest.mark.parametrize("d", [2, 3])
-def test_affine_guess_stays_within_its_margin(d):
+def test_affine_guess_stays_within_its_slack(d):
     grid, P, cells, _ = bent_cells(d)
     coef = transport._centred_coefficients(grid.to_index(P).transpose(1, 2, 0))
     Jinv = transport._inverse_small(transport._centre_jacobian(coef))
-    margin = transport._affine_margin(coef, Jinv)
+    slack = transport._affine_slack(coef, Jinv)
     rng = np.random.default_rng(0)
     for _ in range(20):  # random points of every cell: their images, then the affine guess
         v = rng.uniform(-0.5, 0.5, (d, cells.size))
         z, _ = transport._poly_eval(coef, v, jacobian=False)
         guess = transport._apply_small(Jinv, z - coef[0])
-        assert np.all(np.abs(guess - v) <= margin + 1e-12)
-    # the bound is not vacuous: bent cells need a margin, and it stays below the cap
-    assert 0.0 < np.median(margin) < transport._GUESS_SLACK
+        assert np.all(np.abs(guess - v) <= slack + 1e-12)
+    # the bound is not vacuous: bent cells need a slack, and it stays below the cap
+    assert 0.0 < np.median(slack) < transport._GUESS_SLACK
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -120,7 +120,7 @@ def test_inverse_lookup_finds_every_node_of_bent_cells(d, monkeypatch):
     image = np.stack([sample(moved[:, a].reshape(grid.shape), grid, at) for a in range(d)], -1)
     np.testing.assert_allclose(image, grid.points().reshape(-1, d)[target], atol=1e-6)
     # the same nodes and sources as a lookup that gives every candidate Newton steps
-    monkeypatch.setattr(transport, "_affine_margin",
+    monkeypatch.setattr(transport, "_affine_slack",
                         lambda coef, Jinv: np.full((d, coef.shape[-1]), np.inf))
     t_all, s_all = transport.inverse_lookup(grid, P, cells)
     key = np.lexsort(np.vstack([source.T, target]))

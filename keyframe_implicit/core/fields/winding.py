@@ -46,15 +46,15 @@ def _part1by2(x):
 class WindingTree:
     """Octree of triangles (Morton order) with per-cluster dipoles (Barill et al. 2018).
 
-    Level l clusters are the triangles sharing the top 3*l bits of their centroid's
+    Clusters at depth l are the triangles sharing the top 3*l bits of their centroid's
     Morton code; each is a contiguous range of the sorted triangles. A cluster seen
     from farther than ``beta`` times its radius contributes its dipole
     ``N . (p - q) / (4 pi |p - q|^3)`` (N = sum of area vectors, p = area-weighted
     centroid); nearer clusters are opened, and leaves (<= ``leaf`` triangles or the
-    deepest level) are summed exactly.
+    deepest clusters) are summed exactly.
     """
 
-    LEVELS = 10
+    DEPTH = 10  #: the octree's deepest clusters share all 3 * DEPTH bits of the Morton code
 
     def __init__(self, v, tris, beta=2.0, leaf=8):
         self.beta = float(beta)
@@ -75,10 +75,10 @@ class WindingTree:
         self.A = [np.ascontiguousarray(self.a[:, i]) for i in range(3)]
         self.B = [np.ascontiguousarray(self.b[:, i]) for i in range(3)]
         self.C = [np.ascontiguousarray(self.c[:, i]) for i in range(3)]
-        self.levels = []  # per level: dict(start, end, N, P, R, child_start, child_end)
+        self.by_depth = []  # per octree depth: dict(start, end, N, P, R, child_start, child_end)
         nt = len(order)
-        for lev in range(0, self.LEVELS + 1):
-            key = code >> np.uint64(3 * (self.LEVELS - lev))
+        for depth in range(0, self.DEPTH + 1):
+            key = code >> np.uint64(3 * (self.DEPTH - depth))
             start = np.concatenate([[0], np.flatnonzero(key[1:] != key[:-1]) + 1])
             end = np.concatenate([start[1:], [nt]])
             N = np.add.reduceat(area_vec, start, axis=0)
@@ -89,12 +89,12 @@ class WindingTree:
             r = np.sqrt(np.maximum.reduce([row_dot(self.a - pc, self.a - pc), row_dot(self.b - pc, self.b - pc),
                                            row_dot(self.c - pc, self.c - pc)]))
             R = np.maximum.reduceat(r, start)
-            self.levels.append(dict(start=start, end=end, N=[N[:, i].copy() for i in range(3)],
+            self.by_depth.append(dict(start=start, end=end, N=[N[:, i].copy() for i in range(3)],
                                     P=[P[:, i].copy() for i in range(3)],
                                     R=R))
-        for lev in range(self.LEVELS):
-            nxt = self.levels[lev + 1]["start"]
-            L = self.levels[lev]
+        for depth in range(self.DEPTH):
+            nxt = self.by_depth[depth + 1]["start"]
+            L = self.by_depth[depth]
             L["child_start"] = np.searchsorted(nxt, L["start"])
             L["child_end"] = np.searchsorted(nxt, L["end"])
 
@@ -110,23 +110,23 @@ class WindingTree:
         """Winding numbers at ``points`` (P, 3); ``beta`` overrides the opening criterion."""
         points = np.asarray(points, dtype=float)
         beta = self.beta if beta is None else float(beta)
-        R2 = [(beta * L["R"]) ** 2 for L in self.levels]
+        R2 = [(beta * L["R"]) ** 2 for L in self.by_depth]
         out = np.zeros(len(points))
         for s in range(0, len(points), _CHUNK // 4):
             out[s:s + _CHUNK // 4] = self._eval(points[s:s + _CHUNK // 4], R2)
         return out
 
-    def sign(self, points, coarse_beta=1.3, margin=0.4):
+    def sign(self, points, coarse_beta=1.3, doubt=0.4):
         """Winding numbers good enough for the test w >= 0.5, at about half the cost.
 
         A cheap pass with ``coarse_beta`` (errors ~0.15 on typical meshes) settles
-        the points with ``|w - 0.5| >= margin``; the others are evaluated again with
+        the points with ``|w - 0.5| >= doubt``; the others are evaluated again with
         the full ``beta``.
         """
         if coarse_beta >= self.beta:
             return self(points)
         w = self(points, beta=coarse_beta)
-        unsure = np.flatnonzero(np.abs(np.abs(w) - 0.5) < margin)
+        unsure = np.flatnonzero(np.abs(np.abs(w) - 0.5) < doubt)
         if len(unsure):
             w[unsure] = self(np.asarray(points, dtype=float)[unsure])
         return w
@@ -136,17 +136,17 @@ class WindingTree:
         Qx, Qy, Qz = (np.ascontiguousarray(Q[:, i]) for i in range(3))
         w = np.zeros(nq)
         qi = np.arange(nq)
-        ci = np.zeros(nq, dtype=np.int64)  # root cluster (level 0) for every query
-        for lev in range(self.LEVELS + 1):
+        ci = np.zeros(nq, dtype=np.int64)  # root cluster (depth 0) for every query
+        for depth in range(self.DEPTH + 1):
             if len(qi) == 0:
                 break
-            L = self.levels[lev]
+            L = self.by_depth[depth]
             P, N = L["P"], L["N"]
             dx = P[0][ci] - Qx[qi]
             dy = P[1][ci] - Qy[qi]
             dz = P[2][ci] - Qz[qi]
             r2 = dx * dx + dy * dy + dz * dz
-            far = r2 > R2[lev][ci]
+            far = r2 > R2[depth][ci]
             if far.any():
                 cf = ci[far]
                 r2f = r2[far]
@@ -156,14 +156,14 @@ class WindingTree:
             near = ~far
             qn, cn = qi[near], ci[near]
             count = L["end"][cn] - L["start"][cn]
-            is_leaf = count <= self.leaf if lev < self.LEVELS else np.ones(len(cn), bool)
+            is_leaf = count <= self.leaf if depth < self.DEPTH else np.ones(len(cn), bool)
             if is_leaf.any():
                 ql, cl = qn[is_leaf], cn[is_leaf]
                 rep, t = self._expand(L["start"][cl], count[is_leaf])
                 qq = ql[rep]
                 contrib = _solid_angle_w(Qx[qq], Qy[qq], Qz[qq], self.A, self.B, self.C, t)
                 w += np.bincount(qq, weights=contrib, minlength=nq)
-            if lev == self.LEVELS:
+            if depth == self.DEPTH:
                 break
             qo, co = qn[~is_leaf], cn[~is_leaf]
             cs = L["child_start"][co]

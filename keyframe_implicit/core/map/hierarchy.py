@@ -75,19 +75,19 @@ def fields_on(phi_a, phi_b, disp0, grid, g):
             pts + sample(disp0, grid, pts))
 
 
-def correction(level, y, y_start_full, base, passes):
+def correction(system, y, y_start_full, base, passes):
     """The level's solution as a correction of its start map ``base`` on every node of
     its grid: solved on the active nodes, extended beyond them (`extend`)."""
-    g, d = level.grid, level.d
+    g, d = system.grid, system.d
     full = y_start_full.reshape(-1, d).copy()
-    full[level.active] = y
+    full[system.active] = y
     known = np.zeros(g.size, dtype=bool)
-    known[level.active] = True
+    known[system.active] = True
     corr = (full - base.reshape(-1, d)).reshape(g.shape + (d,))
     return extend(corr, known.reshape(g.shape), passes)
 
 
-def start_map(level, base, corr_prev, options):
+def start_map(system, base, corr_prev, options):
     """Start of one level: its base map plus as much of the coarser level's correction as
     keeps the material's det F at ``min_det`` (or at the base's own minimum, if lower).
 
@@ -95,18 +95,18 @@ def start_map(level, base, corr_prev, options):
     the finer level's material boundary it can fold cells the coarse level never saw;
     it is halved until it does not. Returns the start on every node and on the active ones.
     """
-    d, chunk = level.d, int(options.chunk_elements)
+    d, chunk = system.d, int(options.chunk_elements)
 
     def start(scale):
-        full = base if scale == 0 else base + scale * prolong(corr_prev, level.grid.shape)
-        return full, level.cons.enforce(full.reshape(-1, d)[level.active])
+        full = base if scale == 0 else base + scale * prolong(corr_prev, system.grid.shape)
+        return full, system.cons.enforce(full.reshape(-1, d)[system.active])
 
     full, y = start(0.0)
     if corr_prev is None:
         return full.copy(), y
-    floor = det_floor(level.det_stats(y, chunk), options.min_det)
+    floor = det_floor(system.det_stats(y, chunk), options.min_det)
     for scale in (1.0, 0.5, 0.25, 0.125):
         full_s, y_s = start(scale)
-        if det_floor(level.det_stats(y_s, chunk), options.min_det) >= floor:
+        if det_floor(system.det_stats(y_s, chunk), options.min_det) >= floor:
             return full_s, y_s
     return full.copy(), y

@@ -195,30 +195,30 @@ def _pcg(apply_A, b, precond, project, tol, maxiter, check=None):
     return x, it
 
 
-def _solve_level(level: MapSystem, y, opts, rep, timing, pool=None):
+def _solve_level(system: MapSystem, y, opts, rep, timing, pool=None):
     """Constrained Gauss-Newton on one level; returns y (n, d), per-iteration history.
     ``pool``: a one-thread executor for half of each assembly and Hessian product
     (`MapSystem.evaluate`, `MapSystem.product`)."""
-    cons, weights = level.cons, opts.weights
+    cons, weights = system.cons, opts.weights
     max_iterations, tolerance = int(opts.max_iterations), float(opts.tolerance)
     chunk = int(opts.chunk_elements)
     t0 = time.perf_counter()
-    E, energies, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check, pool=pool)
+    E, energies, g, Hs = system.evaluate(y, weights, chunk, hessian=True, check=rep.check, pool=pool)
     timing["assembly"] += time.perf_counter() - t0
-    dets = level.det_stats(y, chunk)
+    dets = system.det_stats(y, chunk)
     floor = det_floor(dets, opts.min_det)
     history = [dict(energy=E, **energies)]
     it = 0
     cg_total = 0
     fresh = True  # Hs was assembled at the current y
     t0 = time.perf_counter()
-    coarse = _coarse_space(level, opts)
+    coarse = _coarse_space(system, opts)
     timing["setup"] += time.perf_counter() - t0
     for it in range(1, max_iterations + 1):
         rep((it - 1) / max_iterations, f"Gauss-Newton iteration {it}")
         t0 = time.perf_counter()
         if fresh:
-            apply_A, precond = _step_system(level, Hs, coarse, opts.damping, pool)
+            apply_A, precond = _step_system(system, Hs, coarse, opts.damping, pool)
         b = -cons.reduce(g)
         z, ncg = _pcg(apply_A, b, precond, cons.project, opts.cg_tolerance, int(opts.cg_max_iterations),
                        rep.check)
@@ -229,7 +229,7 @@ def _solve_level(level: MapSystem, y, opts, rep, timing, pool=None):
         if slope >= 0:
             break
         t0 = time.perf_counter()
-        step = _line_search(level, y, dy, E, slope, floor, weights, chunk, opts.min_det,
+        step = _line_search(system, y, dy, E, slope, floor, weights, chunk, opts.min_det,
                             rep.check, pool)
         timing["line search"] += time.perf_counter() - t0
         if step is None:
@@ -249,23 +249,23 @@ def _solve_level(level: MapSystem, y, opts, rep, timing, pool=None):
             continue
         t0 = time.perf_counter()
         apply_A = Hs = precond = None  # the old Hessian goes before the new one is assembled
-        E, energies, g, Hs = level.evaluate(y, weights, chunk, hessian=True, check=rep.check,
+        E, energies, g, Hs = system.evaluate(y, weights, chunk, hessian=True, check=rep.check,
                                          pool=pool)
         fresh = True
         timing["assembly"] += time.perf_counter() - t0
     return y, history, len(history) - 1, cg_total, dets, energies
 
 
-def _step_system(level, Hs, coarse, damping, pool):
+def _step_system(system, Hs, coarse, damping, pool):
     """The reduced Gauss-Newton operator of a step, damped by ``damping`` times its mean
     diagonal so that unpinned rigid modes stay bounded, and its preconditioner (block
     Jacobi, plus the ``coarse`` correction where there is one)."""
-    cons, d = level.cons, level.d
-    diag = Hs[:, level.centre_off]
+    cons, d = system.cons, system.d
+    diag = Hs[:, system.centre_off]
     mu = damping * max(float(np.mean(np.trace(diag, axis1=1, axis2=2))) / d, 1e-300)
-    Hs[:, level.centre_off] += mu * np.eye(d)
-    H = level.product(Hs, pool)
-    precond = cons.block_preconditioner(Hs[:, level.centre_off].astype(float))
+    Hs[:, system.centre_off] += mu * np.eye(d)
+    H = system.product(Hs, pool)
+    precond = cons.block_preconditioner(Hs[:, system.centre_off].astype(float))
     if coarse is not None:
         precond = _with_correction(precond, coarse.correction(Hs), cons.n_free, d)
 
@@ -284,13 +284,13 @@ def _second_thread():
     return ThreadPoolExecutor(max_workers=1, thread_name_prefix="keyframe_implicit solver")
 
 
-def _coarse_space(level, opts):
+def _coarse_space(system, opts):
     """The level's `CoarseSpace`, or None where its systems are small enough for block
     Jacobi alone (fewer than ``coarse_space_from`` unknowns)."""
-    if level.cons.size < opts.coarse_space_from:
+    if system.cons.size < opts.coarse_space_from:
         return None
-    coords = np.stack(np.unravel_index(level.active, level.grid.shape), axis=-1)
-    return CoarseSpace(coords, level.bsr_indices.reshape(level.n, -1), level.cons.free_nodes,
+    coords = np.stack(np.unravel_index(system.active, system.grid.shape), axis=-1)
+    return CoarseSpace(coords, system.bsr_indices.reshape(system.n, -1), system.cons.free_nodes,
                        opts.coarse_space_size)
 
 
@@ -307,7 +307,7 @@ def _with_correction(precond, correction, n_free, d):
     return apply
 
 
-def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, pool=None):
+def _line_search(system, y, dy, E, slope, floor, weights, chunk, min_det, check, pool=None):
     """Backtracking from the full step: the first of 1, 1/2, 1/4, ... (down to 1e-4) that
     keeps det F of the material at or above ``floor`` (`det_floor`) and lowers the
     energy by the Armijo fraction 1e-4 of ``slope``. The det F test is tried first: it
@@ -319,9 +319,9 @@ def _line_search(level, y, dy, E, slope, floor, weights, chunk, min_det, check, 
     while alpha > 1e-4:
         check()
         y_new = y + alpha * dy
-        dets_new = level.det_stats(y_new, chunk)
+        dets_new = system.det_stats(y_new, chunk)
         if det_floor(dets_new, min_det) >= floor:
-            E_new, energies_new, g_new, _ = level.evaluate(y_new, weights, chunk, hessian=False,
+            E_new, energies_new, g_new, _ = system.evaluate(y_new, weights, chunk, hessian=False,
                                                         check=check, pool=pool)
             if E_new <= E + 1e-4 * alpha * slope:
                 return alpha, y_new, E_new, energies_new, g_new, dets_new
@@ -401,21 +401,21 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progr
                             else fields_on(phi_a, phi_b, disp0, grid, g))
             if not np.any(pa < 0):
                 continue  # material too thin for this coarse level
-            level = constrained_system(pa, pb, g, xa, yb, options, base)
-            y_start_full, y = start_map(level, base, corr, options)
+            system = constrained_system(pa, pb, g, xa, yb, options, base)
+            y_start_full, y = start_map(system, base, corr, options)
             timing["setup"] += time.perf_counter() - t0
             y, history, iters, cg_total, dets, energies = _solve_level(
-                level, y, options, rep.sub(edges[li], edges[li + 1]), timing, pool)
+                system, y, options, rep.sub(edges[li], edges[li + 1]), timing, pool)
             t0 = time.perf_counter()
-            corr = correction(level, y, y_start_full, base, int(options.extension_passes))
+            corr = correction(system, y, y_start_full, base, int(options.extension_passes))
             timing["extension"] += time.perf_counter() - t0
-            level_stats.append(dict(shape=g.shape, active_nodes=level.n, unknowns=level.cons.size,
+            level_stats.append(dict(shape=g.shape, active_nodes=system.n, unknowns=system.cons.size,
                                     iterations=iters, cg_iterations=cg_total, history=history))
     rep(1.0, "Volume map done")
-    stats = _map_stats(level, y, dets, energies, weights, level_stats, init)
+    stats = _map_stats(system, y, dets, energies, weights, level_stats, init)
     stats["seconds"] = dict(timing, total=time.perf_counter() - t_start)
     region = np.zeros(grid.size, dtype=bool)
-    region[level.active] = True
+    region[system.active] = True
     return MapResult(mapped=y0 + corr, stats=stats, grid=grid, region=region.reshape(grid.shape),
                      material=phi_a < 0, components=init.components)
 
@@ -434,11 +434,11 @@ def _with_keywords(options, keywords):
     return dataclasses.replace(options, weights=weights, **changed)
 
 
-def _map_stats(level, y, dets, energies, weights, level_stats, init):
+def _map_stats(system, y, dets, energies, weights, level_stats, init):
     """`MapResult.stats` (but its ``seconds``) from the finest level's last accepted iterate."""
     mind, cdet = dets
-    res = level.cons.residual(y)
-    h = level.grid.spacing
+    res = system.cons.residual(y)
+    h = system.grid.spacing
     return dict(
         iterations=level_stats[-1]["iterations"],
         cg_iterations=level_stats[-1]["cg_iterations"],
@@ -451,9 +451,9 @@ def _map_stats(level, y, dets, energies, weights, level_stats, init):
         max_abs_det_minus_1=float(np.max(np.abs(cdet - 1))) if len(cdet) else 0.0,
         feature_residual=float(res.max()) if len(res) else 0.0,
         feature_residual_h=float(res.max() / h) if len(res) else 0.0,
-        active_nodes=level.n,
-        unknowns=level.cons.size,
-        patch_features=int(np.sum(level.cons.is_patch)),
-        hard_features=int(len(level.cons.hard)),
+        active_nodes=system.n,
+        unknowns=system.cons.size,
+        patch_features=int(np.sum(system.cons.is_patch)),
+        hard_features=int(len(system.cons.hard)),
         initial_methods=list(init.methods),
     )

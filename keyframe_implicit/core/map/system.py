@@ -292,15 +292,15 @@ def constrained_system(pa, pb, g, xa, yb, options, base):
     rad = max(float(radius), diag) if radius > 0 else 0.0
     floor = None  # the start's own det F floor: the region and its cells do not depend on rad
     while True:
-        level = MapSystem(pa, pb, g, xa, yb, options.margin_cells, margin_weight, rad,
+        system = MapSystem(pa, pb, g, xa, yb, options.margin_cells, margin_weight, rad,
                           options.patch_rigidity)
-        if rad == 0.0 or level.cons.n_patch == 0:
-            return level
-        raw = base.reshape(-1, d)[level.active]
+        if rad == 0.0 or system.cons.n_patch == 0:
+            return system
+        raw = base.reshape(-1, d)[system.active]
         if floor is None:
-            floor = det_floor(level.det_stats(raw, chunk), options.min_det)
-        if det_floor(level.det_stats(level.cons.enforce(raw), chunk), options.min_det) >= floor:
-            return level
+            floor = det_floor(system.det_stats(raw, chunk), options.min_det)
+        if det_floor(system.det_stats(system.cons.enforce(raw), chunk), options.min_det) >= floor:
+            return system
         rad = rad / 2 if rad / 2 >= diag else 0.0
 
 

@@ -112,9 +112,9 @@ def _lookup_in_cells(grid, corners, cells, *, newton_steps=6, tol=1e-6, max_cand
         for c0, c1 in _candidate_chunks(cnt, max_candidates):
             if check is not None:
                 check()
-            coef, Jinv, margin = _cell_maps(block[..., c0:c1], tol)
+            coef, Jinv, slack = _cell_maps(block[..., c0:c1], tol)
             cell, z, v = _lookup_chunk(cnt[c0:c1], ext[:, c0:c1], lo[:, c0:c1], coef, Jinv,
-                                       margin, newton_steps)
+                                       slack, newton_steps)
             found.append((cell + b0 + c0, z))
             local.append(v)
     cell, zi = (np.concatenate(x, axis=-1) for x in zip(*found))
@@ -177,20 +177,20 @@ def _bounding_boxes(grid, corners, tol):
 def _cell_maps(corners, tol):
     """The moved cells' multilinear maps (corners (2^d, d, C), index units), batch axis
     last: centred coefficients (2^d, d, C), inverse Jacobians at the centres (d, d, C) and
-    how far outside the unit cell an affine guess may fall (d, C; `_affine_margin`)."""
+    how far outside the unit cell an affine guess may fall (d, C; `_affine_slack`)."""
     coef = _centred_coefficients(corners)
     Jinv = _inverse_small(_centre_jacobian(coef))
-    return coef, Jinv, np.minimum(_affine_margin(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
+    return coef, Jinv, np.minimum(_affine_slack(coef, Jinv), _GUESS_SLACK) + _ON_FACE + tol
 
 
-def _lookup_chunk(cnt, ext, lo, coef, Jinv, margin, newton_steps):
+def _lookup_chunk(cnt, ext, lo, coef, Jinv, slack, newton_steps):
     """Inverse lookup for one chunk of cells (their candidate counts, bounding boxes,
-    coefficients, centre inverses and margins, batch axis last): the cell (index into
+    coefficients, centre inverses and slacks, batch axis last): the cell (index into
     the chunk) and node index (d, M) found, and their local coordinates (d, M).
 
     Local coordinates v are about the cell's centre (the unit cell is |v_a| <= 1/2).
-    A candidate whose affine guess lies farther than its cell's ``margin`` outside
-    the unit cell cannot be in the cell (`_affine_margin`) and gets no Newton steps.
+    A candidate whose affine guess lies farther than its cell's ``slack`` outside
+    the unit cell cannot be in the cell (`_affine_slack`) and gets no Newton steps.
     """
     d = lo.shape[0]
     # every grid node inside every moved cell's bounding box (variable-size boxes, vectorised)
@@ -204,7 +204,7 @@ def _lookup_chunk(cnt, ext, lo, coef, Jinv, margin, newton_steps):
         rem = rem // e
     # affine guess from the cell centre; drop candidates that cannot be in the cell
     v = _apply_small(Jinv[..., cc], z - coef[0][:, cc])
-    keep = np.all(np.abs(v) < 0.5 + margin[:, cc], axis=0)
+    keep = np.all(np.abs(v) < 0.5 + slack[:, cc], axis=0)
     cc, z, v = cc[keep], z[:, keep], v[:, keep]
     todo = np.arange(cc.size)  # Newton only on candidates not yet converged
     res = np.full(cc.size, np.inf)
@@ -280,7 +280,7 @@ def _poly_eval(coef, v, jacobian=True):
     return val, np.stack(derivs[::-1], axis=1)
 
 
-def _affine_margin(coef, Jinv):
+def _affine_slack(coef, Jinv):
     """How far, per local axis, a node's affine guess can lie from its exact local
     coordinates in a multilinear cell, (d, C).
 
