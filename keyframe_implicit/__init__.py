@@ -14,12 +14,14 @@ __version__ = "0.1.0"
 
 
 def register():
+    """Register the add-on's properties, operators, panels and handlers with Blender."""
     from . import blender
 
     blender.register()
 
 
 def unregister():
+    """Remove what `register` added, in reverse order."""
     from . import blender
 
     blender.unregister()

@@ -81,6 +81,7 @@ def bake_file(scene_path, out_path, resolution=0, log=print):
 
 
 def main(argv=None):
+    """Run the command line (module docstring) on ``argv``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "demo":
         from . import demo  # written separately; imported only when asked for

@@ -54,6 +54,7 @@ def _parse_tile(text):
 
 
 def parse_args(argv):
+    """The demo's command line (``python -m keyframe_implicit demo --help``)."""
     p = argparse.ArgumentParser(
         prog="python -m keyframe_implicit demo",
         description="Bake an example scene and write OUT/NAME.blend and a contact sheet OUT/NAME.png.")

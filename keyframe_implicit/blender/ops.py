@@ -44,6 +44,7 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
                        description="Timeline frame, negative ones included (not set: the current frame)")
 
     def execute(self, context):
+        """Add the named (or active) mesh object as a keyframe on the frame given."""
         settings = _settings(context)
         name = self.object_name or (context.active_object.name if context.active_object else "")
         obj = context.scene.objects.get(name) if name else None
@@ -88,6 +89,7 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
                        description="Keyframe to remove, from 0 (-1: the active one)")
 
     def execute(self, context):
+        """Remove a keyframe from the list (its object stays in the scene)."""
         settings = _settings(context)
         n = len(settings.keyframes)
         index = settings.active_keyframe_index if self.index < 0 else self.index
@@ -116,6 +118,7 @@ class KFI_OT_move_keyframe(bpy.types.Operator):
     direction: EnumProperty(name="Direction", items=(("UP", "Up", ""), ("DOWN", "Down", "")))
 
     def execute(self, context):
+        """Move a keyframe up or down the list."""
         settings = _settings(context)
         n = len(settings.keyframes)
         index = settings.active_keyframe_index if self.index < 0 else self.index
@@ -147,6 +150,7 @@ class KFI_OT_add_feature_pair(bpy.types.Operator):
     name: StringProperty(name="Name", default="", description="Optional label shown in the names")
 
     def execute(self, context):
+        """Create a feature pair's two Empties on the segment's keyframes."""
         cursor = tuple(context.scene.cursor.location)
         for prop in ("location_a", "location_b"):
             if not self.properties.is_property_set(prop):
@@ -174,6 +178,7 @@ class KFI_OT_pair_selected(bpy.types.Operator):
                                      "(-1: from their parents)")
 
     def execute(self, context):
+        """Make the two selected Empties a feature pair."""
         chosen = [o for o in context.selected_objects if o.type == "EMPTY"]
         if len(chosen) != 2:
             self.report({"ERROR"}, f"{len(chosen)} Empties selected: select exactly two "
@@ -212,6 +217,7 @@ class KFI_OT_remove_feature_pair(_OnePair, bpy.types.Operator):
     bl_label = "Remove Feature Pair"
 
     def execute(self, context):
+        """Delete the pair's Empties; report if there is no such pair."""
         _resolve_pair(self, context)
         n = features.remove_pair(context.scene, self.pair)
         if not n:
@@ -228,6 +234,7 @@ class KFI_OT_select_pair(_OnePair, bpy.types.Operator):
     bl_label = "Select Pair"
 
     def execute(self, context):
+        """Select the pair's two Empties."""
         _resolve_pair(self, context)
         try:
             features.select_pair(context.view_layer, context.scene, self.pair)
@@ -257,6 +264,7 @@ class KFI_MT_menu(bpy.types.Menu):
     bl_label = "Keyframe Implicit"
 
     def draw(self, context):
+        """Every operator of the add-on, the bake last."""
         layout = self.layout
         layout.operator("keyframe_implicit.add_keyframe")
         layout.operator("keyframe_implicit.remove_keyframe")
@@ -272,6 +280,7 @@ class KFI_MT_menu(bpy.types.Menu):
 
 
 def menu_func(self, context):
+    """Object > Keyframe Implicit: the add-on's menu in the Object menu."""
     self.layout.menu(KFI_MT_menu.bl_idname)
 
 

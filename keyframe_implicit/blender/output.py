@@ -55,6 +55,7 @@ KEY_POINTS_PER_STEP = 1_000_000
 
 
 def frame_key_name(frame):
+    """The shape key of a timeline frame, as the artist sees it in the list."""
     return f"Frame {int(frame)}"
 
 

@@ -26,6 +26,7 @@ class KFI_UL_keyframes(bpy.types.UIList):
     NAME_SHARE = 0.72  # the frame number keeps the rest: room for five digits at 291 px
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        """One keyframe: its object's name and its frame."""
         if self.layout_type == "GRID":
             layout.label(text=item.object.name if item.object else "?")
             return
@@ -44,10 +45,13 @@ class _Sidebar:
 
 
 class KFI_PT_main(_Sidebar, bpy.types.Panel):
+    """Keyframes, problems to fix, and the bake"""
+
     bl_idname = "KFI_PT_main"
     bl_label = "Keyframe Implicit"
 
     def draw(self, context):
+        """The keyframe list, the problems found, the output and the Bake button."""
         layout = self.layout
         scene = context.scene
         settings = scene.keyframe_implicit
@@ -105,11 +109,14 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
 
 
 class KFI_PT_features(_Sidebar, bpy.types.Panel):
+    """Feature pairs: points of one keyframe that must land on points of the next"""
+
     bl_idname = "KFI_PT_features"
     bl_label = "Feature Pairs"
     bl_parent_id = "KFI_PT_main"
 
     def draw(self, context):
+        """The pairs of the active keyframe's segment, with their tools."""
         layout = self.layout
         scene = context.scene
         settings = scene.keyframe_implicit
@@ -148,12 +155,15 @@ class KFI_PT_features(_Sidebar, bpy.types.Panel):
 
 
 class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
+    """Term weights, output and volume export"""
+
     bl_idname = "KFI_PT_advanced"
     bl_label = "Advanced"
     bl_parent_id = "KFI_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
+        """The weights of eq. 2.6, the output kind and the volume export."""
         settings = context.scene.keyframe_implicit
         col = self.layout.column(align=True)
         col.label(text="What the in-betweens keep:")

@@ -135,8 +135,10 @@ classes = (KFI_Keyframe, KFI_Settings)
 
 
 def register_properties():
+    """Give every scene its ``keyframe_implicit`` settings."""
     bpy.types.Scene.keyframe_implicit = PointerProperty(type=KFI_Settings)
 
 
 def unregister_properties():
+    """Remove the scenes' ``keyframe_implicit`` settings."""
     del bpy.types.Scene.keyframe_implicit

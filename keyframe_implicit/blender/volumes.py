@@ -33,6 +33,7 @@ def openvdb_module():
 
 
 def frame_path(directory, name, frame):
+    """The .vdb file of one frame: ``<name>_0001.vdb`` in ``directory``."""
     return os.path.join(directory, f"{name}_{int(frame):04d}.vdb")
 
 

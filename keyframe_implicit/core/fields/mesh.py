@@ -15,6 +15,7 @@ __all__ = ["check_vertices", "triangulate", "clean_triangles", "orient_faces"]
 
 
 def check_vertices(vertices, dim=3):
+    """``vertices`` as a float (N, dim) array, or ValueError saying what to fix."""
     try:
         v = np.asarray(vertices, dtype=float)
     except (TypeError, ValueError) as exc:

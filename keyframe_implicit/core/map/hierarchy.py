@@ -58,6 +58,8 @@ def prolong(field, shape):
 
 
 def coarse_to_fine(grid: Grid, coarse_nodes: int):
+    """The grids of the hierarchy, coarsest first, ending with ``grid``: each coarser one
+    has twice the spacing and the same origin, while it keeps ``coarse_nodes`` per side."""
     grids = [grid]
     while True:
         g = grids[-1]

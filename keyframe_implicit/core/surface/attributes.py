@@ -65,10 +65,12 @@ class MeshAttributes:
 
     @property
     def n_polygons(self):
+        """How many polygons the mesh has."""
         return len(self.loop_start)
 
     @property
     def n_loops(self):
+        """How many polygon corners (loops) the mesh has."""
         return len(self.loop_vertices)
 
     def check(self, n_vertices):
