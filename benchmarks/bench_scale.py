@@ -1,4 +1,4 @@
-"""How a whole bake scales with the grid: seconds per stage, peak memory, cost growth (issue 14).
+"""How a whole bake scales with the grid: seconds per stage, peak memory, cost growth.
 
 Every (case, size) runs `core.animate` end to end in a fresh subprocess: the
 keyframes are meshes (marching cubes of the case's fields on a fixed 97^3

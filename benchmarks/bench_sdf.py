@@ -1,4 +1,4 @@
-"""Benchmark of mesh_to_sdf (issue 3): seconds for a 20k-triangle mesh at 64^3 and 128^3.
+"""Benchmark of mesh_to_sdf: seconds for a 20k-triangle mesh at 64^3 and 128^3.
 
 Prints, per grid size: wall seconds (best of --repeat), seconds per step, band
 nodes, and the largest distance error on a random subset of band nodes against a

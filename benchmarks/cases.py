@@ -13,7 +13,7 @@ exact (closest point by a vectorised bisection on the Lagrange parameter).
 
 The rigid case also carries ``truth(points, s)``: the signed distance of the
 solid turned by ``s`` times the keyframe rotation about its centroid, with
-the centroid moved on the straight line (the ground truth of issue 4).
+the centroid moved on the straight line (the ground truth of the rigid case).
 """
 
 from __future__ import annotations

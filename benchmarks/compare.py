@@ -1,4 +1,4 @@
-"""Quality and speed of this project side by side with the alternatives (issue 8).
+"""Quality and speed of this project side by side with the alternatives.
 
 One command produces the table and plots::
 

@@ -7,8 +7,8 @@ The model: peak = processes * (c_process + c_node * N + c_active * M), N the gri
 nodes and M the solver's active nodes as the model itself predicts them from the
 material fraction (``model_active``; what `estimate_memory` can know before any
 work). The three constants (non-negative) minimise the largest relative error over
-the rows, a linear programme: the model is held to a bound on every case (issue 14
-asks for 15 %), which a least-squares fit trades against the rows' mean. Prints them,
+the rows, a linear programme: the model is held to a bound on every case (15 % is the
+target), which a least-squares fit trades against the rows' mean. Prints them,
 then every row's measured peak, the fitted model's and the current model's, and the
 largest relative error.
 """

@@ -39,7 +39,7 @@ ARGS = sys.argv[sys.argv.index("--") + 1:]
 SCENE, OUT, RESOLUTIONS = ARGS[0], ARGS[1], [int(a) for a in ARGS[2:]]
 TICK = 0.01  # seconds the recording timer asks for between its calls
 IDLE = 3.0  # seconds of each reference phase
-STALL = 0.05  # the bound on a stall
+STALL = 0.05  # the longest stall of Blender's main loop the add-on allows itself
 REDRAW = 0.1  # seconds between the 3D view's redraws in the ``redraws`` phase
 
 

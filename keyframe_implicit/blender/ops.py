@@ -292,7 +292,7 @@ TIMER_STEP = 0.02
 # Seconds of writing the result per turn of the main loop: pieces of `BakeJob.apply_steps` run
 # until this is spent. Every turn that changes data redraws the 3D view (110-200 ms with
 # software GL, benchmarks/README.md), so a small result is written in one turn, a large one
-# over as few turns as keep each under the 50 ms where its pieces allow.
+# over as few turns as keep each under 50 ms, the longest stall the add-on allows itself.
 WRITE_BUDGET = 0.025
 
 

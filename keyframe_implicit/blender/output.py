@@ -4,7 +4,7 @@ Two outputs (`resolve_output` picks one: the artist's choice, or Auto, which
 takes the core's choice -- shape keys when every frame of the tracked
 template passes the cleanliness limits of `core.quality`, else the sequence).
 
-Shape keys (issue 5, item 4):
+Shape keys:
 
 - a mesh whose Basis is the first frame's shape, smooth shaded, in its own
   collection, with the keyframes' materials in its slots: the faces use the
