@@ -1,66 +1,50 @@
 """Volume map between two keyframes: constrained Gauss-Newton (thesis sec. 2.3-2.5).
 
-`solve_map` minimises eq. 2.6 (terms in `keyframe_implicit.core.map.terms`, cells
-in `keyframe_implicit.core.base.elements`) subject to the feature constraints of
-eq. 2.8 / 2.14-2.20 (`keyframe_implicit.core.map.constraints`), starting from the
-RBF map of eq. 2.1-2.5 (`keyframe_implicit.core.map.rbf`). The measurements
-behind every default below are in benchmarks/README.md ("Map solver").
+`solve_map` minimises eq. 2.6 (one function per term in `terms`, cells in
+`base.elements`) subject to the feature constraints of eq. 2.8 / 2.14-2.20
+(`constraints`), starting from the RBF map of eq. 2.1-2.5 (`rbf`). Every setting
+and its default is a field of `options.MapOptions`; benchmarks/README.md ("Map
+solver") has the measurement behind each.
 
-Algorithm
----------
-* Coarse to fine: the grid is coarsened by 2 while the coarse level keeps at
-  least ``coarse_nodes`` (24) nodes per side (128 -> 65 -> 33, 64 -> 33,
-  32 alone). Each level solves for a correction of the (fine) RBF map; the
-  correction is prolonged multilinearly to the next level, and the
-  constraints are re-imposed exactly.
-* Gauss-Newton (eq. 2.11-2.13) on the reduced unknowns of the constraint
-  null space (eq. 2.16 by elimination rather than a KKT system). Energy,
-  gradient and the Gauss-Newton Hessian are assembled per element in closed
-  form straight into a fixed 3**d-neighbour block stencil (no Jacobian is
-  formed), then handed to scipy as a block-sparse (BSR) matrix, stored in single
-  precision (``HESSIAN_DTYPE``).
+Algorithm (docs/method.md, section 4)
+-------------------------------------
+* Coarse to fine (`hierarchy`): the grid is coarsened by 2 while the coarsest
+  keeps ``coarse_nodes`` nodes per side. Each level solves for a correction of the
+  (fine) RBF map, prolonged multilinearly to the next level; the constraints are
+  re-imposed exactly.
+* Gauss-Newton (eq. 2.11-2.13) on the reduced unknowns of the constraint null space
+  (eq. 2.16 by elimination rather than a KKT system). Energy, gradient and the
+  Gauss-Newton Hessian are assembled per element in closed form straight into a
+  3**d-neighbour block stencil (`system.MapSystem`), handed to scipy as a
+  block-sparse matrix in single precision (`system.HESSIAN_DTYPE`).
 * Linear solve: projected conjugate gradients with a d x d block-Jacobi
-  preconditioner at a loose relative tolerance (``cg_tolerance`` = 3e-2),
-  plus a tiny Levenberg-Marquardt shift ``damping`` x mean diagonal so that
-  unpinned rigid modes stay bounded. A level of ``coarse_space_from``
-  (120,000) unknowns or more adds a coarse correction (`coarse.CoarseSpace`,
-  at most ``coarse_space_size`` = 9000 coarse unknowns): block Jacobi alone
-  needs iterations in proportion to the grid's resolution. Each product with the
-  Hessian runs in two row halves, one in a second thread (`MapSystem.product`): it uses
-  the core the bake's other process leaves idle once its own map is solved.
-* Safeguard (docs/method.md, section 4): backtracking line search on the true
-  energy (Armijo) that also refuses any step taking det F of the material
-  (any quadrature point) below ``min_det`` (0.2), or below its current
-  minimum where the start is lower. A level starts from the coarser
-  correction only as far as that keeps det F there (`start_map`): the
+  preconditioner at the loose relative tolerance ``cg_tolerance``, plus a
+  Levenberg-Marquardt shift ``damping`` x mean diagonal so that unpinned rigid modes
+  stay bounded. Levels of ``coarse_space_from`` unknowns or more add a coarse
+  correction (`coarse.CoarseSpace`): block Jacobi alone needs iterations in
+  proportion to the grid's resolution. Each Hessian product runs in two row halves,
+  one in a second thread, on the core the bake's other process leaves idle once its
+  own map is solved.
+* Safeguard: backtracking line search on the true energy (Armijo) that also
+  refuses any step taking det F of the material below ``min_det``, or below its
+  current minimum where the start is lower; a level starts from the coarser
+  correction only as far as that keeps det F there (`hierarchy.start_map`). The
   transports of the in-betweens assume maps that do not fold.
-* Stop when an accepted step lowers the energy by less than ``tolerance``
-  (relative, 1 %) or after ``max_iterations`` per level.
+* Stop when an accepted step lowers the energy by less than ``tolerance`` or after
+  ``max_iterations`` per level.
 
-Default weights
----------------
-``volume_weight=30, rigidity_weight=1, levelset_weight=10`` (the thesis uses
-no weights): the material is nearly incompressible; with equal weights the
-optimiser trades volume for rigidity.
-
-Feature patches are stiffer than the material (``patch_rigidity``)
--------------------------------------------------------------------
-Each feature point moves the solved nodes within ``feature_radius`` by one
-affine map y'_i + A_i (x - x'_i) (`keyframe_implicit.core.map.constraints`).
-A_i is a free d x d matrix, so with the material's own rigidity a patch can
-shear and scale as a whole and absorb what the volume term pushes into it (a
-bent rod's "rigid" half came out 2.2 % short). A feature marks material that
-must follow the user's point, so the patch cells' rigidity weight is
-multiplied by ``patch_rigidity`` (10).
-
-Integration region (docs/method.md, section 2)
-------------------------------------------
-Cells whose centre is inside A's material (phi_a < 0) have weight 1; cells
-within ``margin_cells`` (3) cells outside it, the map's margin, have weight
-``margin_weight`` (0.1); the feature points' cells are always solved. Nodes
-outside the region carry a smooth extension of the solved correction (never
-NaN). Without a margin the material's boundary nodes are held by nothing and
-fold; at full weight the empty gap of a merge resists it.
+Weights, feature patches and the integration region (docs/method.md, section 2)
+-------------------------------------------------------------------------------
+The material is nearly incompressible (the volume weight far above the rigidity
+weight: with equal weights the optimiser trades volume for rigidity). Each feature
+point moves the solved nodes within ``feature_radius`` by one affine map
+y'_i + A_i (x - x'_i); a feature marks material that must follow the artist's point,
+so the rigidity of a patch's cells is multiplied by ``patch_rigidity``, or the patch
+would shear and scale as a whole to absorb what the volume term pushes into it.
+Cells inside A's material have weight 1, those of the map's margin
+(``margin_cells`` wide) ``margin_weight``: without a margin the material's boundary
+nodes are held by nothing and fold; at full weight the empty gap of a merge resists
+it. Nodes outside the region carry a smooth extension of the solved correction.
 """
 
 from __future__ import annotations
