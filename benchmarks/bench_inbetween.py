@@ -38,34 +38,15 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "core"))
 
 
-def run(n, frames, method, solver):
-    from inbetween_cases import rigid_case, rigid_expected
-    from keyframe_implicit.core.bake.maps import inbetween
-    from keyframe_implicit.core.motion.levelset import Inbetween
+def _frame_pass(ib, grid, times, info):
+    """One pass over the frames, as the pipeline makes them (trajectories, level set,
+    surface, template step: track_template's loop body), timed stage by stage; with each
+    frame's zero-set error against the exact turned solid and the template's |phi|."""
+    from inbetween_cases import rigid_expected
     from keyframe_implicit.core.surface.extract import extract_surface
-    from keyframe_implicit.core.surface.template import project_to_zero_set, track_template
+    from keyframe_implicit.core.surface.template import project_to_zero_set
 
-    t = time.perf_counter()
-    grid, phi_a, phi_b, mapped, info = rigid_case(n=n)
-    print(f"grid {grid.shape}, h = {grid.spacing:.4g}; analytic keyframes "
-          f"{time.perf_counter() - t:.2f} s")
     h = grid.spacing
-    t = time.perf_counter()
-    if solver:
-        c = info["centroid"]
-        fa = c + np.array([[0.3, 0.0, 0.0], [0.0, 0.3, 0.0], [0.0, 0.0, 0.2], [-0.3, -0.2, 0.0]])
-        fb = c + info["t"] + (fa - c) @ info["R"].T
-        ib = inbetween(phi_a, phi_b, grid, fa, fb, resample=method)
-        print(f"solve_map                 {ib.stats['map_seconds']:7.2f} s")
-    else:
-        ib = Inbetween.from_map(phi_a, phi_b, grid, mapped, resample=method)
-    setup = time.perf_counter() - t - ib.stats.get("map_seconds", 0.0)
-    ts = ib.trajectories.stats
-    print(f"trajectory setup          {setup:7.2f} s   (setup {ts.get('setup_seconds', 0):.2f} s, "
-          f"{ts.get('active_nodes', 0)} active nodes, multigrid levels {ts.get('multigrid_levels')})")
-    times = np.linspace(0.0, 1.0, frames)
-    # one pass over the frames, as the pipeline does it: trajectories, level set,
-    # surface, template step (track_template's loop body, timed stage by stage)
     V0, F0 = extract_surface(ib.levelset(0.0), grid)
     ib._cache.clear()
     stage = dict(trajectories=0.0, levelset=0.0, surface=0.0, template=0.0)
@@ -87,6 +68,34 @@ def run(n, frames, method, solver):
         stage["template"] += t5 - t4
         errs.append(np.abs(rigid_expected(V, s, info)).mean() / h)
         phis.append(err.max() / h)
+    return V0, F0, stage, errs, phis
+
+
+def run(n, frames, method, solver):
+    from inbetween_cases import rigid_case
+    from keyframe_implicit.core.bake.maps import inbetween
+    from keyframe_implicit.core.motion.levelset import Inbetween
+    from keyframe_implicit.core.surface.template import track_template
+
+    t = time.perf_counter()
+    grid, phi_a, phi_b, mapped, info = rigid_case(n=n)
+    print(f"grid {grid.shape}, h = {grid.spacing:.4g}; analytic keyframes "
+          f"{time.perf_counter() - t:.2f} s")
+    t = time.perf_counter()
+    if solver:
+        c = info["centroid"]
+        fa = c + np.array([[0.3, 0.0, 0.0], [0.0, 0.3, 0.0], [0.0, 0.0, 0.2], [-0.3, -0.2, 0.0]])
+        fb = c + info["t"] + (fa - c) @ info["R"].T
+        ib = inbetween(phi_a, phi_b, grid, fa, fb, resample=method)
+        print(f"solve_map                 {ib.stats['map_seconds']:7.2f} s")
+    else:
+        ib = Inbetween.from_map(phi_a, phi_b, grid, mapped, resample=method)
+    setup = time.perf_counter() - t - ib.stats.get("map_seconds", 0.0)
+    ts = ib.trajectories.stats
+    print(f"trajectory setup          {setup:7.2f} s   (setup {ts.get('setup_seconds', 0):.2f} s, "
+          f"{ts.get('active_nodes', 0)} active nodes, multigrid levels {ts.get('multigrid_levels')})")
+    times = np.linspace(0.0, 1.0, frames)
+    V0, F0, stage, errs, phis = _frame_pass(ib, grid, times, info)
     for k, v in stage.items():
         print(f"{frames} x {k:<22s}{v:7.2f} s")
     total = sum(stage.values())

@@ -254,21 +254,31 @@ def cost_slopes(results, method="project", case=None):
             "points": len(rs)}
 
 
+_COLOURS = {"project": "C3", "one-sided": "C4", "blend": "C0", "morph": "C2", "rbf": "C1"}
+
+
 def _plots(results, outdir):
+    """quality.png and cost.png in ``outdir`` from the rows that ran."""
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     ok = [r for r in results if "error" not in r]
     if not ok:
         return
-    from cases import CASE_NAMES
-    colours = {"project": "C3", "one-sided": "C4", "blend": "C0", "morph": "C2", "rbf": "C1"}
+    methods = [m for m in METHOD_ORDER if any(r["method"] == m for r in ok)]
+    _quality_plot(ok, methods, outdir)
+    _cost_plot(results, ok, methods, outdir)
 
-    # 1. quality: volume drift per case and method at the largest size run
+
+def _quality_plot(ok, methods, outdir):
+    """Volume drift per case and method at the largest size run, and the rigid case's
+    error to the ground truth over the sizes."""
+    import matplotlib.pyplot as plt
+    from cases import CASE_NAMES
+
+    colours = _COLOURS
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     nmax = max(r["n"] for r in ok)
-    methods = [m for m in METHOD_ORDER if any(r["method"] == m for r in ok)]
     width = 0.8 / max(len(methods), 1)
     for j, m in enumerate(methods):
         vals = []
@@ -300,7 +310,15 @@ def _plots(results, outdir):
     fig.savefig(outdir / "quality.png", dpi=110)
     plt.close(fig)
 
-    # 2. cost growth against active voxels: one line per (method, case) over the sizes
+
+
+def _cost_plot(results, ok, methods, outdir):
+    """Time and peak memory against active voxels: one line per (method, case) over the
+    sizes, with the median per-case log-log slope in the legend."""
+    import matplotlib.pyplot as plt
+    from cases import CASE_NAMES
+
+    colours = _COLOURS
     from matplotlib.ticker import NullFormatter
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     markers = dict(zip(CASE_NAMES, "osD^vPX"))
