@@ -49,7 +49,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from keyframe_implicit.core import Grid, elements, solve_map  # noqa: E402
+from keyframe_implicit.core import Grid, solve_map  # noqa: E402
+from keyframe_implicit.core.base import elements  # noqa: E402
 from keyframe_implicit.core.base.sampling import sample  # noqa: E402
 
 
