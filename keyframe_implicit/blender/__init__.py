@@ -67,7 +67,7 @@ def unregister():
         if _forget_surfaces in handlers:
             handlers.remove(_forget_surfaces)
     _forget_surfaces()
-    for job in list(ops._running):
+    for job in list(ops.running):
         job.cancel()
     bpy.types.VIEW3D_MT_object.remove(ops.menu_func)
     props.unregister_properties()

@@ -284,7 +284,8 @@ def menu_func(self, context):
     self.layout.menu(KFI_MT_menu.bl_idname)
 
 
-_running = []  # the BakeJob of the modal bake in progress (at most one)
+#: The BakeJob of the modal bake in progress (at most one): the panel shows its progress.
+running = []
 # Seconds between the modal bake's polls of its job. A poll costs next to nothing (nothing
 # is redrawn unless the progress text changed), and a short step keeps its stall figure
 # (`BakeJob.stall`: the longest gap between polls beyond this step) within 20 ms of the truth.
@@ -319,7 +320,7 @@ class KFI_OT_bake(bpy.types.Operator):
         """Bake only one at a time, and only a setup without blocking problems (the panel's
         list, `validate.problems`: read without the meshes, cheap on every redraw); the
         button's tooltip says why not."""
-        if _running:
+        if running:
             cls.poll_message_set("A bake is already running (ESC cancels it).")
             return False
         if context.scene is None:
@@ -366,7 +367,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self._job = bake.BakeJob(inputs, poll_step=TIMER_STEP)
-        _running.append(self._job)
+        running.append(self._job)
         self._job.start()
         wm = context.window_manager
         self._timer = wm.event_timer_add(TIMER_STEP, window=context.window)
@@ -396,8 +397,8 @@ class KFI_OT_bake(bpy.types.Operator):
             self._timer = None
         wm.progress_end()
         self._status(context, None)
-        if self._job in _running:
-            _running.remove(self._job)
+        if self._job in running:
+            running.remove(self._job)
 
     def modal(self, context, event):
         """Each turn of the main loop: ESC cancels; a timer event polls the job, shows its

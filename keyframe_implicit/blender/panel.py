@@ -87,10 +87,10 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col.prop(settings, "volume_export")
         if settings.volume_export:
             col.prop(settings, "volume_directory")
-        from .ops import _running
+        from .ops import running
 
-        if _running:
-            fraction, message = _running[0].status()
+        if running:
+            fraction, message = running[0].status()
             _wrapped(layout, context, f"Baking {100 * fraction:.0f}%: {message}", "SORTTIME")
             layout.label(text="ESC in the 3D view cancels.", icon="BLANK1")
         row = layout.row()

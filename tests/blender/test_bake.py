@@ -216,7 +216,7 @@ def _modal_operator(job, scene):
         setattr(me, name, getattr(ops.KFI_OT_bake, name).__get__(me))
     ctx = types.SimpleNamespace(window_manager=_Recorder(), workspace=_Recorder(), screen=None,
                                 scene=scene, view_layer=bpy.context.view_layer)
-    ops._running.append(job)
+    ops.running.append(job)
     return me, ctx, reports
 
 
@@ -260,7 +260,7 @@ def test_modal_bake_esc_cancels_and_changes_nothing(scene, kfi):
     assert reports and reports[-1][0] == "WARNING" and "cancelled" in reports[-1][1]
     assert ("progress_end", ()) in ctx.window_manager.calls
     assert ("status_text_set", (None,)) in ctx.workspace.calls
-    assert not ops._running
+    assert not ops.running
     assert kfi.snapshot() == state
 
 
@@ -284,7 +284,7 @@ def test_modal_bake_applies_result_on_the_main_thread(scene, kfi):
     assert out is not None and len(out.data.shape_keys.key_blocks) == 8
     assert any(name == "progress_update" for name, _ in ctx.window_manager.calls)
     assert reports[-1][0] == "INFO" and "Baked" in reports[-1][1]
-    assert not ops._running
+    assert not ops.running
 
 
 def test_modal_bake_writes_over_several_turns_and_esc_there_changes_nothing(scene, kfi):
@@ -307,7 +307,7 @@ def test_modal_bake_writes_over_several_turns_and_esc_there_changes_nothing(scen
     assert len(made) == 1 and len(next(iter(made)).polygons) > 0  # half written
     assert ops.KFI_OT_bake.modal(me, ctx, _event("ESC")) == {"CANCELLED"}
     assert reports[-1][0] == "WARNING" and "cancelled" in reports[-1][1]
-    assert set(bpy.data.meshes) == meshes and not ops._running
+    assert set(bpy.data.meshes) == meshes and not ops.running
     assert kfi.snapshot() == state
 
 
@@ -342,7 +342,7 @@ def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(sce
         assert ctx.workspace.calls[-1] == ("status_text_set", ("Baking 50%: trajectories (ESC to cancel)",))
         assert len(ctx.workspace.calls) == 2 and redraws()[("VIEW_3D", "UI")] == 2
     finally:
-        ops._running.remove(job)
+        ops.running.remove(job)
 
 
 def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):

@@ -140,11 +140,11 @@ def test_panel_shows_a_running_bake(scene, kfi):
     kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (1.5, 0, 0), 1, 4)])
     job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
     job._progress(0.42, "solving the volume map")
-    ops._running.append(job)
+    ops.running.append(job)
     try:
         text = labels(draw_all(bpy.context))
     finally:
-        ops._running.remove(job)
+        ops.running.remove(job)
     assert "Baking 42%: solving the volume map" in text and "ESC" in text
 
 
