@@ -13,7 +13,7 @@ import pytest
 
 from keyframe_implicit.core import Cancelled, animate
 
-from test_pipeline import turning_sphere
+from inbetween_cases import turning_sphere
 
 LATENCY = 1.0  # seconds, issue 14's bound
 

@@ -11,10 +11,10 @@ import time
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Cancelled, Grid, animate
+from keyframe_implicit.core import Cancelled, animate
 from keyframe_implicit.core.base.parallel import Helper, HelperError
 
-from test_pipeline import turning_sphere
+from inbetween_cases import sphere_field, turning_sphere, unit_grid
 
 
 def _alive(pid):
@@ -330,9 +330,8 @@ def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(
         init(self, *args, **kwargs)
 
     monkeypatch.setattr(trajectory.Trajectories, "__init__", counting)
-    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
-    P = grid.points()
-    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
+    grid = unit_grid(3, 20)
+    phis = [sphere_field(grid, c, 0.25) for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
     feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
     helper = _OrderHelper(built)
     res = chain.animate_chain(phis, grid, feats, [1, 9], helper=helper, surfaces=False,
@@ -450,10 +449,9 @@ class _HeldHelper:
 def _two_segments():
     """A sphere moving right, then up: a chain of three keyframes on a 20^3 grid, two
     frames a segment (too few for the helper to take frames: only maps go to it)."""
-    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
-    P = grid.points()
+    grid = unit_grid(3, 20)
     centres = np.array([[0.4, 0.45, 0.5], [0.6, 0.45, 0.5], [0.6, 0.6, 0.5]])
-    phis = [np.linalg.norm(P - c, axis=-1) - 0.22 for c in centres]
+    phis = [sphere_field(grid, c, 0.22) for c in centres]
     feats = [(centres[k:k + 1], centres[k + 1:k + 2]) for k in range(2)]
     return phis, grid, feats
 
