@@ -11,7 +11,7 @@ import pytest
 
 from keyframe_implicit.blender import bake
 from keyframe_implicit.core.bake import pipeline
-from keyframe_implicit.core.bake.animation import Animation
+from keyframe_implicit.core import Animation
 from keyframe_implicit.core.surface.meshdata import resolve_output
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]

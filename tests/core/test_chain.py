@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from inbetween_cases import l_centroid, l_shape, make_grid, sphere_field
+from keyframe_implicit.core import animate_chain
 from keyframe_implicit.core.bake import chain
-from keyframe_implicit.core.bake.chain import animate_chain
 
 
 def _rigid(grid, c, R, t):

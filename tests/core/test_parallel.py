@@ -316,8 +316,7 @@ def test_helper_takes_a_distance_grid_only_once_it_has_started(started):
     """A process takes 0.5-1 s to start, longer than a small grid's distance grids: this
     process does not wait for it, and hands it the last keyframe once it is up."""
     from keyframe_implicit.core.bake import checks, pipeline
-    from keyframe_implicit.core.bake.gridfit import fit_grid
-    from keyframe_implicit.core.base.progress import Reporter
+    from keyframe_implicit.core import Reporter, fit_grid
 
     kfs, _ = turning_sphere(n=16, last=11)
     surfaces = [checks.surface_vertices(k, kf) for k, kf in enumerate(kfs)]
@@ -431,8 +430,8 @@ def test_both_halves_of_a_split_carry_their_transports_one_after_the_other(monke
     only competes with it (`Inbetween.threads` 1 in both halves; alone, it stays 2)."""
     from types import SimpleNamespace
 
+    from keyframe_implicit.core import Reporter
     from keyframe_implicit.core.bake import chain
-    from keyframe_implicit.core.base.progress import Reporter
 
     class InTurn:  # a helper that runs the submitted call when its result is asked for
         def submit(self, fn, *args):
@@ -589,7 +588,7 @@ def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised(monkeypatch
 
 
 def test_inbetween_with_a_helper_solves_the_map_b_to_a_there():
-    from keyframe_implicit.core.bake.maps import inbetween
+    from keyframe_implicit.core import inbetween
 
     phis, grid, feats = _two_segments()
     helper = _HeldHelper(lambda: True)
