@@ -3,7 +3,8 @@
 One place for the inputs many tests build, so that a test names its case instead of
 repeating its arithmetic (and benchmarks/bench_inbetween.py uses the rigid case too):
 
-* grids: `make_grid` (a cube around the origin), `unit_grid` (the unit cube);
+* grids: `make_grid` (n^d nodes from lo to hi, by default [-1.2, 1.2]^d), `unit_grid`
+  ([0, 1]^d);
 * signed distance primitives on points, ``sd_*``, and `sphere_field` on a grid's nodes;
   `sd_ellipsoid` is the first-order ellipsoid distance (exact on the surface only);
 * `rotation` (axis, angle) as a matrix;
@@ -33,6 +34,7 @@ from keyframe_implicit.core import Grid, Keyframe
 
 # ---------------------------------------------------------------- SDF primitives
 def sd_box(p, centre, half, rounding=0.0):
+    """Exact SDF of an axis-aligned box (half extents ``half``), its edges rounded by ``rounding``."""
     q = np.abs(p - np.asarray(centre)) - (np.asarray(half) - rounding)
     out = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
     inside = np.minimum(np.max(q, axis=-1), 0.0)
@@ -40,10 +42,12 @@ def sd_box(p, centre, half, rounding=0.0):
 
 
 def sd_sphere(p, centre, radius):
+    """Exact SDF of the ball (disc in 2D) of ``radius`` about ``centre``, at the points ``p``."""
     return np.linalg.norm(p - np.asarray(centre), axis=-1) - radius
 
 
 def sd_capsule(p, a, b, radius):
+    """Exact SDF of the capsule of ``radius`` about the segment from ``a`` to ``b``."""
     a = np.asarray(a, float)
     b = np.asarray(b, float)
     pa = p - a
