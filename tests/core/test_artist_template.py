@@ -4,10 +4,9 @@ import numpy as np
 import pytest
 
 from keyframe_implicit import shapes
-from keyframe_implicit.core import Keyframe, animate, animate_chain, mesh_to_sdf
+from keyframe_implicit.core import Keyframe, animate, animate_chain, fit_grid, mesh_to_sdf
 from keyframe_implicit.core.surface.attributes import (MeshAttributes, closest_points, concatenate,
                                                transfer)
-from keyframe_implicit.core.bake.gridfit import fit_grid
 from keyframe_implicit.core.surface.quality import mesh_distance
 from keyframe_implicit.core.fields.mesh import triangulate
 

@@ -3,7 +3,9 @@
 The bake runs in a thread; once a stage's progress message has been seen, the test
 waits a little (so the stage is under way and its own progress report is past),
 then flips cancel and measures the wall time until `Cancelled` arrives. The stage
-must still be the one running when the bake stops: no later stage reported progress.
+must still be the one running when the bake stops: no later stage reported progress
+(the event that shows cancel is seen within the stage); the wall time has a bound with
+room for a loaded machine (`LATENCY`).
 """
 
 import threading
@@ -13,9 +15,14 @@ import pytest
 
 from keyframe_implicit.core import Cancelled, animate
 
-from test_pipeline import turning_sphere
+from inbetween_cases import turning_sphere
 
-LATENCY = 1.0  # seconds, issue 14's bound
+#: Bound on the seconds from the flip to `Cancelled`. Issue 14 promises about a second;
+#: measured 0.01-0.03 s, alone and beside two busy processes on 2 cores. CI runs two test
+#: stages side by side on 2 cores: the bound leaves room for that and more, so that it fails
+#: on a cancel nobody looks at (a hang), not on a loaded machine. A stage that ran to its end
+#: before stopping fails the check on later stages' reports instead.
+LATENCY = 5.0
 
 
 def _bake_and_cancel(stage, later, delay):

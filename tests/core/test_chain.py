@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from inbetween_cases import l_centroid, l_shape, make_grid
+from inbetween_cases import l_centroid, l_shape, make_grid, sphere_field
+from keyframe_implicit.core import animate_chain
 from keyframe_implicit.core.bake import chain
-from keyframe_implicit.core.bake.chain import animate_chain
 
 
 def _rigid(grid, c, R, t):
@@ -66,7 +66,7 @@ def test_a_chain_gives_its_free_heap_back_between_segments_not_after_the_last(mo
 
 def test_chain_refuses_bad_frames_and_missing_features():
     grid = make_grid(2, 12)
-    phi = np.linalg.norm(grid.points(), axis=-1) - 0.5
+    phi = sphere_field(grid, (0, 0), 0.5)
     with pytest.raises(ValueError, match="increasing"):
         animate_chain([phi, phi], grid, None, [5, 5], maps=[grid.points()])
     with pytest.raises(ValueError, match="one per keyframe"):

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Grid
+from inbetween_cases import nudged_spheres, sphere_to_ellipsoid, unit_grid
+from keyframe_implicit.core import solve_map
 from keyframe_implicit.core.map import solver, system
 from keyframe_implicit.core.map.coarse import CoarseSpace
 
@@ -11,10 +12,8 @@ from keyframe_implicit.core.map.coarse import CoarseSpace
 def _level(n, d):
     """A `system.MapSystem` with two feature patches (so some nodes are not free), its
     Hessian at a wavy map, and the grid index of its nodes."""
-    g = Grid(np.zeros(d), 1.0 / (n - 1), (n,) * d)
-    P = g.points()
-    phi_a = np.linalg.norm(P - 0.5, axis=-1) - 0.3
-    phi_b = np.linalg.norm(P - 0.52, axis=-1) - 0.3
+    g = unit_grid(d, n)
+    phi_a, phi_b = nudged_spheres(g)
     fa = np.full((2, d), 0.5)
     fa[1, 0] = 0.75
     L = system.MapSystem(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.12, patch_rigidity=10.0)
@@ -77,10 +76,7 @@ def test_the_coarse_correction_cuts_the_iterations_of_a_gauss_newton_system():
 def test_a_map_solved_with_the_correction_matches_block_jacobi_in_fewer_iterations():
     """`solve_map` with the correction on every level (``coarse_space_from=0``): the same
     map up to CG's loose tolerance, in fewer CG iterations; off by default on a small grid."""
-    from test_solver import _sphere_to_ellipsoid
-    from keyframe_implicit.core import solve_map
-
-    g, phi_a, phi_b, fa, fb = _sphere_to_ellipsoid(36)
+    g, phi_a, phi_b, fa, fb = sphere_to_ellipsoid(36)
     plain = solve_map(phi_a, phi_b, g, fa, fb)
     assert plain.stats["unknowns"] < solver.DEFAULTS["coarse_space_from"]
     both = solve_map(phi_a, phi_b, g, fa, fb, coarse_space_from=0)

@@ -118,7 +118,7 @@ _MEASURE_BAKE = r"""
 import json, sys
 import numpy as np
 sys.path.insert(0, "tests/core")
-from test_pipeline import _sphere_features, rotation, uv_sphere
+from inbetween_cases import rotation, sphere_features, uv_sphere
 from keyframe_implicit.core import Keyframe, animate, estimate_memory, mesh_to_sdf
 
 def main():
@@ -126,7 +126,7 @@ def main():
     va, fa = uv_sphere(np.zeros(3), 0.3)
     off, R = np.array([0.4, 0.1, -0.2]), rotation([0.3, 1.0, 0.2], np.deg2rad(50))
     vb = va @ R.T + off
-    pa, pb = _sphere_features(np.zeros(3), 0.3, R, off)
+    pa, pb = sphere_features(np.zeros(3), 0.3, R, off)
     anim = animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 9)], [(pa, pb)], resolution=res,
                    processes=2)
     with open("/proc/self/status") as fh:

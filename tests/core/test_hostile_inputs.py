@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pytest
 
+from inbetween_cases import sphere_field
 from keyframe_implicit.core import Keyframe, animate
 from keyframe_implicit.shapes import icosphere
 
@@ -161,7 +162,7 @@ def test_initial_map_stays_on_the_grid_with_near_duplicate_features(gap):
 
     n = 24
     g = Grid((-1.0, -1.0, -1.0), 2.0 / n, (n + 1,) * 3)
-    phi = np.linalg.norm(g.points(), axis=-1) - 0.5
+    phi = sphere_field(g, (0, 0, 0), 0.5)
     pa, pb = _features(shift=0.0)
     pa = np.vstack([pa, pa[0] + (gap, 0, 0)])
     pb = np.vstack([pb, pb[0] + (0, 0.3, -0.4)])

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from inbetween_cases import sphere_field
 from keyframe_implicit.core import Grid
 from keyframe_implicit.core.motion.isovolume import _gradient_norm, volume_offset
 from keyframe_implicit.core.surface.extract import enclosed_volume
@@ -19,7 +20,7 @@ def test_gradient_at_nodes_is_numpys_gradient_there(shape):
 
 def test_offset_gives_the_volume_of_the_sphere_it_asks_for():
     g = Grid(origin=(-1.0, -1.0, -1.0), spacing=2.0 / 47, shape=(48, 48, 48))
-    f = np.linalg.norm(g.points(), axis=-1) - 0.5
+    f = sphere_field(g, (0, 0, 0), 0.5)
     v = enclosed_volume(f, g)
     grown = enclosed_volume(f - 0.03, g)  # the surface 0.03 further out: about 0.7 cells
     c, err = volume_offset(f, g, grown)
@@ -36,7 +37,7 @@ def test_a_truncated_fields_plateau_is_not_read_and_gives_the_same_offset(monkey
     from keyframe_implicit.core.motion import isovolume
 
     g = Grid(origin=(-1.0, -1.0, -1.0), spacing=2.0 / 47, shape=(48, 48, 48))
-    f = np.linalg.norm(g.points(), axis=-1) - 0.5
+    f = sphere_field(g, (0, 0, 0), 0.5)
     cut = np.minimum(f, 1.9 * g.spacing)
     target = enclosed_volume(f - 0.03, g)
     read = []

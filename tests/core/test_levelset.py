@@ -5,9 +5,8 @@ import pytest
 from scipy import ndimage
 
 from inbetween_cases import RIGID_AXIS, bend_case, merge_case, rigid_case, rigid_expected, l_shape
-from keyframe_implicit.core.motion.levelset import Inbetween
-from keyframe_implicit.core.base.sampling import sample
-from keyframe_implicit.core.surface.extract import extract_surface, loop_area, mesh_volume
+from keyframe_implicit.core import Inbetween, extract_surface, sample
+from keyframe_implicit.core.surface.extract import loop_area, mesh_volume
 
 
 def volume(levelset, grid):
@@ -188,7 +187,7 @@ def test_inverse_lookup_in_chunks_finds_the_same_sources(rigid):
 
 def test_in_between_is_a_distance_field_near_its_surface(rigid):
     # |grad| ~ 1 across the zero set, and values off the surface are distances
-    from keyframe_implicit.core.base.sampling import sample_with_gradient
+    from keyframe_implicit.core import sample_with_gradient
 
     grid, phi_a, phi_b, mapped, info, ib = rigid
     h = grid.spacing

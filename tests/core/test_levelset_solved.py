@@ -5,8 +5,8 @@ import pytest
 from scipy import ndimage
 
 from inbetween_cases import bend_case, l_shape, merge_case, rigid_case, rigid_expected
-from keyframe_implicit.core import inbetween
-from keyframe_implicit.core.surface.extract import extract_surface, loop_area, mesh_volume
+from keyframe_implicit.core import extract_surface, inbetween
+from keyframe_implicit.core.surface.extract import loop_area, mesh_volume
 
 
 def test_rigid_turn_through_the_solver():

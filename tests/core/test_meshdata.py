@@ -6,7 +6,7 @@ import pytest
 from keyframe_implicit.core.surface.attributes import MeshAttributes
 from keyframe_implicit.core.surface.meshdata import (MESH_SEQUENCE, SHAPE_KEYS, MeshData, output_mesh,
                                              polygon_edges)
-from keyframe_implicit.core.bake.animation import Animation
+from keyframe_implicit.core import Animation
 
 
 def _polygons(rng, n_vertices, n_polygons):

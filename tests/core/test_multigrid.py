@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 from scipy.sparse.linalg import splu
 
-from keyframe_implicit.core import Grid
+from keyframe_implicit.core import Cancelled, Grid
 from keyframe_implicit.core.base.multigrid import BlockMultigrid, block_pcg
-from keyframe_implicit.core.base.progress import Cancelled
 from keyframe_implicit.core.motion.trajectory import Trajectories
 
 

@@ -11,10 +11,39 @@ import time
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Cancelled, Grid, animate
+from keyframe_implicit.core import Cancelled, animate
 from keyframe_implicit.core.base.parallel import Helper, HelperError
 
-from test_pipeline import turning_sphere
+from inbetween_cases import sphere_field, turning_sphere, unit_grid
+
+#: Bound on the seconds from setting cancel to `Cancelled`. The promise is about a second
+#: (issue 14); measured 0.01-0.07 s here, alone and beside two busy processes on 2 cores
+#: (the worker's bake in tests/blender/test_worker.py: 0.6 s so loaded, its processes being
+#: niced). CI runs two test stages side by side on 2 cores: the bound leaves room for that
+#: and more, so that it fails on a cancel nobody looks at (a hang), not on a loaded machine.
+#: That cancel is seen in the middle of the work, not at its end, the tests check by events.
+CANCEL_LATENCY = 5.0
+
+
+def _outcome_within(seconds, fn, hang):
+    """Run ``fn()`` in a thread and wait for it at most ``seconds``: returns the exception it
+    raised (None if it returned); fails with ``hang`` if it is still running then, instead
+    of a test that never ends."""
+    raised = []
+
+    def run():
+        try:
+            fn()
+        except BaseException as exc:
+            raised.append(exc)
+        else:
+            raised.append(None)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), hang
+    return raised[0]
 
 
 def _alive(pid):
@@ -106,13 +135,13 @@ def test_the_helper_gives_a_calls_freed_heap_back_before_the_next_call():
 
 
 def test_a_killed_helper_is_an_error_that_names_the_signal():
+    """`result` tells the helper's death, not wait for an answer that cannot come: the call
+    would have slept for ten minutes, so an answer within the minute's wait is the error."""
     with Helper(preload=()) as helper:
-        helper.submit(time.sleep, 30)
+        helper.submit(time.sleep, 600)
         os.kill(helper._proc.pid, signal.SIGKILL)
-        t0 = time.perf_counter()
-        with pytest.raises(HelperError, match="signal 9"):
-            helper.result()
-        assert time.perf_counter() - t0 < 5
+        error = _outcome_within(60, helper.result, "result() still waits on a killed helper")
+    assert isinstance(error, HelperError) and "signal 9" in str(error), repr(error)
 
 
 def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
@@ -121,9 +150,9 @@ def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
         from keyframe_implicit.core.base.parallel import Helper
         if __name__ == "__main__":
             helper = Helper(preload=())
-            helper.submit(time.sleep, 60)
+            helper.submit(time.sleep, 600)
             print(helper._proc.pid, flush=True)
-            time.sleep(60)
+            time.sleep(600)
     """)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
     parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
@@ -132,10 +161,12 @@ def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
     assert _alive(pid)
     parent.kill()  # as a cancelled bake's worker is killed
     parent.wait()
-    deadline = time.time() + 5
+    # it leaves at once when its lifeline closes; the wait is bounded well below the end of
+    # its ten-minute call (after which it would end anyway), with room for a loaded machine
+    deadline = time.time() + 60
     while _alive(pid) and time.time() < deadline:
         time.sleep(0.05)
-    assert not _alive(pid), "the helper outlived its killed parent"
+    assert not _alive(pid), "the helper outlived its killed parent by a minute"
 
 
 def test_a_bake_with_a_helper_process_is_the_bake_without_one():
@@ -230,6 +261,8 @@ def test_blas_keeps_to_one_thread_in_both_processes_of_a_bake_and_is_given_back(
 
 
 def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
+    """Cancel while the helper makes its half of the frames: the bake ends promptly
+    (`CANCEL_LATENCY`) and takes its helper with it."""
     import multiprocessing
     import threading
 
@@ -252,9 +285,11 @@ def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
     assert seen.wait(300), "the bake never reached frame 3"
     t_flip = time.perf_counter()
     flipped.set()
-    worker.join(30)
-    assert "cancelled" in outcome
-    assert outcome["cancelled"] - t_flip < 1.0
+    worker.join(60)
+    assert not worker.is_alive(), "the bake ignored cancel for a minute"
+    assert "cancelled" in outcome, "the bake finished although cancel was set"
+    latency = outcome["cancelled"] - t_flip
+    assert latency < CANCEL_LATENCY, f"cancel took {latency:.2f} s"
     assert not multiprocessing.active_children(), "the helper outlived the cancelled bake"
 
 
@@ -281,8 +316,7 @@ def test_helper_takes_a_distance_grid_only_once_it_has_started(started):
     """A process takes 0.5-1 s to start, longer than a small grid's distance grids: this
     process does not wait for it, and hands it the last keyframe once it is up."""
     from keyframe_implicit.core.bake import checks, pipeline
-    from keyframe_implicit.core.bake.gridfit import fit_grid
-    from keyframe_implicit.core.base.progress import Reporter
+    from keyframe_implicit.core import Reporter, fit_grid
 
     kfs, _ = turning_sphere(n=16, last=11)
     surfaces = [checks.surface_vertices(k, kf) for k, kf in enumerate(kfs)]
@@ -330,9 +364,8 @@ def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(
         init(self, *args, **kwargs)
 
     monkeypatch.setattr(trajectory.Trajectories, "__init__", counting)
-    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
-    P = grid.points()
-    phis = [np.linalg.norm(P - c, axis=-1) - 0.25 for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
+    grid = unit_grid(3, 20)
+    phis = [sphere_field(grid, c, 0.25) for c in ([0.4, 0.5, 0.5], [0.6, 0.5, 0.5])]
     feats = [(np.array([[0.4, 0.5, 0.5]]), np.array([[0.6, 0.5, 0.5]]))]
     helper = _OrderHelper(built)
     res = chain.animate_chain(phis, grid, feats, [1, 9], helper=helper, surfaces=False,
@@ -397,8 +430,8 @@ def test_both_halves_of_a_split_carry_their_transports_one_after_the_other(monke
     only competes with it (`Inbetween.threads` 1 in both halves; alone, it stays 2)."""
     from types import SimpleNamespace
 
+    from keyframe_implicit.core import Reporter
     from keyframe_implicit.core.bake import chain
-    from keyframe_implicit.core.base.progress import Reporter
 
     class InTurn:  # a helper that runs the submitted call when its result is asked for
         def submit(self, fn, *args):
@@ -450,10 +483,9 @@ class _HeldHelper:
 def _two_segments():
     """A sphere moving right, then up: a chain of three keyframes on a 20^3 grid, two
     frames a segment (too few for the helper to take frames: only maps go to it)."""
-    grid = Grid(np.zeros(3), 1.0 / 19, (20, 20, 20))
-    P = grid.points()
+    grid = unit_grid(3, 20)
     centres = np.array([[0.4, 0.45, 0.5], [0.6, 0.45, 0.5], [0.6, 0.6, 0.5]])
-    phis = [np.linalg.norm(P - c, axis=-1) - 0.22 for c in centres]
+    phis = [sphere_field(grid, c, 0.22) for c in centres]
     feats = [(centres[k:k + 1], centres[k + 1:k + 2]) for k in range(2)]
     return phis, grid, feats
 
@@ -485,17 +517,29 @@ def test_a_free_process_takes_the_next_map_of_the_chain(monkeypatch):
     assert seconds[0] > 0 and seconds[1] >= 0
 
 
-def test_cancel_while_waiting_for_the_helpers_map_ends_within_a_second():
+def test_cancel_while_waiting_for_the_helpers_map_ends_within_a_second(monkeypatch):
+    """The helper holds its map; this process solves its three and then waits for it.
+    Cancel set then (once the third map here is solved, not after a guessed time) ends
+    the wait promptly (`CANCEL_LATENCY`)."""
     from keyframe_implicit.core.bake import chain
+    from keyframe_implicit.core.map import solver
 
+    solved_here = []  # the helper's map never runs: every map solved is this process's
+    solve = solver.solve_map
+
+    def counting(*args, **kwargs):
+        result = solve(*args, **kwargs)
+        solved_here.append(1)
+        return result
+
+    monkeypatch.setattr(solver, "solve_map", counting)
     phis, grid, feats = _two_segments()
     flipped = threading.Event()
     helper = _HeldHelper(lambda: False)
-    started = time.perf_counter()
     t_flip = {}
 
-    def cancel():  # flips once this process has had time for its three maps
-        if not flipped.is_set() and time.perf_counter() - started > 5.0:
+    def cancel():  # flips once this process has solved its three maps
+        if not flipped.is_set() and len(solved_here) == 3:
             t_flip["at"] = time.perf_counter()
             flipped.set()
         return flipped.is_set()
@@ -503,23 +547,48 @@ def test_cancel_while_waiting_for_the_helpers_map_ends_within_a_second():
     with pytest.raises(Cancelled):
         chain.animate_chain(phis, grid, feats, [1, 3, 5], helper=helper, surfaces=False,
                             coverage=False, cancel=cancel)
-    assert time.perf_counter() - t_flip["at"] < 1.0
+    latency = time.perf_counter() - t_flip["at"]
+    assert len(solved_here) == 3 and helper.calls == ["counting"]  # it was waiting for the helper
+    assert latency < CANCEL_LATENCY, f"cancel took {latency:.2f} s"
 
 
-def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised():
+def test_a_failed_map_in_the_helper_stops_this_process_and_is_raised(monkeypatch):
+    """The helper's map fails while this process solves its first: that map is stopped
+    (not solved to its end), this process begins no other, and the helper's error is
+    raised. (The whole chain takes under a second here, so a time bound could not tell.)"""
     from keyframe_implicit.core.bake import chain
+    from keyframe_implicit.core.map import solver
 
+    failed = threading.Event()  # the helper has raised its failure
+    ends = []  # how each map this process began ended
+    solve = solver.solve_map
+
+    class Failing(_HeldHelper):
+        def result(self, check=None):
+            failed.set()
+            return super().result(check)
+
+    def after_the_failure(*args, **kwargs):  # this process's map, once the helper has failed
+        assert failed.wait(60), "the helper was never asked for its map"
+        try:
+            result = solve(*args, **kwargs)
+        except Cancelled:
+            ends.append("stopped")
+            raise
+        ends.append("solved")
+        return result
+
+    monkeypatch.setattr(solver, "solve_map", after_the_failure)
     phis, grid, feats = _two_segments()
-    helper = _HeldHelper(lambda: True, fail=HelperError("the helper was killed (SIGKILL)"))
-    t0 = time.perf_counter()
+    helper = Failing(lambda: True, fail=HelperError("the helper was killed (SIGKILL)"))
     with pytest.raises(HelperError, match="SIGKILL"):
         chain.animate_chain(phis, grid, feats, [1, 3, 5], helper=helper, surfaces=False,
                             coverage=False)
-    assert time.perf_counter() - t0 < 5.0
+    assert ends == ["stopped"]
 
 
 def test_inbetween_with_a_helper_solves_the_map_b_to_a_there():
-    from keyframe_implicit.core.bake.maps import inbetween
+    from keyframe_implicit.core import inbetween
 
     phis, grid, feats = _two_segments()
     helper = _HeldHelper(lambda: True)

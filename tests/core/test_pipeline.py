@@ -3,53 +3,8 @@
 import numpy as np
 import pytest
 
-from keyframe_implicit.core import Animation, Cancelled, Keyframe, animate, mesh_to_sdf
-from keyframe_implicit.core.base.sampling import sample
-
-
-def uv_sphere(center, radius, n=24):
-    """Closed, outward-wound UV sphere (triangles)."""
-    th = np.linspace(0, np.pi, n + 1)[1:-1]
-    ph = np.linspace(0, 2 * np.pi, 2 * n, endpoint=False)
-    t, p = np.meshgrid(th, ph, indexing="ij")
-    ring = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
-    v = np.vstack([[0, 0, 1], ring, [0, 0, -1]]) * radius + center
-    m = 2 * n
-    idx = lambda r, c: 1 + r * m + (c % m)
-    faces = []
-    c = np.arange(m)
-    faces.append(np.stack([np.zeros(m, int), idx(0, c), idx(0, c + 1)], 1))
-    for r in range(n - 2):
-        a, b, cc, d = idx(r, c), idx(r, c + 1), idx(r + 1, c), idx(r + 1, c + 1)
-        faces += [np.stack([a, cc, b], 1), np.stack([b, cc, d], 1)]
-    last = len(v) - 1
-    faces.append(np.stack([np.full(m, last), idx(n - 2, c + 1), idx(n - 2, c)], 1))
-    return v, np.vstack(faces)
-
-
-def _sphere_features(center, radius, rot=np.eye(3), offset=np.zeros(3)):
-    dirs = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0.6, -0.8]])
-    a = center + 0.7 * radius * dirs
-    b = (a - center) @ rot.T + center + offset
-    return a, b
-
-
-def rotation(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
-def turning_sphere(n=24, last=13):
-    """A sphere turning about (1, 2, 0.5) while it squashes and moves: keyframes on frames
-    1 and ``last``, six feature pairs."""
-    r = 0.3
-    rot = rotation((1.0, 2.0, 0.5), 0.8)
-    squash = np.diag([1.2, 1.0, 1 / 1.2])
-    va, fa = uv_sphere(np.zeros(3), r, n=n)
-    pa, _ = _sphere_features(np.zeros(3), r)
-    vb, pb = (x @ squash @ rot.T + [0.1, 0.0, 0.0] for x in (va, pa))
-    return [Keyframe(va, fa, 1), Keyframe(vb, fa, last)], [(pa, pb)]
+from inbetween_cases import rotation, sphere_features, uv_sphere
+from keyframe_implicit.core import Animation, Cancelled, Keyframe, animate, mesh_to_sdf, sample
 
 
 def test_translated_sphere_every_frame_on_its_surface_and_keyframes_matched():
@@ -58,7 +13,7 @@ def test_translated_sphere_every_frame_on_its_surface_and_keyframes_matched():
     off = np.array([0.4, 0.1, -0.2])
     R = rotation([0.3, 1.0, 0.2], np.deg2rad(50))
     vb = va @ R.T + off  # same sphere, rotated and moved: every in-between is that sphere
-    pa, pb = _sphere_features(np.zeros(3), r, R, off)
+    pa, pb = sphere_features(np.zeros(3), r, R, off)
     seen = []
     anim = animate([Keyframe(va, fa, 1), Keyframe(vb, fa, 9)], [(pa, pb)], resolution=24,
                    progress=lambda f, m: seen.append(f))
@@ -82,8 +37,8 @@ def test_three_keyframes_one_template_through_all_frames():
     r = 0.25
     v0, f0 = uv_sphere(np.zeros(3), r, n=16)
     o1, o2 = np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.3, 0.0])
-    feats = [_sphere_features(np.zeros(3), r, offset=o1),
-             _sphere_features(o1, r, offset=o2 - o1)]
+    feats = [sphere_features(np.zeros(3), r, offset=o1),
+             sphere_features(o1, r, offset=o2 - o1)]
     anim = animate([Keyframe(v0, f0, 0), Keyframe(v0 + o1, f0, 4), Keyframe(v0 + o2, f0, 8)],
                    feats, resolution=20)
     assert anim.frames.tolist() == list(range(0, 9))
@@ -107,7 +62,7 @@ def test_bad_input_says_what_to_fix():
 
 def test_cancel_raises_cancelled():
     v, f = uv_sphere(np.zeros(3), 0.3, n=8)
-    pa, pb = _sphere_features(np.zeros(3), 0.3)
+    pa, pb = sphere_features(np.zeros(3), 0.3)
     calls = []
 
     def cancel():
@@ -122,7 +77,7 @@ def test_too_large_a_grid_is_refused_before_any_work():
     from keyframe_implicit.core import MemoryLimitError
 
     v, f = uv_sphere(np.zeros(3), 0.3, n=8)
-    pa, pb = _sphere_features(np.zeros(3), 0.3)
+    pa, pb = sphere_features(np.zeros(3), 0.3)
     stages = []
     with pytest.raises(MemoryLimitError, match=r"lower the resolution to \d+") as err:
         animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=400,

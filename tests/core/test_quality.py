@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from inbetween_cases import sphere_field
 from keyframe_implicit import examples
 from keyframe_implicit.core import Grid, animate, extract_surface
 from keyframe_implicit.core.surface.quality import (LIMITS, failures, frame_quality, keyframe_distance,
@@ -12,7 +13,7 @@ from keyframe_implicit.core.surface.quality import (LIMITS, failures, frame_qual
 @pytest.fixture(scope="module")
 def ball():
     grid = Grid(origin=(-1.5,) * 3, spacing=0.1, shape=(31,) * 3)
-    phi = np.linalg.norm(grid.points(), axis=-1) - 1.0
+    phi = sphere_field(grid, (0, 0, 0), 1.0)
     return grid, phi, extract_surface(phi, grid)
 
 

@@ -2,19 +2,15 @@
 
 import numpy as np
 
-from keyframe_implicit.core import Grid
+from inbetween_cases import capsule_and_balls, sd_ellipsoid, sd_sphere, unit_grid
+from keyframe_implicit.core import Grid, sample
 from keyframe_implicit.core.map.rbf import initial_map, label_material
-from keyframe_implicit.core.base.sampling import sample
-
-
-def _grid(n, d):
-    return Grid((0.0,) * d, 1.0 / (n - 1), (n,) * d)
 
 
 def test_rbf_interpolates_features_and_reproduces_affine_maps_3d():
-    g = _grid(20, 3)
+    g = unit_grid(3, 20)
     P = g.points()
-    phi = np.linalg.norm(P - 0.5, axis=-1) - 0.35
+    phi = sd_sphere(P, 0.5, 0.35)
     # feature points on nodes so that y(x'_i) = y'_i can be read off the grid exactly
     idx = np.array([[10, 10, 10], [16, 10, 9], [10, 15, 11], [9, 8, 15], [6, 12, 7]])
     fa = g.to_world(idx)
@@ -28,9 +24,9 @@ def test_rbf_interpolates_features_and_reproduces_affine_maps_3d():
 
 
 def test_rbf_thin_plate_is_not_affine_for_non_affine_features_2d():
-    g = _grid(30, 2)
+    g = unit_grid(2, 30)
     P = g.points()
-    phi = np.linalg.norm(P - 0.5, axis=-1) - 0.35
+    phi = sd_sphere(P, 0.5, 0.35)
     idx = np.array([[15, 15], [25, 15], [15, 24], [7, 10], [20, 20]])
     fa = g.to_world(idx)
     fb = fa.copy()
@@ -42,10 +38,9 @@ def test_rbf_thin_plate_is_not_affine_for_non_affine_features_2d():
 
 
 def test_each_component_gets_its_own_map_and_outside_stays_finite():
-    g = _grid(40, 2)
+    g = unit_grid(2, 40)
     P = g.points()
-    phi = np.minimum(np.linalg.norm(P - [0.25, 0.5], axis=-1) - 0.15,
-                     np.linalg.norm(P - [0.75, 0.5], axis=-1) - 0.15)
+    phi = np.minimum(sd_sphere(P, [0.25, 0.5], 0.15), sd_sphere(P, [0.75, 0.5], 0.15))
     labels, n = label_material(phi)
     assert n == 2
     left = np.array([[0.25, 0.5], [0.35, 0.5], [0.25, 0.6]])
@@ -70,19 +65,13 @@ def _rot3(angle):
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def _ellipsoid(P, c, ax):
-    q = (P - c) / ax
-    k0 = np.linalg.norm(q, axis=-1)
-    return k0 * (k0 - 1) / np.maximum(np.linalg.norm((P - c) / ax ** 2, axis=-1), 1e-12)
-
-
 def test_coplanar_points_fall_back_to_the_rigid_motion_they_pin():
-    g = _grid(24, 3)
+    g = unit_grid(3, 24)
     P = g.points()
     c, ax = np.array([0.5, 0.5, 0.5]), np.array([0.3, 0.2, 0.15])
     R, t = _rot3(0.6), np.array([0.04, -0.02, 0.03])
-    phi_a = _ellipsoid(P, c, ax)
-    phi_b = _ellipsoid((P - c - t) @ R + c, c, ax)
+    phi_a = sd_ellipsoid(P, c, ax)
+    phi_b = sd_ellipsoid((P - c - t) @ R + c, c, ax)
     fa = np.array([[0.79, 0.5, 0.5], [0.5, 0.68, 0.5], [0.3, 0.45, 0.5], [0.55, 0.4, 0.5]])  # plane z=0.5
     fb = (fa - c) @ R.T + c + t
     m = initial_map(phi_a, phi_b, g, fa, fb)
@@ -91,12 +80,12 @@ def test_coplanar_points_fall_back_to_the_rigid_motion_they_pin():
 
 
 def test_fewer_than_d_plus_1_points_and_no_points_align_principal_axes():
-    g = _grid(24, 3)
+    g = unit_grid(3, 24)
     P = g.points()
     c, ax = np.array([0.5, 0.5, 0.5]), np.array([0.3, 0.2, 0.12])
     R, t = _rot3(np.pi / 2), np.array([0.03, 0.0, 0.0])
-    phi_a = _ellipsoid(P, c, ax)
-    phi_b = _ellipsoid((P - c - t) @ R + c, c, ax)
+    phi_a = sd_ellipsoid(P, c, ax)
+    phi_b = sd_ellipsoid((P - c - t) @ R + c, c, ax)
     for fa in (np.zeros((0, 3)), np.array([[0.5, 0.5, 0.5]]), np.array([[0.5, 0.5, 0.5], [0.7, 0.5, 0.5]])):
         fb = (fa - c) @ R.T + c + t
         m = initial_map(phi_a, phi_b, g, fa, fb)
@@ -121,11 +110,7 @@ def test_start_does_not_fold_a_merge_seen_backwards_3d():
     from keyframe_implicit.core.map.rbf import min_det
 
     g = Grid((-2.0, -0.9, -0.9), 0.1, (41, 19, 19))
-    P = g.points()
-    axis = np.clip(P[..., 0], -0.35, 0.35)
-    capsule = np.sqrt((P[..., 0] - axis) ** 2 + P[..., 1] ** 2 + P[..., 2] ** 2) - 0.64
-    balls = np.minimum(np.linalg.norm(P - [-1.1, 0, 0], axis=-1),
-                       np.linalg.norm(P - [1.1, 0, 0], axis=-1)) - 0.6
+    capsule, balls = capsule_and_balls(g, 0.64, 0.6)
     fa = np.array([[-0.9, 0, 0], [0.9, 0, 0], [-0.25, 0, 0], [0.25, 0, 0],
                    [-0.35, 0, 0.55], [0.35, 0, 0.55], [-0.35, -0.55, 0], [0.35, -0.55, 0]])
     fb = np.array([[-1.64, 0, 0], [1.64, 0, 0], [-1.1, 0, 0], [1.1, 0, 0],

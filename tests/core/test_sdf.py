@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from inbetween_cases import make_grid, sd_sphere, sphere_field
 from keyframe_implicit.core import Cancelled, Grid, mesh_to_sdf, polygon_to_sdf
 from keyframe_implicit.core.fields.mesh import triangulate
 from keyframe_implicit.core.fields.triangles import point_triangle_distance
@@ -30,11 +31,6 @@ def box_sdf(p, lo, hi):
     return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(axis=-1), 0)
 
 
-def cube_grid(n, lo=-1.0, hi=1.0):
-    h = (hi - lo) / (n - 1)
-    return Grid((lo, lo, lo), h, (n, n, n))
-
-
 def brute_distance(points, v, f):
     """Reference: distance to every triangle, minimum (small inputs only)."""
     P, T = len(points), len(f)
@@ -47,7 +43,7 @@ def brute_distance(points, v, f):
 @pytest.fixture(scope="module")
 def sphere64():
     v, f = icosphere(5, 0.8)
-    g = cube_grid(64)
+    g = make_grid(3, 64, -1.0, 1.0)
     stats = {}
     return g, mesh_to_sdf(v, f, g, stats=stats), stats
 
@@ -56,7 +52,7 @@ def sphere64():
 def test_sphere_matches_analytic_distance_in_band_and_sign_everywhere(sphere64):
     g, d, stats = sphere64
     h = g.spacing
-    r = np.linalg.norm(g.points(), axis=-1) - 0.8
+    r = sphere_field(g, (0, 0, 0), 0.8)
     band = np.abs(r) <= 3 * h
     assert np.abs(d - r)[band].max() <= 0.02 * h
     # sign everywhere except nodes closer than the chordal error of the 20480-face sphere
@@ -74,7 +70,7 @@ def test_box_of_twelve_triangles_and_of_quads_match_analytic_box():
     v, quads = box(lo, hi)
     tris = triangulate(quads, len(v))
     assert tris.shape == (12, 3)
-    g = cube_grid(64)
+    g = make_grid(3, 64, -1.0, 1.0)
     h = g.spacing
     d_tri = mesh_to_sdf(v, tris, g)
     d_quad = mesh_to_sdf(v, quads, g)
@@ -95,7 +91,7 @@ def test_exact_shell_does_not_depend_on_the_chunk_size(monkeypatch):
 
     lo, hi = np.array([-0.6, -0.4, -0.5]), np.array([0.5, 0.45, 0.3])
     v, quads = box(lo, hi)
-    g = cube_grid(40)
+    g = make_grid(3, 40, -1.0, 1.0)
     d = mesh_to_sdf(v, quads, g)
     monkeypatch.setattr(sdf, "_PAIRS", 999)  # a box of these triangles holds ~4,000 pairs
     np.testing.assert_array_equal(mesh_to_sdf(v, quads, g), d)
@@ -112,7 +108,7 @@ def test_ngon_prism_given_as_ragged_polygons():
     v = np.concatenate([np.c_[ring, np.full(k, -0.4)], np.c_[ring, np.full(k, 0.4)]])
     faces = [list(range(k))[::-1], list(range(k, 2 * k))]
     faces += [[i, (i + 1) % k, k + (i + 1) % k, k + i] for i in range(k)]
-    g = cube_grid(32)
+    g = make_grid(3, 32, -1.0, 1.0)
     d = mesh_to_sdf(v, faces, g)
     p = g.points()
     # inside the hexagon's inscribed circle and the slab: inside; beyond its circumcircle: outside
@@ -138,7 +134,7 @@ def test_band_distance_is_exact_against_brute_force_on_irregular_mesh(subdivisio
     vb, qb = box((-0.9, -0.8, -0.85), (0.2, 0.1, -0.47))  # disjoint from the sphere
     v = np.concatenate([vs, vb])
     f = np.concatenate([fs, triangulate(qb, len(vb)) + len(vs)])
-    g = cube_grid(40)
+    g = make_grid(3, 40, -1.0, 1.0)
     stats = {}
     d = mesh_to_sdf(v, f, g, exact_cells=3, stats=stats)
     boxed = stats["boxed_triangles"]
@@ -161,10 +157,10 @@ def test_sphere_with_a_few_faces_removed_keeps_its_sign():
     cen = v[f].mean(axis=1)
     removed = np.argsort(np.linalg.norm(cen - [0, 0, 0.7], axis=1))[:6]
     f_open = np.delete(f, removed, axis=0)
-    g = cube_grid(40)
+    g = make_grid(3, 40, -1.0, 1.0)
     d = mesh_to_sdf(v, f_open, g)
     p = g.points()
-    r = np.linalg.norm(p, axis=-1) - 0.7
+    r = sd_sphere(p, (0, 0, 0), 0.7)
     away = np.linalg.norm(p - [0, 0, 0.7], axis=-1) > 0.2
     clear = away & (np.abs(r) > 0.02)
     assert np.array_equal(np.sign(d[clear]), np.sign(r[clear]))
@@ -185,7 +181,7 @@ def test_head_with_two_eye_holes_has_one_connected_inside():
     for e in eyes:  # two eyes
         hole |= np.linalg.norm(cen - e, axis=1) < 0.18
     f_open = f[~hole]
-    g = cube_grid(48)
+    g = make_grid(3, 48, -1.0, 1.0)
     stats = {}
     d = mesh_to_sdf(v, f_open, g, stats=stats)
     assert stats["leaky_regions"] >= 1  # the holes do connect inside and outside
@@ -205,11 +201,11 @@ def test_overlapping_closed_meshes_give_their_union():
     v2, f2 = icosphere(3, 0.45, center=(0.25, 0.05, 0.0))
     v = np.concatenate([v1, v2])
     f = np.concatenate([f1, f2 + len(v1)])
-    g = cube_grid(40)
+    g = make_grid(3, 40, -1.0, 1.0)
     d = mesh_to_sdf(v, f, g)
     p = g.points()
-    r1 = np.linalg.norm(p - [-0.2, 0, 0], axis=-1) - 0.5
-    r2 = np.linalg.norm(p - [0.25, 0.05, 0], axis=-1) - 0.45
+    r1 = sd_sphere(p, [-0.2, 0, 0], 0.5)
+    r2 = sd_sphere(p, [0.25, 0.05, 0], 0.45)
     union = np.minimum(r1, r2)
     clear = np.abs(union) > 0.03
     assert np.array_equal(np.sign(d[clear]), np.sign(union[clear]))
@@ -243,7 +239,7 @@ def test_winding_number_hierarchy_matches_exact_sum():
 # -- bad input ----------------------------------------------------------------------
 def test_degenerate_faces_are_skipped_and_counted():
     v, f = icosphere(2, 0.6)
-    g = cube_grid(24)
+    g = make_grid(3, 24, -1.0, 1.0)
     ref = mesh_to_sdf(v, f, g)
     v2 = np.concatenate([v, [[0.1, 0.1, 0.1]]])
     extra = np.array([[0, 0, 1], [5, 5, 5], [len(v), len(v), len(v)]])
@@ -267,7 +263,7 @@ def test_degenerate_faces_are_skipped_and_counted():
 ])
 def test_bad_meshes_raise_value_errors_that_say_what_is_wrong(vertices, faces, words):
     with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
-        mesh_to_sdf(vertices, faces, cube_grid(8))
+        mesh_to_sdf(vertices, faces, make_grid(3, 8, -1.0, 1.0))
 
 
 def test_mesh_on_2d_grid_is_refused():
@@ -279,24 +275,20 @@ def test_mesh_on_2d_grid_is_refused():
 def test_progress_reports_and_cancel_stops():
     v, f = icosphere(2, 0.6)
     seen = []
-    mesh_to_sdf(v, f, cube_grid(16), progress=lambda x, m: seen.append(x))
+    mesh_to_sdf(v, f, make_grid(3, 16, -1.0, 1.0), progress=lambda x, m: seen.append(x))
     assert seen[-1] == 1.0 and all(b >= a for a, b in zip(seen, seen[1:])) and len(seen) >= 4
     with pytest.raises(Cancelled):
-        mesh_to_sdf(v, f, cube_grid(16), cancel=lambda: True)
+        mesh_to_sdf(v, f, make_grid(3, 16, -1.0, 1.0), cancel=lambda: True)
 
 
 # -- 2D polygons ----------------------------------------------------------------------
-def grid2(n, lo=-1.0, hi=1.0):
-    return Grid((lo, lo), (hi - lo) / (n - 1), (n, n))
-
-
 def test_disc_polygon_matches_circle_distance():
     ang = np.linspace(0, 2 * np.pi, 400, endpoint=False)
     R = 0.6
     loop = R * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    g = grid2(65)
+    g = make_grid(2, 65, -1.0, 1.0)
     d = polygon_to_sdf(loop, g)
-    r = np.linalg.norm(g.points(), axis=-1) - R
+    r = sphere_field(g, (0, 0), R)
     sag = R * (1 - np.cos(np.pi / 400))
     assert np.abs(d - r).max() <= sag + 1e-12
     clear = np.abs(r) > sag
@@ -309,7 +301,7 @@ def test_square_with_square_hole_even_odd_any_orientation(flip_hole):
     hole = np.array([[-0.3, -0.3], [0.3, -0.3], [0.3, 0.3], [-0.3, 0.3]])
     if flip_hole:
         hole = hole[::-1]
-    g = grid2(41)
+    g = make_grid(2, 41, -1.0, 1.0)
     d = polygon_to_sdf([outer, hole], g)
     p = g.points()
     q_out = np.abs(p).max(axis=-1) - 0.8
@@ -329,7 +321,7 @@ def test_square_with_square_hole_even_odd_any_orientation(flip_hole):
 def test_nonzero_rule_unions_overlapping_loops_and_needs_opposite_holes():
     a = np.array([[-0.6, -0.3], [0.2, -0.3], [0.2, 0.3], [-0.6, 0.3]])
     b = a + [0.4, 0.0]
-    g = grid2(41)
+    g = make_grid(2, 41, -1.0, 1.0)
     i = tuple(np.rint(g.to_index([0.0, 0.0])).astype(int))  # in both
     assert polygon_to_sdf([a, b], g, rule="nonzero")[i] < 0
     assert polygon_to_sdf([a, b], g, rule="evenodd")[i] > 0
@@ -339,11 +331,11 @@ def test_nonzero_rule_unions_overlapping_loops_and_needs_opposite_holes():
 
 
 @pytest.mark.parametrize("loops, grid, words", [
-    ([], grid2(8), "no loops"),
-    ([np.array([[0, 0], [1, 0]])], grid2(8), "at least 3"),
-    ([np.array([[0, 0], [1, np.nan], [0, 1]])], grid2(8), "NaN"),
-    ([np.zeros((4, 3))], grid2(8), r"shape \(N, 2\)"),
-    ([np.array([[0, 0], [1, 0], [0, 1]])], cube_grid(8), "2D Grid"),
+    ([], make_grid(2, 8, -1.0, 1.0), "no loops"),
+    ([np.array([[0, 0], [1, 0]])], make_grid(2, 8, -1.0, 1.0), "at least 3"),
+    ([np.array([[0, 0], [1, np.nan], [0, 1]])], make_grid(2, 8, -1.0, 1.0), "NaN"),
+    ([np.zeros((4, 3))], make_grid(2, 8, -1.0, 1.0), r"shape \(N, 2\)"),
+    ([np.array([[0, 0], [1, 0], [0, 1]])], make_grid(3, 8, -1.0, 1.0), "2D Grid"),
 ])
 def test_bad_polygons_raise_value_errors(loops, grid, words):
     with pytest.raises(ValueError, match=words):
@@ -352,11 +344,11 @@ def test_bad_polygons_raise_value_errors(loops, grid, words):
 
 def test_flipped_normals_and_mesh_larger_than_the_grid():
     v, f = icosphere(4, 0.7, center=(0.6, 0.6, 0.6))  # a quarter of the sphere sticks out
-    g = cube_grid(32)
+    g = make_grid(3, 32, -1.0, 1.0)
     d = mesh_to_sdf(v, f, g)
     d_flip = mesh_to_sdf(v, f[:, ::-1], g)
     np.testing.assert_allclose(d_flip, d, atol=1e-12)
-    r = np.linalg.norm(g.points() - 0.6, axis=-1) - 0.7
+    r = sphere_field(g, 0.6, 0.7)
     clear = np.abs(r) > 0.01
     assert np.array_equal(np.sign(d[clear]), np.sign(r[clear]))
     assert np.abs(d - r)[np.abs(r) < 2.9 * g.spacing].max() < 0.02 * g.spacing
@@ -365,7 +357,7 @@ def test_flipped_normals_and_mesh_larger_than_the_grid():
 
 def test_grid_entirely_inside_a_closed_mesh_is_all_inside():
     v, f = icosphere(3, 5.0)
-    g = cube_grid(12, -0.5, 0.5)
+    g = make_grid(3, 12, -0.5, 0.5)
     d = mesh_to_sdf(v, f, g)
     assert np.all(d < 0)
     pick = np.random.default_rng(0).choice(g.size, 50, replace=False)
@@ -383,7 +375,7 @@ def test_polygon_sdf_matches_brute_force_on_a_star_with_a_hole(rule):
     star = np.c_[rad * np.cos(ang), rad * np.sin(ang)] + [0.03, -0.02]
     a = np.linspace(0, 2 * np.pi, 7, endpoint=False)
     hole = 0.2 * np.c_[np.cos(a), np.sin(a)][::-1]  # opposite orientation
-    g = grid2(47)
+    g = make_grid(2, 47, -1.0, 1.0)
     d = polygon_to_sdf([star, hole], g, rule=rule)
     P = g.points().reshape(-1, 2)
     A = np.concatenate([star, hole])
@@ -404,7 +396,7 @@ def test_polygon_sdf_matches_brute_force_on_a_star_with_a_hole(rule):
 def test_a_misspelt_option_is_refused():
     """A keyword mesh_to_sdf does not take (a typo, or a name it no longer has) is refused."""
     v, f = icosphere(2, 0.4)
-    g = cube_grid(20)
+    g = make_grid(3, 20, -1.0, 1.0)
     for wrong in ("exact_cels", "band_cells"):
         with pytest.raises(TypeError, match=wrong):
             mesh_to_sdf(v, f, g, **{wrong: 2})

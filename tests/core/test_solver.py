@@ -19,30 +19,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from keyframe_implicit.core import Cancelled, Grid, solve_map
+from inbetween_cases import (bend_case, capsule_and_balls, nudged_spheres, rotation, sd_ellipsoid,
+                             sd_sphere, sphere_to_ellipsoid, two_discs, unit_grid)
+from keyframe_implicit.core import Cancelled, Grid, sample, solve_map
 from keyframe_implicit.core.base import elements
-from keyframe_implicit.core.base.sampling import sample
 
 
-# -- analytic shapes -------------------------------------------------------
-def _rotation(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
-def _ellipsoid(P, c, ax):
-    """Approximate SDF of an axis-aligned ellipsoid (exact on the surface, first order near it)."""
-    q = (P - c) / ax
-    k0 = np.linalg.norm(q, axis=-1)
-    k1 = np.linalg.norm((P - c) / ax ** 2, axis=-1)
-    return k0 * (k0 - 1) / np.maximum(k1, 1e-12)
-
-
-def _unit_grid(n, d):
-    return Grid((0.0,) * d, 1.0 / (n - 1), (n,) * d)
-
-
+# -- measures of a solved map ------------------------------------------------
 def _material_dets(result, phi_a):
     """det F at the centre and the min over all quadrature points of every material cell."""
     g = result.grid
@@ -70,13 +53,13 @@ def _coverage(result, phi_a, phi_b):
 
 # -- rigid motions ---------------------------------------------------------
 def test_rigid_3d_recovers_the_rigid_motion():
-    g = _unit_grid(28, 3)
+    g = unit_grid(3, 28)
     h = g.spacing
     P = g.points()
     c, ax = np.array([0.5, 0.5, 0.5]), np.array([0.28, 0.2, 0.15])
-    R, t = _rotation([1, 1, 0.5], np.pi / 3), np.array([0.04, -0.03, 0.02])
-    phi_a = _ellipsoid(P, c, ax)
-    phi_b = _ellipsoid((P - c - t) @ R + c, c, ax)
+    R, t = rotation([1, 1, 0.5], np.pi / 3), np.array([0.04, -0.03, 0.02])
+    phi_a = sd_ellipsoid(P, c, ax)
+    phi_b = sd_ellipsoid((P - c - t) @ R + c, c, ax)
     fa = np.array([[.5, .5, .5], [.62, .53, .47], [.77, .5, .51], [.5, .31, .49], [.45, .55, .64], [.4, .42, .52]])
     fb = (fa - c) @ R.T + c + t
     rigid = (P - c) @ R.T + c + t
@@ -94,18 +77,14 @@ def test_rigid_3d_recovers_the_rigid_motion():
 
 
 def test_rigid_2d_recovers_the_rigid_motion():
-    g = _unit_grid(40, 2)
+    g = unit_grid(2, 40)
     h = g.spacing
     P = g.points()
     c, ax = np.array([0.5, 0.5]), np.array([0.25, 0.14])
     a = np.pi / 3
     R, t = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]), np.array([0.03, -0.05])
-    q = (P - c) / ax
-    phi = lambda Q: np.linalg.norm((Q - c) / ax, axis=-1) * (np.linalg.norm((Q - c) / ax, axis=-1) - 1) / \
-        np.maximum(np.linalg.norm((Q - c) / ax ** 2, axis=-1), 1e-12)  # noqa: E731
-    del q
-    phi_a = phi(P)
-    phi_b = phi((P - c - t) @ R + c)
+    phi_a = sd_ellipsoid(P, c, ax)
+    phi_b = sd_ellipsoid((P - c - t) @ R + c, c, ax)
     fa = np.array([[.5, .5], [.72, .52], [.45, .61], [.38, .45]])
     fb = (fa - c) @ R.T + c + t
     rigid = (P - c) @ R.T + c + t
@@ -120,15 +99,15 @@ def test_rigid_2d_recovers_the_rigid_motion():
 @pytest.mark.parametrize("d", [2, 3])
 def test_feature_points_land_exactly_off_node_and_inside(d):
     n = 36 if d == 2 else 24
-    g = _unit_grid(n, d)
+    g = unit_grid(d, n)
     h = g.spacing
     P = g.points()
     c = np.full(d, 0.5)
-    phi_a = np.linalg.norm(P - c, axis=-1) - 0.3
+    phi_a = sd_sphere(P, c, 0.3)
     ax = np.full(d, 0.3)
     ax[0] *= 1.25
     ax[1:] /= 1.25 ** (1.0 / (d - 1))
-    phi_b = _ellipsoid(P, c, ax)
+    phi_b = sd_ellipsoid(P, c, ax)
     rng = np.random.default_rng(1)
     dirs = rng.normal(size=(7, d))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
@@ -143,21 +122,10 @@ def test_feature_points_land_exactly_off_node_and_inside(d):
     assert res.stats["feature_residual_h"] < 1e-6
 
 
-def _sphere_to_ellipsoid(n):
-    """Sphere r = 0.3 -> equal-volume prolate ellipsoid, six pole features (3D, n^3 nodes)."""
-    g = _unit_grid(n, 3)
-    P = g.points()
-    c = np.array([0.5, 0.5, 0.5])
-    phi_a = np.linalg.norm(P - c, axis=-1) - 0.3
-    ax = np.array([1.3, 1 / np.sqrt(1.3), 1 / np.sqrt(1.3)]) * 0.3
-    dirs = np.vstack([np.eye(3), -np.eye(3)])
-    return g, phi_a, _ellipsoid(P, c, ax), c + 0.3 * dirs, c + ax * dirs
-
-
 def test_det_bound_near_features_at_two_resolutions():
     """The affine patch of fixed physical radius keeps det F bounded near every feature point."""
     for n in (24, 40):
-        g, phi_a, phi_b, fa, fb = _sphere_to_ellipsoid(n)
+        g, phi_a, phi_b, fa, fb = sphere_to_ellipsoid(n)
         res = solve_map(phi_a, phi_b, g, fa, fb, feature_radius=0.08)
         assert res.stats["patch_features"] == 6
         _, mins, centres = _material_dets(res, phi_a)
@@ -169,7 +137,7 @@ def test_det_bound_near_features_at_two_resolutions():
 
 # -- equal-volume deformations ----------------------------------------------
 def test_sphere_to_equal_volume_ellipsoid_3d():
-    g, phi_a, phi_b, fa, fb = _sphere_to_ellipsoid(28)
+    g, phi_a, phi_b, fa, fb = sphere_to_ellipsoid(28)
     res = solve_map(phi_a, phi_b, g, fa, fb)
     det_c, det_min, _ = _material_dets(res, phi_a)
     assert det_min.min() > 0
@@ -183,24 +151,8 @@ def test_sphere_to_equal_volume_ellipsoid_3d():
     assert s["seconds"]["total"] > 0 and s["unknowns"] >= 3 * 0.9 * s["active_nodes"] - 100
 
 
-def _two_discs(n):
-    g = _unit_grid(n, 2)
-    P = g.points()
-    c, r1, s = np.array([0.5, 0.5]), 0.16, 0.18
-    R = r1 * np.sqrt(2)  # same area as the two discs
-    phi_a = np.minimum(np.linalg.norm(P - (c - [s, 0]), axis=-1) - r1,
-                       np.linalg.norm(P - (c + [s, 0]), axis=-1) - r1)
-    phi_b = np.linalg.norm(P - c, axis=-1) - R
-    fa, fb = [], []
-    for side in (-1, 1):  # each disc onto its half of the merged disc
-        fa += [[.5 + side * (s - r1), .5], [.5 + side * (s + r1), .5], [.5 + side * s, .5 + r1], [.5 + side * s, .5 - r1]]
-        fb += [[.5 + side * 0.015, .5], [.5 + side * R, .5], [.5 + side * 0.04, .5 + 0.96 * R],
-               [.5 + side * 0.04, .5 - 0.96 * R]]
-    return g, phi_a, phi_b, np.array(fa), np.array(fb)
-
-
 def test_two_discs_merge_into_one_disc_of_the_same_area_2d():
-    g, phi_a, phi_b, fa, fb = _two_discs(48)
+    g, phi_a, phi_b, fa, fb = two_discs(48)
     res = solve_map(phi_a, phi_b, g, fa, fb)
     assert res.components.max() == 2
     det_c, det_min, _ = _material_dets(res, phi_a)
@@ -213,14 +165,14 @@ def test_two_discs_merge_into_one_disc_of_the_same_area_2d():
 # -- few or degenerate feature points -----------------------------------------
 @pytest.mark.parametrize("kind", ["none", "one", "coplanar"])
 def test_few_or_coplanar_points_give_a_sensible_map(kind):
-    g = _unit_grid(24, 3)
+    g = unit_grid(3, 24)
     h = g.spacing
     P = g.points()
     c, ax = np.array([0.5, 0.5, 0.5]), np.array([0.3, 0.2, 0.15])
     t = np.array([0.05, 0.0, -0.03])
-    R = _rotation([0, 0, 1], 0.5)
-    phi_a = _ellipsoid(P, c, ax)
-    phi_b = _ellipsoid((P - c - t) @ R + c, c, ax)
+    R = rotation([0, 0, 1], 0.5)
+    phi_a = sd_ellipsoid(P, c, ax)
+    phi_b = sd_ellipsoid((P - c - t) @ R + c, c, ax)
     if kind == "none":
         fa = np.zeros((0, 3))
     elif kind == "one":
@@ -244,7 +196,7 @@ def test_few_or_coplanar_points_give_a_sensible_map(kind):
 
 # -- protocol --------------------------------------------------------------
 def test_progress_and_cancel():
-    g, phi_a, phi_b, fa, fb = _two_discs(32)
+    g, phi_a, phi_b, fa, fb = two_discs(32)
     seen = []
     solve_map(phi_a, phi_b, g, fa, fb, progress=lambda f, m: seen.append((f, m)))
     fr = [f for f, _ in seen]
@@ -261,9 +213,8 @@ def test_progress_and_cancel():
 
 # -- bad input -----------------------------------------------------------
 def _ok_case():
-    g = _unit_grid(12, 2)
-    P = g.points()
-    phi = np.linalg.norm(P - 0.5, axis=-1) - 0.3
+    g = unit_grid(2, 12)
+    phi = sd_sphere(g.points(), 0.5, 0.3)
     f = np.array([[0.5, 0.5], [0.7, 0.5], [0.5, 0.7]])
     return g, phi, phi.copy(), f, f.copy()
 
@@ -309,11 +260,11 @@ def test_close_features_use_hard_constraints_and_featureless_components_follow(m
     """Two features closer than a cell diagonal cannot both have a patch: the plain hard
     constraint (eq. 2.19) takes over and still lands them; a feature slightly outside the
     material is honoured; a component without features is aligned rigidly onto B."""
-    g = _unit_grid(40, 2)
+    g = unit_grid(2, 40)
     h = g.spacing
     P = g.points()
-    phi_a = np.minimum(np.linalg.norm(P - [.3, .5], axis=-1) - .12, np.linalg.norm(P - [.72, .5], axis=-1) - .1)
-    phi_b = np.minimum(np.linalg.norm(P - [.33, .52], axis=-1) - .12, np.linalg.norm(P - [.7, .45], axis=-1) - .1)
+    phi_a = np.minimum(sd_sphere(P, [.3, .5], .12), sd_sphere(P, [.72, .5], .1))
+    phi_b = np.minimum(sd_sphere(P, [.33, .52], .12), sd_sphere(P, [.7, .45], .1))
     fa = np.array([[.3, .5], [.3 + .4 * h, .5 + .3 * h], [.3, .38], [.17, .5], [.3, .62]])
     fb = fa + [.03, .02]
     res = solve_map(phi_a, phi_b, g, fa, fb, margin_weight=margin_weight)
@@ -330,10 +281,8 @@ def test_assembled_hessian_is_the_sum_of_element_and_node_blocks():
     per-corner scatter of every element block."""
     from keyframe_implicit.core.map import system, terms
 
-    g = _unit_grid(10, 3)
-    P = g.points()
-    phi_a = np.linalg.norm(P - 0.5, axis=-1) - 0.3
-    phi_b = np.linalg.norm(P - 0.52, axis=-1) - 0.3
+    g = unit_grid(3, 10)
+    phi_a, phi_b = nudged_spheres(g)
     fa = np.array([[0.5, 0.5, 0.5], [0.8, 0.5, 0.5]])
     L = system.MapSystem(phi_a, phi_b, g, fa, fa + 0.02, 3, 0.1, 0.1, patch_rigidity=10.0)
     assert L.patch_cell.any() and np.allclose(L.cell_weights_of("rigidity")[L.patch_cell],
@@ -364,11 +313,9 @@ def test_hessian_product_in_two_row_halves_is_the_whole_product(monkeypatch):
 
     from keyframe_implicit.core.map import system
 
-    g = _unit_grid(10, 3)
-    P = g.points()
-    L = system.MapSystem(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
-                      np.linalg.norm(P - 0.52, axis=-1) - 0.3, g, np.zeros((0, 3)),
-                      np.zeros((0, 3)), 3, 0.1, 0.0, patch_rigidity=10.0)
+    g = unit_grid(3, 10)
+    L = system.MapSystem(*nudged_spheres(g), g, np.zeros((0, 3)), np.zeros((0, 3)), 3, 0.1, 0.0,
+                         patch_rigidity=10.0)
     y = L.x + 0.02 * np.sin(7 * L.x)
     Hs = L.evaluate(y, {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}, 97, True)[3]
     x = np.random.default_rng(2).normal(size=L.n * 3).astype(Hs.dtype)
@@ -387,12 +334,9 @@ def test_energy_in_two_element_halves_is_the_whole_energy(monkeypatch):
 
     from keyframe_implicit.core.map import system
 
-    g = _unit_grid(12, 3)
-    P = g.points()
+    g = unit_grid(3, 12)
     fa = np.array([[0.5, 0.5, 0.5], [0.75, 0.5, 0.5]])
-    L = system.MapSystem(np.linalg.norm(P - 0.5, axis=-1) - 0.3,
-                      np.linalg.norm(P - 0.52, axis=-1) - 0.3, g, fa, fa + 0.02, 3, 0.1, 0.1,
-                      patch_rigidity=10.0)
+    L = system.MapSystem(*nudged_spheres(g), g, fa, fa + 0.02, 3, 0.1, 0.1, patch_rigidity=10.0)
     y = L.x + 0.02 * np.sin(7 * L.x)
     w = {"volume": 30.0, "rigidity": 1.0, "levelset": 10.0}
     monkeypatch.setattr(system, "_SPLIT_FROM", 0)
@@ -413,8 +357,6 @@ def test_energy_in_two_element_halves_is_the_whole_energy(monkeypatch):
 def _bent_rod_half_lengths(**opts):
     """Rod bent 90 degrees at its middle (2D, n = 40), six features: relative length change of the
     rigid parts x in [-0.6, -0.2] and [0.2, 0.6] under the solved map."""
-    from inbetween_cases import bend_case
-
     g, phi_a, phi_b, _, _ = bend_case(d=2, n=40)
     fa = np.zeros((6, 2))
     fa[:, 0] = [-0.55, -0.35, -0.05, 0.05, 0.35, 0.55]
@@ -459,7 +401,7 @@ def test_a_fourth_term_is_one_function_and_one_registry_entry(monkeypatch):
         return terms.TermValue(0.0 * float(np.sum(w * r * r)), 0.0 * tv.grad, None if tv.hess is None else 0.0 * tv.hess)
 
     monkeypatch.setattr(terms, "TERMS", terms.TERMS + (terms.Term("pull", "pull_weight", "element", pull_term),))
-    g, phi_a, phi_b, fa, fb = _two_discs(24)
+    g, phi_a, phi_b, fa, fb = two_discs(24)
     res = solve_map(phi_a, phi_b, g, fa, fb, pull_weight=2.0)
     assert calls and "pull" in res.stats["terms"] and res.stats["weights"]["pull"] == 2.0
     assert "pull" in res.stats["history"][0]
@@ -473,15 +415,9 @@ def test_a_merge_seen_backwards_does_not_fold():
     squeeze towards the poles, a kink no affine feature patch can follow. The map must
     still keep det F >= 0.2 on the material (the patches shrink to what the start allows)
     and land every feature point."""
-    from keyframe_implicit.core.base.grid import Grid
-
     h = 0.09
     g = Grid(origin=(-1.8, -0.8, -0.8), spacing=h, shape=(41, 19, 19))
-    P = g.points()
-    t = np.clip(P[..., 0], -0.35, 0.35)
-    capsule = np.sqrt((P[..., 0] - t) ** 2 + P[..., 1] ** 2 + P[..., 2] ** 2) - 0.55
-    balls = np.minimum(np.linalg.norm(P - [-1.1, 0, 0], axis=-1),
-                       np.linalg.norm(P - [1.1, 0, 0], axis=-1)) - 0.54
+    capsule, balls = capsule_and_balls(g, 0.55, 0.54)
     fa = np.array([[-0.9, 0, 0], [0.9, 0, 0], [-0.25, 0, 0], [0.25, 0, 0], [-0.35, 0, 0.5],
                    [0.35, 0, 0.5], [-0.35, -0.5, 0], [0.35, -0.5, 0]])
     fb = np.array([[-1.64, 0, 0], [1.64, 0, 0], [-1.1, 0, 0], [1.1, 0, 0], [-1.1, 0, 0.5],

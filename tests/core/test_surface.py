@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from inbetween_cases import make_grid, sd_sphere
-from keyframe_implicit.core.base.grid import Grid
-from keyframe_implicit.core.surface.extract import extract_surface, loop_area, mesh_area, mesh_volume
+from keyframe_implicit.core import Grid, extract_surface
+from keyframe_implicit.core.surface.extract import loop_area, mesh_area, mesh_volume
 
 
 def test_sphere_mesh_in_world_units_with_outward_normals():

@@ -4,9 +4,7 @@ import numpy as np
 import pytest
 
 from inbetween_cases import make_grid, rigid_case, rigid_expected, sd_sphere
-from keyframe_implicit.core.motion.levelset import Inbetween
-from keyframe_implicit.core.base.sampling import sample
-from keyframe_implicit.core.surface.template import track_template
+from keyframe_implicit.core import Inbetween, sample, track_template
 
 
 @pytest.fixture(scope="module")

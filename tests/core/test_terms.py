@@ -3,16 +3,10 @@
 import numpy as np
 import pytest
 
+from inbetween_cases import rotation, sphere_field
+from keyframe_implicit.core import Grid
 from keyframe_implicit.core.base import elements
-
 from keyframe_implicit.core.map import terms
-from keyframe_implicit.core.base.grid import Grid
-
-
-def _rotation(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
 def _batch(Y, h, weight=None):
@@ -75,7 +69,7 @@ def test_heaviside_matches_eq_2_7_and_its_derivative():
 @pytest.mark.parametrize("d", [2, 3])
 def test_rigid_motion_costs_nothing(d):
     h = 0.1
-    R = _rotation([1, 2, 3], 1.1) if d == 3 else np.array([[np.cos(1.1), -np.sin(1.1)],
+    R = rotation([1, 2, 3], 1.1) if d == 3 else np.array([[np.cos(1.1), -np.sin(1.1)],
                                                               [np.sin(1.1), np.cos(1.1)]])
     X = elements.corners(d) * h
     Y = np.stack([X @ R.T + k for k in range(4)])  # 4 translated copies
@@ -131,8 +125,7 @@ def test_element_gradient_and_gauss_newton_hessian(d, fn):
 
 def test_levelset_term_gradient_and_hessian():
     g = Grid((0.0, 0.0), 0.1, (12, 12))
-    P = g.points()
-    psi = np.linalg.norm(P - 0.55, axis=-1) - 0.3
+    psi = sphere_field(g, 0.55, 0.3)
     rng = np.random.default_rng(3)
     y = 0.55 + rng.uniform(-0.4, 0.4, size=(40, 2))
     eps = 1.5 * g.spacing
@@ -173,7 +166,7 @@ def test_checkerboard_hourglass_raises_energy_but_rigid_motion_does_not(d):
     P = g.points()
     idx = np.indices(g.shape)
     sign = (-1.0) ** idx.sum(axis=0)
-    R = _rotation([1, 1, 0], 0.7) if d == 3 else np.array([[np.cos(0.7), -np.sin(0.7)],
+    R = rotation([1, 1, 0], 0.7) if d == 3 else np.array([[np.cos(0.7), -np.sin(0.7)],
                                                            [np.sin(0.7), np.cos(0.7)]])
     rigid = P @ R.T + 0.3
     delta = 0.05 * h

@@ -13,8 +13,7 @@ import pytest
 from scipy import ndimage
 
 from benchmark_modules import load
-from keyframe_implicit.core import inbetween
-from keyframe_implicit.core.motion.levelset import Inbetween
+from keyframe_implicit.core import Inbetween, inbetween
 from keyframe_implicit.core.surface.extract import enclosed_volume
 
 cases = load("cases")

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from inbetween_cases import bend_case, merge_case, rigid_case
-from keyframe_implicit.core.base.grid import Grid
+from keyframe_implicit.core import Grid
 from keyframe_implicit.core.base.rotations import polar, rotation_exp, rotation_log
 from keyframe_implicit.core.motion.trajectory import Trajectories
 
@@ -119,7 +119,7 @@ def test_paths_end_exactly_at_the_map_for_a_non_rigid_map():
 def test_points_at_the_ends_follow_the_node_paths_inside_and_outside_the_grid():
     # s = 0 and s = 1 take a shortcut (the points themselves, the map read at them): it
     # must give what interpolating the nodes' positions gives, clamped points included
-    from keyframe_implicit.core.base.sampling import cell_weights
+    from keyframe_implicit.core import cell_weights
 
     grid, phi_a, _, mapped, _ = bend_case(d=2, n=30)
     traj = Trajectories(grid, mapped, phi_a < 0)

@@ -8,8 +8,7 @@ from keyframe_implicit.core.base import elements
 from keyframe_implicit.core.base import sampling
 
 from keyframe_implicit.core.motion import transport
-from keyframe_implicit.core.base.grid import Grid
-from keyframe_implicit.core.base.sampling import sample
+from keyframe_implicit.core import Grid, sample
 
 
 def bent_cells(d, n=9, jitter=0.2, seed=3):
