@@ -106,8 +106,8 @@ class BakeJob:
         """`core.animate`'s keyword arguments for this bake."""
         inp = self.inputs
         return dict(keyframes=inp.keyframes, features=inp.features, resolution=inp.resolution,
-                    weights=inp.weights, feature_names=inp.feature_names or None,
-                    levelsets=inp.levelsets)
+                    motion_resolution=inp.motion_resolution, weights=inp.weights,
+                    feature_names=inp.feature_names or None, levelsets=inp.levelsets)
 
     def _bake(self):
         """The core's `Animation`, from a worker process started here."""

@@ -170,6 +170,7 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         col.prop(settings, "volume_weight")
         col.prop(settings, "rigidity_weight")
         col.prop(settings, "levelset_weight")
+        self.layout.prop(settings, "motion_resolution")
 
 
 def ui_scale(context):

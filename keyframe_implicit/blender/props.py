@@ -62,6 +62,16 @@ class KFI_Settings(bpy.types.PropertyGroup):
         description="Grid cells along the longest side of the keyframes' bounding box "
         "(memory and time grow with its cube)",
     )
+    motion_resolution: IntProperty(
+        name="Motion Resolution",
+        default=0,
+        min=0,
+        max=512,
+        soft_max=128,
+        description="Cells of the coarser grid the motion is solved on, along the same side "
+        "(0: automatic, chosen for speed; equal to Resolution: the motion at full detail). "
+        "Raise it when thin parts move together that should move apart",
+    )
     # Weights of the three terms of thesis eq. 2.6 (core/map/terms.py), in an artist's words.
     volume_weight: FloatProperty(
         name="Volume", default=DEFAULT_WEIGHTS["volume"], min=0.0, soft_max=100.0,
@@ -121,6 +131,10 @@ class KFI_Settings(bpy.types.PropertyGroup):
         "them (they stay out of renders)",
         update=_show_keyframes_changed,
     )
+
+    def motion(self):
+        """The Motion Resolution as the core expects it: None for automatic."""
+        return int(self.motion_resolution) or None
 
     def weights(self):
         """The weights as the core expects them (``animate(weights=...)``)."""

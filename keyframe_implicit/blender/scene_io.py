@@ -139,6 +139,8 @@ class BakeInput:
         Per segment, the feature points (N, 3) of side A and side B; empty with the meshes.
     resolution : int
         The grid resolution of this bake.
+    motion_resolution : int or None
+        The motion grid's resolution (`props.KFI_Settings.motion`; None: automatic).
     weights : dict
         The objective's weights (`props.KFI_Settings.weights`).
     material_names : list of str
@@ -165,6 +167,7 @@ class BakeInput:
     features: list
     resolution: int
     weights: dict
+    motion_resolution: int | None = None
     material_names: list = field(default_factory=list)
     pair_ids: list = field(default_factory=list)
     feature_names: list = field(default_factory=list)
@@ -488,6 +491,7 @@ def read(scene, depsgraph=None, resolution=0, meshes=True):
         keyframes=[], features=[],
         resolution=int(resolution) if resolution and resolution > 0 else int(settings.resolution),
         weights=settings.weights(),
+        motion_resolution=settings.motion(),
         pair_ids=[[p.pair_id for p in seg] for seg in rows],
         feature_names=[[(p.a.name, p.b.name) for p in seg] for seg in rows],
         levelsets=bool(settings.volume_export),

@@ -95,10 +95,22 @@ def check(inputs):
     out = _keyframe_problems(listed)
     out += _frame_problems([k.frame for k in listed], inputs.scene_frames)
     out += _pair_problems(inputs.listed_pairs, listed)
+    out += _motion_problems(inputs.motion_resolution, inputs.resolution)
     if inputs.volume_problem:
         out.append(Problem(ERROR, inputs.volume_problem))
     out.sort(key=lambda p: p.level != ERROR)
     return out
+
+
+def _motion_problems(motion_resolution, resolution):
+    """The core's own refusal of a Motion Resolution it cannot use (one measure)."""
+    from ..core.bake.checks import check_motion_resolution
+
+    try:
+        check_motion_resolution(motion_resolution, resolution)
+    except ValueError as exc:
+        return [Problem(ERROR, f"{exc} (0: automatic)")]
+    return []
 
 
 def _keyframe_problems(listed):

@@ -44,7 +44,7 @@ HELPER_PRELOAD = (__name__,)
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
                   levelsets=False, template=None, keyframe_meshes=None, processes=1,
-                  helper=None, progress=None, cancel=None, **options):
+                  helper=None, motion_grid=None, progress=None, cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -89,6 +89,9 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         the chain runs (`parallel.one_blas_thread`).
     helper : `parallel.Helper`, optional
         The helper to use instead of starting one (its caller closes it).
+    motion_grid : Grid, optional
+        The coarser grid the maps and trajectories are solved on (`gridfit.motion_grid`;
+        ``maps`` are then given on it); None: on ``grid``.
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         The fields of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...)
@@ -112,7 +115,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                              levelsets=levelsets)
     kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, outputs)
     own = helper is None and processes > 1
-    segments = _Inbetweens(phis, grid, features, maps, options, cancel)
+    segments = _Inbetweens(phis, grid, features, maps, options, cancel, motion_grid)
     blas = one_blas_thread()
     try:
         if own:
@@ -176,11 +179,12 @@ class _Inbetweens:
     (``maps``), solved with a helper a window of segments at a time
     (`maps.solve_maps_shared`), or solved in this process (`maps.pair_inbetweens`)."""
 
-    def __init__(self, phis, grid, features, maps, options, cancel):
-        from .maps import stage_options
+    def __init__(self, phis, grid, features, maps, options, cancel, motion_grid=None):
+        from .maps import solve_fields, stage_options
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
-        self.cancel = cancel
+        self.cancel, self.motion_grid = cancel, motion_grid
+        self.solve_phis = solve_fields(phis, grid, motion_grid) if maps is None else None
         options = {k: v for k, v in options.items() if k != "parallel"}
         self.map_options, self.motion_options = stage_options(options)
         self._solved = {}  # segment -> its maps, solved ahead in a window
@@ -194,16 +198,19 @@ class _Inbetweens:
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
-                                      options=self.motion_options)
+                                      options=self.motion_options, motion_grid=self.motion_grid)
         if helper is None:
             return pair_inbetweens(a, b, self.grid, self.features[k], self.map_options,
                                    self.motion_options, progress=rep.sub(0.0, 0.5),
-                                   cancel=cancel, on_maps=split.start)
+                                   cancel=cancel, on_maps=split.start,
+                                   motion_grid=self.motion_grid)
         if k not in self._solved:
             window = range(k, min(k + _MAP_WINDOW, len(self.phis) - 1))
             self._solved.update(solve_maps_shared(
-                self.phis, self.grid, self.features, window, self.motion_options.two_sided,
-                helper, rep.sub(0.0, 0.4), cancel, self.map_options))
+                self.solve_phis, self.grid if self.motion_grid is None else self.motion_grid,
+                self.features, window,
+                self.motion_options.two_sided, helper, rep.sub(0.0, 0.4), cancel,
+                self.map_options))
         res, back, seconds = self._solved.pop(k)
         rep(0.4, "trajectories")
         inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["keyframe_label", "surface_vertices", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes"]
+__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes"]
 
 
 def keyframe_label(k, kf):
@@ -146,11 +146,12 @@ def rigid_sweep(points, features, steps=8, most=2048):
     return out
 
 
-def check_feature_spacing(features, h, feature_names):
-    """Refuse two feature points closer than one grid cell whose partners are farther apart.
+def check_feature_spacing(features, h, feature_names, grid_name="grid", raise_what="resolution"):
+    """Refuse two feature points closer than one cell of the ``grid_name`` (spacing ``h``)
+    whose partners are farther apart.
 
-    The grid cannot tell the two points apart, yet the map would have to pull
-    them more than two cells apart (or the reverse): it tears space between
+    The grid the maps are solved on cannot tell the two points apart, yet the map would
+    have to pull them more than two cells apart (or the reverse): it tears space between
     them, and the initial map sends points far off.
     """
     for i, (fa, fb) in enumerate(features):
@@ -167,8 +168,8 @@ def check_feature_spacing(features, h, feature_names):
             second = _feature_label(feature_names, i, k, side)
             raise ValueError(
                 f"The {first} and the {second} are {near[j, k]:.3g} apart on keyframe {i + side + 1}, "
-                f"less than one grid cell ({h:.3g}), but their partners are {other[j, k]:.3g} "
-                "apart: move them apart or delete one of the pairs (or raise the resolution).")
+                f"less than one {grid_name} cell ({h:.3g}), but their partners are {other[j, k]:.3g} "
+                f"apart: move them apart or delete one of the pairs (or raise the {raise_what}).")
 
 
 def no_volume_message(k, kf, v, tris, grid):
@@ -219,3 +220,25 @@ def notes(keyframes, loose, sdf_stats):
                          "inside and outside (a twisted or non-manifold surface); the result there "
                          "may be wrong: check that part of the mesh.")
     return notes
+
+
+def check_motion_resolution(motion_resolution, resolution):
+    """Refuse a Motion Resolution the bake cannot use, before any work: it is None
+    (automatic) or a whole number from `gridfit.MIN_MOTION_RESOLUTION` to ``resolution``."""
+    from .gridfit import MIN_MOTION_RESOLUTION as least
+
+    if motion_resolution is None:
+        return
+    m = motion_resolution
+    if isinstance(m, bool) or not isinstance(m, (int, float, np.integer, np.floating)) \
+            or not float(m).is_integer():
+        raise ValueError(f"motion_resolution must be a whole number of cells, or None to let the "
+                         f"bake choose it; got {m!r}.")
+    if m < least:
+        raise ValueError(f"Motion Resolution {int(m)} is below {least}: a motion grid that coarse "
+                         f"cannot tell a keyframe's parts apart. Raise it to {least} or more, or "
+                         "leave it automatic.")
+    if m > resolution:
+        raise ValueError(f"Motion Resolution {int(m)} is above the Resolution {resolution}: the "
+                         "motion grid is never finer than the surface grid. Lower it to "
+                         f"{resolution} or less, or leave it automatic.")

@@ -17,7 +17,7 @@ import numpy as np
 from ..base.grid import Grid
 from .memory import MemoryLimitError, estimate_memory, largest_fitting, megabytes
 
-__all__ = ["fit_grid"]
+__all__ = ["fit_grid", "auto_motion_resolution", "motion_grid", "MIN_MOTION_RESOLUTION"]
 
 
 def _points(vertex_arrays, extra_points):
@@ -120,3 +120,34 @@ def _refusal(grid, resolution, need, limit, fits):
     if fits is None:
         return msg + "even the smallest resolution does not fit: raise the memory limit."
     return msg + f"the largest resolution that fits is {fits}: lower the resolution to {fits} or below."
+
+
+#: The smallest Motion Resolution: coarser, a keyframe's parts are a cell or two wide.
+MIN_MOTION_RESOLUTION = 8
+#: Material nodes of the motion grid the automatic Motion Resolution aims at: the size at
+#: which one map solve takes a couple of seconds (benchmarks/README.md, "Motion grid").
+MOTION_NODES = 16_000
+#: The automatic Motion Resolution is never below this (unless Resolution is).
+MIN_AUTO_MOTION = 24
+
+
+def auto_motion_resolution(resolution, material_fraction, grid):
+    """The Motion Resolution the bake picks: the one whose motion grid holds about
+    `MOTION_NODES` nodes of the largest keyframe (``material_fraction`` of ``grid``'s
+    box), between `MIN_AUTO_MOTION` and ``resolution``."""
+    material = max(float(material_fraction) * grid.size, 1.0)
+    r = int(round(resolution * (MOTION_NODES / material) ** (1.0 / grid.dim)))
+    return int(min(resolution, max(MIN_AUTO_MOTION, r)))
+
+
+def motion_grid(grid, resolution, motion_resolution, padding_cells=2):
+    """The motion grid of a bake on ``grid`` (``resolution`` cells along the longest side
+    of the keyframes' box): cells ``resolution / motion_resolution`` times as large, centred
+    on ``grid``'s box and covering it with ``padding_cells`` more cells on every side. None
+    when the two resolutions are equal: the maps then live on ``grid`` itself."""
+    if int(motion_resolution) >= int(resolution):
+        return None
+    spacing = grid.spacing * resolution / motion_resolution
+    cells = np.ceil((grid.upper - grid.origin) / spacing - 1e-9).astype(int) + 2 * padding_cells
+    centre = (grid.origin + grid.upper) / 2
+    return Grid(centre - spacing * cells / 2, spacing, tuple(int(c) + 1 for c in cells))

@@ -18,14 +18,16 @@ from ..base.parallel import cores, share
 from ..base.progress import Reporter
 from ..map import solver
 from ..map.options import MapOptions
+from ..motion.finepaths import on_motion_grid
 from ..motion.levelset import Inbetween, Recipe
 from ..motion.options import MotionOptions
 
-__all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "from_solved", "stage_options"]
+__all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "solve_fields", "from_solved",
+           "stage_options"]
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
-              on_maps=None, parallel=True, helper=None, **options):
+              on_maps=None, parallel=True, helper=None, motion_grid=None, **options):
     """Solve the maps between two keyframes and return their in-betweens.
 
     ``inbetween = solve_map (A -> B, and B -> A with the feature pairs swapped
@@ -47,6 +49,9 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         Solve the two maps at once, in two threads, when two cores are free.
     helper : `parallel.Helper`, optional
         Solve the map B -> A in that process instead.
+    motion_grid : Grid, optional
+        A coarser grid covering ``grid``'s box to solve the maps and the trajectories on
+        (`gridfit.motion_grid`); the fields travel on ``grid`` (docs/method.md, section 11).
     **options
         The fields of `motion.options.MotionOptions` (``transport``, ``resample``, ...)
         and of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...).
@@ -58,7 +63,7 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
     map_options, motion_options = stage_options(options)
     return pair_inbetweens(phi_a, phi_b, grid, (features_a, features_b), map_options,
                            motion_options, parallel=parallel, helper=helper, progress=progress,
-                           cancel=cancel, on_maps=on_maps)
+                           cancel=cancel, on_maps=on_maps, motion_grid=motion_grid)
 
 
 def stage_options(keywords):
@@ -71,17 +76,20 @@ def stage_options(keywords):
 
 
 def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *,
-                    parallel=True, helper=None, progress=None, cancel=None, on_maps=None):
+                    parallel=True, helper=None, progress=None, cancel=None, on_maps=None,
+                    motion_grid=None):
     """`inbetween` with its options as the two stages' objects (``features``: the pair
     (points_a, points_b))."""
     rep = Reporter(progress, cancel)
     two_sided = motion_options.two_sided
     t0 = time.perf_counter()
+    ends = solve_fields([phi_a, phi_b], grid, motion_grid)
+    solve_grid = grid if motion_grid is None else motion_grid
     if helper is not None:
-        res, back, _ = solve_maps_shared([phi_a, phi_b], grid, [features], range(1), two_sided,
+        res, back, _ = solve_maps_shared(ends, solve_grid, [features], range(1), two_sided,
                                          helper, rep.sub(0.0, 0.8), cancel, map_options)[0]
     else:
-        res, back = _solve_maps(phi_a, phi_b, grid, *features, two_sided, parallel,
+        res, back = _solve_maps(*ends, solve_grid, *features, two_sided, parallel,
                                 rep.sub(0.0, 0.8), cancel, map_options)
     rep(0.8, "trajectories")
     out = from_solved(phi_a, phi_b, grid, res, back, motion_options, time.perf_counter() - t0,
@@ -90,16 +98,25 @@ def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *
     return out
 
 
+def solve_fields(phis, grid, motion_grid):
+    """The keyframes' fields on the grid their maps are solved on: ``phis`` themselves, or
+    read at the nodes of the ``motion_grid``."""
+    if motion_grid is None:
+        return list(phis)
+    return [on_motion_grid(phi, grid, motion_grid) for phi in phis]
+
+
 def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,
                 cancel=None):
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
-    `solver.MapResult`; ``seconds`` the time the maps took, for its stats. ``on_maps`` as
-    in `inbetween`."""
+    `solver.MapResult`, solved on ``grid`` or on a motion grid (``res.grid``); ``seconds``
+    the time the maps took, for its stats. ``on_maps`` as in `inbetween`."""
     st = {"map_seconds": seconds, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
-                  components=res.components, options=motion_options)
+                  components=res.components, options=motion_options,
+                  motion_grid=None if res.grid == grid else res.grid)
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,

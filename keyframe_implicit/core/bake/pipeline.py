@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base.progress import Reporter
-from .checks import (check_feature_reach, check_feature_spacing, check_inputs, check_result,
+from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
+                     check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
 
 __all__ = ["Keyframe", "animate"]
@@ -110,7 +111,7 @@ def _material_fraction(keyframe, grid):
 
 def animate(keyframes, features, *, resolution=48, weights=None, progress=None, cancel=None,
             padding_cells=4, max_bytes=None, feature_names=None, template="keyframe", helper=None,
-            **options):
+            motion_resolution=None, **options):
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -124,6 +125,11 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     features : sequence of (points_a, points_b) pairs, one per segment (keyframe i -> i+1);
         (N, 3) arrays in world units, row j of points_a pairs with row j of points_b.
     resolution : int, grid cells along the longest side of the keyframes' bounding box.
+    motion_resolution : int, optional
+        Cells along the same side of the motion grid, on which the maps and the
+        trajectories are solved (docs/method.md, section 11); from 8 to ``resolution``,
+        which reproduces a bake on one grid. None: chosen from a cost budget
+        (`gridfit.auto_motion_resolution`).
     weights : dict with optional keys "volume", "rigidity", "levelset" (the weights of
         the three terms of eq. 2.6).
     progress : callable(fraction, message), optional.
@@ -163,6 +169,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
     keyframes, features = check_inputs(keyframes, features, feature_names)
+    check_motion_resolution(motion_resolution, resolution)
     opts = dict(options)
     weight_options = {t.name: t.weight_option for t in terms.TERMS}  # "volume" -> volume_weight
     for key, value in (weights or {}).items():
@@ -178,6 +185,10 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     grid = _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding_cells,
                       max_bytes)
     stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
+    stats["motion_resolution"], opts["motion_grid"] = _motion_grid(
+        keyframes, features, feature_names, grid, resolution, motion_resolution)
+    if opts["motion_grid"] is not None:
+        stats["motion_grid_shape"] = tuple(opts["motion_grid"].shape)
 
     blas, given = one_blas_thread(), helper
     try:
@@ -250,6 +261,34 @@ def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding
             f"the limit is {max_bytes / 2**20:,.0f} MB: {hint}.",
             exc.required, max_bytes, best) from None
     return grid
+
+
+def _motion_grid(keyframes, features, feature_names, grid, resolution, motion_resolution):
+    """The bake's Motion Resolution and motion grid (`gridfit.motion_grid`; None when it is
+    the surface grid). Automatic: `gridfit.auto_motion_resolution`, raised where two
+    feature points would share a motion cell; given: refused in that case."""
+    from .gridfit import auto_motion_resolution, motion_grid
+
+    def grid_of(m):
+        return motion_grid(grid, resolution, m)
+
+    def spacing_fits(m):
+        g = grid_of(m)
+        check_feature_spacing(features, grid.spacing if g is None else g.spacing,
+                              feature_names, "motion grid", "Motion Resolution")
+
+    if motion_resolution is not None:
+        spacing_fits(int(motion_resolution))
+        return int(motion_resolution), grid_of(int(motion_resolution))
+    fraction = max(_material_fraction(kf, grid) for kf in keyframes)
+    m = auto_motion_resolution(resolution, fraction, grid)
+    while m < resolution:
+        try:
+            spacing_fits(m)
+            break
+        except ValueError:
+            m = min(resolution, int(np.ceil(1.25 * m)))
+    return m, grid_of(m)
 
 
 def _choose_output(stats, keyframes, chain, spacing, artist):

@@ -52,6 +52,8 @@ from scipy import ndimage
 
 from ..base.elements import inverse
 from ..base.grid import Grid
+from ..base.sampling import sample
+from .finepaths import FinePaths, material_mass, on_motion_grid
 from .isovolume import volume_offset
 from .options import MotionOptions
 from ..surface.extract import enclosed_volume
@@ -172,7 +174,7 @@ class Inbetween:
     # ------------------------------------------------------------------
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
-                 components=None, options=None, stats=None, map_result=None,
+                 components=None, motion_grid=None, options=None, stats=None, map_result=None,
                  map_result_back=None, cancel=None, **keywords):
         """In-betweens from given maps.
 
@@ -181,15 +183,19 @@ class Inbetween:
         phi_a, phi_b : ndarray, grid.shape
             Signed distance grids of keyframes A and B (negative inside).
         grid : Grid
-        mapped : ndarray, grid.shape + (d,)
+        mapped : ndarray, (motion_grid or grid).shape + (d,)
             The map A -> B, y(x) for every node (world units).
-        mapped_back : ndarray, grid.shape + (d,), optional
+        mapped_back : ndarray, like ``mapped``, optional
             The map B -> A (two-sided transport); `invert_map` of ``mapped``
             when omitted.
         material : bool ndarray, optional
-            A's material; ``phi_a < 0`` when omitted.
+            A's material on the maps' grid; ``phi_a < 0`` there when omitted.
         components : int ndarray, optional
             Labels of A's material components (see `Trajectories`).
+        motion_grid : Grid, optional
+            The coarser grid the maps are given on, covering ``grid``'s box: the
+            trajectories are solved there and read at ``grid``'s nodes
+            (`finepaths.FinePaths`). None: the maps are on ``grid``.
         options : `options.MotionOptions`, optional
             All settings at once (the bake passes them so); keywords override them.
         stats, map_result, map_result_back : optional
@@ -215,14 +221,17 @@ class Inbetween:
         if not np.any(phi_b < 0):
             raise ValueError("phi_b has no node inside (< 0): keyframe B is empty on this grid.")
         t0 = time.perf_counter()
-        material = phi_a < 0 if material is None else material
-        forward, backward = _transports(phi_a, phi_b, grid, mapped, mapped_back, material,
+        paths = _Paths(grid, motion_grid, options, cancel)
+        if material is None:
+            material = paths.on_motion(phi_a) < 0
+        forward, backward = _transports(phi_a, phi_b, paths, mapped, mapped_back, material,
                                         components, options, cancel)
         st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
         out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
                   map_result=map_result, map_result_back=map_result_back)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
-            mapped_back=mapped_back, material=material, components=components, options=options))
+            mapped_back=mapped_back, material=material, components=components,
+            motion_grid=motion_grid, options=options))
         return out
 
     def __reduce__(self):
@@ -388,26 +397,58 @@ class Inbetween:
         return _affine_fit_at(p, pos[idx], vel[idx], w, h)
 
 
-def _transports(phi_a, phi_b, grid, mapped, mapped_back, material, components, options, cancel):
+class _Paths:
+    """How `Inbetween.from_map` makes a keyframe's trajectories: on ``grid``, or solved on
+    the ``motion_grid`` and read at ``grid``'s nodes (`finepaths.FinePaths`)."""
+
+    def __init__(self, grid, motion_grid, options, cancel):
+        self.grid, self.motion_grid = grid, motion_grid
+        self.keywords = dict(options.trajectory_keywords(), cancel=cancel)
+
+    def on_motion(self, field):
+        """A surface-grid field on the grid the maps live on."""
+        if self.motion_grid is None:
+            return field
+        return on_motion_grid(field, self.grid, self.motion_grid)
+
+    def __call__(self, field, mapped, material, components=None):
+        """The paths of the keyframe whose surface-grid field is ``field``, along ``mapped``
+        (``material``, ``components`` on the maps' grid)."""
+        if self.motion_grid is None:
+            return Trajectories(self.grid, mapped, material, components, **self.keywords)
+        mass = material_mass(field < 0, self.grid, self.motion_grid)
+        coarse = Trajectories(self.motion_grid, mapped, material, components, mass=mass,
+                              **self.keywords)
+        return FinePaths(self.grid, coarse, field < 0, self.keywords["margin_cells"])
+
+    def back_map(self, forward):
+        """The map B -> A as the inverse of ``forward``'s, on the maps' grid."""
+        inverse = invert_map(self.grid, forward)
+        if self.motion_grid is None:
+            return inverse
+        points = self.motion_grid.points()
+        return points + sample(inverse - self.grid.points(), self.grid, points)
+
+
+def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel):
     """The forward transport of A's field along the map A -> B, and (two-sided) the backward
     one of B's field along B -> A (`invert_map` of the forward one when not given), both
     truncated at one value so that the far field is one value."""
-    traj = dict(options.trajectory_keywords(), cancel=cancel)
     lookup = dict(options.lookup_keywords(), cancel=cancel)
 
     def carried(field, y, mat, comps=None):
-        return Transport(field, Trajectories(grid, y, mat, comps, **traj), **lookup)
+        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps), **lookup)
 
     backward = None
     if options.two_sided and mapped_back is not None:
         with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
-            back = pool.submit(carried, phi_b, np.asarray(mapped_back, dtype=float), phi_b < 0)
+            back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0)
             forward = carried(phi_a, mapped, material, components)
             backward = back.result()
     else:
         forward = carried(phi_a, mapped, material, components)
         if options.two_sided:
-            backward = carried(phi_b, invert_map(grid, forward), phi_b < 0)
+            backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0)
     if backward is not None:
         w = min(forward.border_value, backward.border_value)
         forward.truncation = backward.truncation = w
@@ -431,8 +472,6 @@ class Recipe:
 
 def map_agreement(grid, mapped, mapped_back, material):
     """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max)."""
-    from ..base.sampling import sample
-
     x = grid.points()[material]
     if x.size == 0:
         return (float("nan"), float("nan"))

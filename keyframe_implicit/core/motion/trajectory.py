@@ -236,6 +236,11 @@ class Trajectories:
         material (global method). Must be >= 1.
     margin_weight : float
         Weight of margin cells (cells that do not touch the material), in (0, 1].
+    mass : ndarray, shape grid.shape, optional
+        How much material each node stands for, for the centroids that fix each
+        component's translation (global method); default 1 on the material, 0 elsewhere.
+        On a motion grid: the surface grid's material restricted to its nodes
+        (`finepaths.material_mass`), so the centroids are the surface material's.
     tolerance : float
         Global method: CG stops when the residual of every coordinate is below
         ``tolerance`` times its right-hand side's norm (the default keeps positions
@@ -253,7 +258,7 @@ class Trajectories:
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
-                 margin_cells=4.0, margin_weight=0.1, tolerance=1e-5, cancel=None):
+                 margin_cells=4.0, margin_weight=0.1, mass=None, tolerance=1e-5, cancel=None):
         import time
 
         y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
@@ -269,6 +274,7 @@ class Trajectories:
         self.dim = d
         self._y = y.reshape(-1, d)
         self.material = mat
+        self._mass = mat if mass is None else np.asarray(mass, dtype=float)
         self.stats = {"method": method}
         self._cache = {}  # positions of the active nodes at the last few times s
 
@@ -391,7 +397,7 @@ class Trajectories:
         # centroid constraint per component of the active graph: material nodes of it
         self._comp = comp
         self._ncomp = ncomp
-        self._cw = np.where(self.material.reshape(-1)[nodes], 1.0, 0.0)
+        self._cw = np.asarray(self._mass.reshape(-1)[nodes], dtype=float)
         self._xbar = self._component_centroids(self.grid.node_points(nodes))
         self._ybar = self._component_centroids(ya)
         self._nodes = nodes

@@ -1,0 +1,127 @@
+"""Paths of the surface grid's nodes, read from trajectories solved on a coarser motion grid.
+
+The maps and the as-rigid-as-possible trajectories are smooth fields: they are solved on
+the motion grid (cells an arbitrary factor larger, same box), while the keyframes'
+distance fields, which carry the detail the artist sees, stay on the surface grid
+(docs/method.md, section 11). A surface node x moves by the multilinear interpolation of
+the motion nodes' displacements around it,
+
+    x(s) = x + sum_c w_c(x) (X_c(s) - X_c),
+
+the weights w_c those of x in its motion cell. The displacement of a rigid motion is
+affine in x, and multilinear interpolation reproduces affine fields exactly, so a rigid
+part moves rigidly at every surface node. At s = 1 the paths end on the interpolated
+map, so a feature point constrained on the motion grid lands exactly.
+
+`FinePaths` offers what a `transport.Transport` asks of its trajectories (``grid``,
+``region_nodes``, ``node_positions``, ``mapped``), on the surface grid.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ..base.grid import Grid
+from ..base.sampling import cell_weights, sample
+
+__all__ = ["FinePaths", "material_mass", "on_motion_grid"]
+
+_KEPT = 3  # node sets whose motion-cell weights `FinePaths` keeps
+_CHUNK = 1 << 18  # surface nodes read at once when the whole map is made
+
+
+def on_motion_grid(field, grid: Grid, motion_grid: Grid):
+    """A surface-grid field read at the motion grid's nodes (multilinear; beyond the surface
+    grid's box the distance to it is added, so a distance field stays outside)."""
+    return sample(field, grid, motion_grid.points(), outside="distance")
+
+
+def material_mass(material, grid: Grid, motion_grid: Grid):
+    """The surface grid's ``material`` (bool, grid.shape) restricted to the motion grid's
+    nodes: each material node's multilinear weights added onto the corners of its motion
+    cell. Multilinear weights reproduce linear functions, so a centroid weighted by this
+    mass on the motion nodes is the surface material's centroid exactly."""
+    nodes = np.flatnonzero(np.asarray(material, dtype=bool))
+    out = np.zeros(motion_grid.size)
+    for lo in range(0, nodes.size, _CHUNK):
+        flat, w = cell_weights(motion_grid, grid.node_points(nodes[lo:lo + _CHUNK]))
+        out += np.bincount(flat.reshape(-1), weights=w.reshape(-1), minlength=motion_grid.size)
+    return out.reshape(motion_grid.shape)
+
+
+class FinePaths:
+    """The paths x(s) of a surface grid's nodes, interpolated from coarser trajectories.
+
+    Parameters
+    ----------
+    grid : Grid
+        The surface grid.
+    coarse : `trajectory.Trajectories`
+        The trajectories on the motion grid (which covers ``grid``'s box).
+    material : bool ndarray, grid.shape
+        The keyframe's material on the surface grid.
+    margin_cells : float
+        The region's margin around the material, in surface cells (as
+        `trajectory.Trajectories` ``margin_cells``).
+    """
+
+    def __init__(self, grid: Grid, coarse, material, margin_cells):
+        self.grid, self.coarse, self.dim = grid, coarse, grid.dim
+        self.stats = coarse.stats
+        dist = ndimage.distance_transform_edt(~np.asarray(material, dtype=bool))
+        self._region = (dist <= float(margin_cells)).reshape(-1)
+        self._weights = {}
+        self._mapped = None
+
+    def region_nodes(self):
+        """Flat bool mask of the region's surface nodes: the material and its margin."""
+        return self._region
+
+    @property
+    def mapped(self):
+        """The map y(x) on the surface grid, array of grid.shape + (d,) (made once, a chunk
+        of nodes at a time: the weights of every node at once would be 8 times its size)."""
+        if self._mapped is None:
+            coarse, d = self.coarse, self.dim
+            disp = coarse.mapped - coarse.grid.points()
+            out = np.empty((self.grid.size, d))
+            for lo in range(0, self.grid.size, _CHUNK):
+                x = self.grid.node_points(np.arange(lo, min(lo + _CHUNK, self.grid.size)))
+                out[lo:lo + len(x)] = x + sample(disp, coarse.grid, x)
+            self._mapped = out.reshape(self.grid.shape + (d,))
+        return self._mapped
+
+    def node_positions(self, s, nodes):
+        """Positions x(s) of the surface nodes with the given flat indices, (len(nodes), d)."""
+        nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
+        x = self.grid.node_points(nodes)
+        if float(s) == 0.0:
+            return x
+        w, cnodes, inv = self._cells_of(nodes, x)
+        coarse = self.coarse
+        disp = coarse.node_positions(s, cnodes) - coarse.grid.node_points(cnodes)
+        return x + np.einsum("pk,pkd->pd", w, disp[inv])
+
+    def positions(self, s):
+        """Positions x(s) of every surface node, array of grid.shape + (d,)."""
+        out = self.node_positions(s, np.arange(self.grid.size))
+        return out.reshape(self.grid.shape + (self.dim,))
+
+    def __call__(self, points, s):
+        """Positions at time s of points given at time 0 ((P, d) -> (P, d)): the motion
+        grid's trajectories read there directly."""
+        return self.coarse(points, s)
+
+    def _cells_of(self, nodes, x):
+        """Motion-grid weights (P, 2**d), the motion nodes they use, and each weight's
+        row among those nodes (P, 2**d); kept for the last few node sets, which every
+        frame asks for again."""
+        key = hash(nodes.tobytes())
+        if key not in self._weights:
+            flat, w = cell_weights(self.coarse.grid, x)
+            cnodes, inv = self.coarse.grid.unique_nodes(flat)
+            self._weights[key] = (w, cnodes, inv)
+            if len(self._weights) > _KEPT:
+                self._weights.pop(next(iter(self._weights)))
+        return self._weights[key]

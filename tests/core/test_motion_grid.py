@@ -1,0 +1,130 @@
+"""Maps and trajectories on a coarser motion grid, fields at full resolution (docs/method.md,
+section 11)."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from inbetween_cases import (RIGID_AXIS, l_centroid, make_grid, rigid_case, rigid_expected,
+                             sd_sphere, turning_sphere)
+from keyframe_implicit.core import Grid, Inbetween, animate, extract_surface, inbetween
+from keyframe_implicit.core.bake import gridfit, pipeline
+
+
+def motion_grid(grid, factor):
+    """A motion grid with cells ``factor`` times the surface grid's, covering its box."""
+    n = max(grid.shape) - 1
+    return gridfit.motion_grid(grid, n, n / factor)
+
+
+def test_a_motion_grid_equal_to_the_surface_grid_gives_the_one_grid_result():
+    """The paths read from a motion grid that is the surface grid itself are the surface
+    nodes' own paths: the in-betweens are those of the one-grid form, to 1e-6 h."""
+    grid, phi_a, phi_b, mapped, _ = rigid_case(n=28)
+    one = Inbetween.from_map(phi_a, phi_b, grid, mapped)
+    read = Inbetween.from_map(phi_a, phi_b, grid, mapped, motion_grid=grid)
+    for s in (0.0, 0.3, 0.5, 1.0):
+        a, b = one.levelset(s), read.levelset(s)
+        near = np.abs(a) < 3 * grid.spacing
+        assert np.abs(a - b)[near].max() <= 1e-6 * grid.spacing, s
+
+
+def test_motion_resolution_equal_to_resolution_is_the_one_grid_bake():
+    kfs, feats = turning_sphere()
+    assert gridfit.motion_grid(Grid((0, 0, 0), 0.1, (30, 30, 30)), 24, 24) is None
+    full = animate(kfs, feats, resolution=20, motion_resolution=20, surfaces=False)
+    assert full.stats["motion_resolution"] == 20 and "motion_grid_shape" not in full.stats
+    coarse = animate(kfs, feats, resolution=20, motion_resolution=10, surfaces=False)
+    assert coarse.stats["motion_grid_shape"] < full.stats["grid_shape"]
+    assert not np.allclose(coarse.vertices, full.vertices)  # the motion grid was used
+
+
+def test_rigid_l_turned_120_degrees_stays_rigid_on_a_motion_grid():
+    """Surface 64, motion 24: the displacement of a rotation is affine, which multilinear
+    reads reproduce, so the turned L stays within 0.1 h of the exact solid."""
+    grid, phi_a, phi_b, _, info = rigid_case(n=65, angle=2 * np.pi / 3)
+    mg = gridfit.motion_grid(grid, 64, 24)
+    c = info["centroid"]
+    mapped = c + info["t"] + (mg.points() - c) @ info["R"].T
+    ib = Inbetween.from_map(phi_a, phi_b, grid, mapped, motion_grid=mg)
+    for s in (0.25, 0.5, 0.75):
+        V, _ = extract_surface(ib.levelset(s), grid)
+        assert np.abs(rigid_expected(V, s, info)).mean() <= 0.1 * grid.spacing, s
+
+
+@pytest.mark.parametrize("factor", [1.5, 2.0, 3.0])
+def test_feature_points_land_exactly_on_any_motion_grid(factor):
+    grid = make_grid(3, 33)
+    x = grid.points()
+    phi_a = sd_sphere(x, (-0.3, 0.0, 0.0), 0.45)
+    phi_b = sd_sphere(x, (0.3, 0.1, 0.0), 0.45)
+    fa = np.array([[-0.3, 0.0, 0.3], [-0.3, 0.3, 0.0], [0.0, 0.0, 0.0], [-0.6, 0.0, 0.0]])
+    fb = fa + (0.6, 0.1, 0.0) + np.array([[0.05, 0, 0], [0, 0.04, 0], [0, 0, 0.03], [0, 0, 0]])
+    ib = inbetween(phi_a, phi_b, grid, fa, fb, motion_grid=motion_grid(grid, factor),
+                   max_iterations=4)
+    assert np.abs(ib.trajectory(fa, 1.0) - fb).max() <= 1e-6 * grid.spacing
+    assert np.abs(ib.mapped.reshape(-1, 3)[0]).max() < np.inf  # the surface grid's map exists
+
+
+def test_detail_finer_than_the_motion_grid_travels_at_full_resolution():
+    """Bumps of 0.3 h at a 2 h wavelength, on a body moved by a translation solved on a
+    motion grid of 3 h cells (too coarse to hold them): half-way the field is the bumpy
+    keyframe moved half-way, to well under the bumps' size. (Half the translation is a
+    whole number of cells across the bumps, where a 2 h wave is all a grid can hold.)"""
+    grid = make_grid(3, 49)
+    h = grid.spacing
+    shift = np.array([8 * h, -4 * h, 0.13])
+
+    def bumpy(p):
+        wave = 0.3 * h * np.cos(np.pi * (p[..., 0] + 1.2) / h) * np.cos(np.pi * (p[..., 1] + 1.2) / h)
+        return sd_sphere(p, (0.0, 0.0, 0.0), 0.5) + wave
+
+    x = grid.points()
+    phi_a, phi_b = bumpy(x), bumpy(x - shift)
+    mg = motion_grid(grid, 3.0)
+    ib = Inbetween.from_map(phi_a, phi_b, grid, mg.points() + shift, motion_grid=mg)
+    half = ib.levelset(0.5)
+    expected = bumpy(x - shift / 2)
+    near = np.abs(expected) < h
+    assert np.abs(half - expected)[near].max() <= 0.1 * h
+    # the bumps are there: the smooth sphere is farther from the half-way field than they are
+    smooth = sd_sphere(x - shift / 2, (0.0, 0.0, 0.0), 0.5)
+    assert np.abs(half - smooth)[near].max() >= 0.25 * h
+
+
+@pytest.mark.parametrize("motion, words", [(4, "below 8"), (7, "below 8"), (21, "above the Resolution 20"),
+                                           (2.5, "whole number")])
+def test_a_motion_resolution_the_bake_cannot_use_is_refused_before_any_work(monkeypatch, motion,
+                                                                            words):
+    def no_work(*args, **kwargs):
+        raise AssertionError("the distance grids were started")
+
+    monkeypatch.setattr(pipeline, "_distance_grids", no_work)
+    kfs, feats = turning_sphere()
+    with pytest.raises(ValueError, match=words):
+        animate(kfs, feats, resolution=20, motion_resolution=motion)
+
+
+def test_automatic_motion_resolution_follows_the_budget():
+    grid = Grid((0.0, 0.0, 0.0), 1.0, (137, 137, 109))
+    small = gridfit.auto_motion_resolution(24, 0.2, Grid((0.0, 0.0, 0.0), 1.0, (33, 33, 29)))
+    assert small == 24  # a small bake keeps one grid
+    big = gridfit.auto_motion_resolution(128, 0.2, grid)
+    assert gridfit.MIN_AUTO_MOTION <= big < 128
+    nodes = 0.2 * grid.size * (big / 128) ** 3
+    assert 0.5 * gridfit.MOTION_NODES <= nodes <= 2 * gridfit.MOTION_NODES
+
+
+def test_features_closer_than_a_motion_cell_raise_the_automatic_motion_resolution():
+    """Two features a surface cell apart whose partners are far apart would share a motion
+    cell: the automatic choice goes finer; a given Motion Resolution is refused."""
+    kfs, feats = turning_sphere()
+    fa, fb = (np.array(f, dtype=float) for f in feats[0])
+    fa[1] = fa[0] + 0.04 * (fa[1] - fa[0]) / np.linalg.norm(fa[1] - fa[0])
+    feats = [(fa, fb)]
+    grid = pipeline._bake_grid(kfs, [pipeline.surface_vertices(k, kf) for k, kf in enumerate(kfs)],
+                               feats, None, 24, 4, None)
+    m, mg = pipeline._motion_grid(kfs, feats, None, grid, 24, None)
+    assert mg is None or mg.spacing <= np.linalg.norm(fa[1] - fa[0])
+    with pytest.raises(ValueError, match="motion grid cell.*Motion Resolution"):
+        pipeline._motion_grid(kfs, feats, None, grid, 24, 8)
