@@ -72,7 +72,12 @@ def peak_rss_mb():
     raise RuntimeError("VmHWM not found in /proc/self/status")
 
 
-def run_one(name, n, processes):
+def motion_arg(value, n):
+    """animate's motion_resolution for ``--motion`` at size ``n``: "auto" None, "full" n."""
+    return None if value == "auto" else n if value == "full" else int(value)
+
+
+def run_one(name, n, processes, motion="auto"):
     """Bake one case at ``n`` cells; figures as a dict (runs in the child)."""
     from keyframe_implicit.core import animate
     from keyframe_implicit.core.bake.memory import estimate_memory
@@ -80,7 +85,8 @@ def run_one(name, n, processes):
 
     kfs, features = keyframes(name)
     t0 = time.perf_counter()
-    anim = animate(kfs, features, resolution=n, processes=processes)
+    anim = animate(kfs, features, resolution=n, processes=processes,
+                   motion_resolution=motion_arg(motion, n))
     total = time.perf_counter() - t0
     st = anim.stats
     segs = st["segments"]
@@ -94,28 +100,33 @@ def run_one(name, n, processes):
     est = model["peak"]
     helper_mb = (st.get("helper_peak_rss_kib") or 0) / 1024.0
     return dict(case=name, n=n, shape=list(anim.grid.shape), seconds=sec, total=total,
+                motion=st["motion_resolution"], motion_shape=list(st.get("motion_grid_shape", [])),
                 rss_mb=peak_rss_mb() + helper_mb, helper_rss_mb=helper_mb,
                 active=seg["map"]["active_nodes"], nodes=int(anim.grid.size),
                 material_fraction=frac, model_active=model["active_nodes"],
                 estimate_mb=est / 2 ** 20)
 
 
-def run_child(name, n, processes):
+def run_child(name, n, processes, motion="auto"):
     """Run `run_one` in a fresh interpreter; its result dict (or the error it printed)."""
-    cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n), str(processes)]
+    cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n), str(processes),
+           str(motion)]
     out = subprocess.run(cmd, capture_output=True, text=True)
     if out.returncode != 0:
         return dict(case=name, n=n, error=out.stderr.strip().splitlines()[-25:])
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def pooled_slope(rows):
-    """Common slope of log(total) on log(active), one intercept per case (least squares)."""
+def pooled_slope(rows, key="active"):
+    """Common slope of log(total) on log(``key``), one intercept per case (least squares):
+    ``active`` the map's active nodes, ``model_active`` the surface grid's material and
+    margin as the memory model counts them (the work's size when the motion grid is
+    coarser)."""
     rows = [r for r in rows if "error" not in r and r["case"] in CASES]
     names = sorted({r["case"] for r in rows})
     if len({r["n"] for r in rows}) < 2:
         return float("nan")
-    x = np.log([r["active"] for r in rows])
+    x = np.log([r[key] for r in rows])
     y = np.log([r["total"] for r in rows])
     dummies = np.array([[r["case"] == c for c in names] for r in rows], dtype=float)
     A = np.column_stack([x, dummies])
@@ -124,16 +135,18 @@ def pooled_slope(rows):
 
 def print_table(rows):
     head = " ".join(f"{label:>12}" for _, label in STAGES)
-    print(f"{'case':>9} {'n':>4} {head} {'total s':>8} {'RSS MiB':>8} {'est MiB':>8} "
-          f"{'active':>9}")
+    print(f"{'case':>9} {'n':>4} {'motion':>6} {head} {'total s':>8} {'RSS MiB':>8} "
+          f"{'est MiB':>8} {'active':>9}")
     for r in rows:
         if "error" in r:
             print(f"{r['case']:>9} {r['n']:>4} failed: {r['error']}")
             continue
         stages = " ".join(f"{r['seconds'][key]:>12.2f}" for key, _ in STAGES)
-        print(f"{r['case']:>9} {r['n']:>4} {stages} {r['total']:>8.2f} {r['rss_mb']:>8.0f} "
-              f"{r['estimate_mb']:>8.0f} {r['active']:>9}")
-    print(f"pooled log-log slope of seconds against active nodes: {pooled_slope(rows):.2f}")
+        print(f"{r['case']:>9} {r['n']:>4} {r.get('motion', r['n']):>6} {stages} "
+              f"{r['total']:>8.2f} {r['rss_mb']:>8.0f} {r['estimate_mb']:>8.0f} {r['active']:>9}")
+    print(f"pooled log-log slope of seconds against the map's active nodes: "
+          f"{pooled_slope(rows):.2f}; against the surface grid's: "
+          f"{pooled_slope(rows, 'model_active'):.2f}")
 
 
 def main():
@@ -144,15 +157,19 @@ def main():
     ap.add_argument("--processes", type=int, default=2,
                     help="animate's processes (2: the worker and its helper, as a bake in "
                          "Blender on two cores or more)")
-    ap.add_argument("--child", nargs=3, metavar=("CASE", "N", "P"), help=argparse.SUPPRESS)
+    ap.add_argument("--motion", default="auto",
+                    help='motion_resolution: "auto" (the bake\'s choice), "full" (the size: one '
+                         'grid) or a number of cells')
+    ap.add_argument("--child", nargs=4, metavar=("CASE", "N", "P", "M"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(run_one(args.child[0], int(args.child[1]), int(args.child[2]))))
+        print(json.dumps(run_one(args.child[0], int(args.child[1]), int(args.child[2]),
+                                 args.child[3])))
         return
     rows = []
     for n in args.sizes:
         for name in args.cases:
-            rows.append(run_child(name, n, args.processes))
+            rows.append(run_child(name, n, args.processes, args.motion))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     print_table(rows)
     if args.json:

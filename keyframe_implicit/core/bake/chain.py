@@ -193,7 +193,7 @@ class _Inbetweens:
         """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
         their recipe is known; progress to 0.5 of ``rep``."""
         from ..motion.levelset import Inbetween
-        from .maps import from_solved, pair_inbetweens, solve_maps_shared
+        from .maps import from_solved, on_solve_grid, pair_inbetweens, solve_maps_shared
 
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
@@ -206,11 +206,11 @@ class _Inbetweens:
                                    motion_grid=self.motion_grid)
         if k not in self._solved:
             window = range(k, min(k + _MAP_WINDOW, len(self.phis) - 1))
+            solve_grid = self.grid if self.motion_grid is None else self.motion_grid
             self._solved.update(solve_maps_shared(
-                self.solve_phis, self.grid if self.motion_grid is None else self.motion_grid,
-                self.features, window,
+                self.solve_phis, solve_grid, self.features, window,
                 self.motion_options.two_sided, helper, rep.sub(0.0, 0.4), cancel,
-                self.map_options))
+                on_solve_grid(self.map_options, self.grid, solve_grid)))
         res, back, seconds = self._solved.pop(k)
         rep(0.4, "trajectories")
         inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,

@@ -10,6 +10,7 @@ when it is free.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -22,8 +23,8 @@ from ..motion.finepaths import on_motion_grid
 from ..motion.levelset import Inbetween, Recipe
 from ..motion.options import MotionOptions
 
-__all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "solve_fields", "from_solved",
-           "stage_options"]
+__all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "solve_fields", "on_solve_grid",
+           "from_solved", "stage_options"]
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
@@ -85,6 +86,7 @@ def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *
     t0 = time.perf_counter()
     ends = solve_fields([phi_a, phi_b], grid, motion_grid)
     solve_grid = grid if motion_grid is None else motion_grid
+    map_options = on_solve_grid(map_options, grid, solve_grid)
     if helper is not None:
         res, back, _ = solve_maps_shared(ends, solve_grid, [features], range(1), two_sided,
                                          helper, rep.sub(0.0, 0.8), cancel, map_options)[0]
@@ -96,6 +98,17 @@ def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *
                       on_maps=on_maps, cancel=cancel)
     rep(1.0, "in-betweens ready")
     return out
+
+
+def on_solve_grid(map_options, grid, solve_grid):
+    """``map_options`` for a solve on ``solve_grid``: the map's margin keeps its width in
+    world units (``margin_cells`` counts the surface grid's cells), at least one cell of the
+    solve grid. A margin of the motion grid's own cells would be wider, and the empty gap
+    of a merge would resist it the more (benchmarks/README.md, "Motion grid")."""
+    if solve_grid == grid:
+        return map_options
+    cells = max(1.0, map_options.margin_cells * grid.spacing / solve_grid.spacing)
+    return dataclasses.replace(map_options, margin_cells=cells)
 
 
 def solve_fields(phis, grid, motion_grid):
