@@ -122,9 +122,20 @@ def test_features_closer_than_a_motion_cell_raise_the_automatic_motion_resolutio
     fa, fb = (np.array(f, dtype=float) for f in feats[0])
     fa[1] = fa[0] + 0.04 * (fa[1] - fa[0]) / np.linalg.norm(fa[1] - fa[0])
     feats = [(fa, fb)]
-    grid = pipeline._bake_grid(kfs, [pipeline.surface_vertices(k, kf) for k, kf in enumerate(kfs)],
-                               feats, None, 24, 4, None)
-    m, mg = pipeline._motion_grid(kfs, feats, None, grid, 24, None)
+    surfaces = [pipeline.surface_vertices(k, kf) for k, kf in enumerate(kfs)]
+    grid, m, mg = pipeline._bake_grid(kfs, surfaces, feats, None, 24, None, 4, None)
     assert mg is None or mg.spacing <= np.linalg.norm(fa[1] - fa[0])
     with pytest.raises(ValueError, match="motion grid cell.*Motion Resolution"):
         pipeline._motion_grid(kfs, feats, None, grid, 24, 8)
+
+
+def test_the_memory_estimate_counts_the_motion_grid():
+    from keyframe_implicit.core import estimate_memory
+
+    grid = Grid((0.0, 0.0, 0.0), 1.0 / 128, (137, 137, 137))
+    one = estimate_memory(grid, material_fraction=0.2)
+    mg = gridfit.motion_grid(grid, 128, 48)
+    two = estimate_memory(grid, material_fraction=0.2, motion_grid=mg)
+    assert one["active_nodes"] == one["region_nodes"] == two["region_nodes"]
+    assert 0.1 * (48 / 128) ** 3 < two["active_nodes"] / one["active_nodes"] < 0.3
+    assert two["peak"] < one["peak"] and two["grid_nodes"] == one["grid_nodes"]

@@ -8,6 +8,8 @@ model is spelled out in its docstring; its constants are fitted to the peaks
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..base.grid import Grid
 
 __all__ = ["MemoryLimitError", "estimate_memory", "check_memory", "largest_fitting", "megabytes"]
@@ -48,39 +50,46 @@ class MemoryLimitError(ValueError):
 _COPIES = 2
 _PROCESS_BYTES = 106.9 * 2 ** 20
 _NODE_BYTES = {2: 194.5, 3: 194.5}
-_ACTIVE_BYTES = {2: 2285.3 * 36 / 243, 3: 2285.3}
+_MOTION_BYTES = {2: 1142.6 * 36 / 243, 3: 1142.6}
+_REGION_BYTES = {2: 1142.7 * 36 / 243, 3: 1142.7}
 
 
-def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3):
+def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
+                    motion_grid=None):
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
-    Model (N grid nodes, M active solver nodes):
-    ``peak = 2 (c_process + c_node N + c_active M)``, with M = the material
-    (``material_fraction * N``) plus the map's margin of ``margin_cells`` around it
-    (a compact blob's surface ~ N^((d-1)/d)). Two of everything: the Blender bake runs
-    in a worker and its helper process, each solving one of a segment's two maps and
-    holding a copy of its in-betweens (`chain.animate_chain` with ``processes=2``); in
-    one process the two maps are solved in two threads at once. The constants (module
-    source) are fitted to measured peaks; benchmarks/bench_scale.py prints the estimate
-    beside the measured peak.
+    Model (N surface grid nodes; M the motion grid's active nodes, R the surface grid's):
+    ``peak = 2 (c_process + c_node N + c_motion M + c_region R)``. M and R each count the
+    material (``material_fraction`` of the box) and a margin of ``margin_cells`` cells
+    around it (a compact blob's surface ~ N^((d-1)/d)), on their own grid: the maps'
+    Gauss-Newton systems and the trajectories' multigrid live on the motion grid, the
+    transports' regions and lookups on the surface grid. Without a ``motion_grid`` both
+    are ``grid``. Two of everything: the Blender bake runs in a worker and its helper
+    process, each solving one of a segment's two maps and holding a copy of its
+    in-betweens (`chain.animate_chain` with ``processes=2``). The constants (module source)
+    are fitted to measured peaks (`benchmarks/fit_memory.py`); benchmarks/bench_scale.py
+    prints the estimate beside the measured peak.
 
     Parameters
     ----------
     grid : Grid
+        The surface grid.
     material_fraction : float, optional
-        Fraction of the grid inside the largest keyframe (0..1), e.g.
+        Fraction of the grid box inside the largest keyframe (0..1), e.g.
         ``np.mean(phi < 0)``; default 0.25 (`fit_grid` guesses it from the box).
     n_keyframes : int
         Distance grids held at once (the per-node part grows by 8 bytes per grid).
     margin_cells : float
-        Width of the map's margin around the material the solver also works on.
+        Width of the margin around the material the solves also work on.
+    motion_grid : Grid, optional
+        The grid the maps and trajectories are solved on (`gridfit.motion_grid`).
 
     Returns
     -------
     dict
-        ``nodes``, ``active_nodes``, ``process`` (the fixed part), ``grid_nodes`` and
-        ``active`` (the parts per node and per active node, both copies together) and
-        ``peak``, in bytes (ints).
+        ``nodes``, ``active_nodes`` (M), ``region_nodes`` (R), ``process`` (the fixed
+        part), ``grid_nodes``, ``motion`` and ``region`` (the parts per node, both copies
+        together), ``active`` (those two) and ``peak``, in bytes (ints).
     """
     if not isinstance(grid, Grid):
         raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
@@ -89,18 +98,34 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
         raise ValueError(f"material_fraction must lie in [0, 1], got {material_fraction}.")
     N, d = grid.size, grid.dim
     P = _COPIES
-    # margin nodes around a compact blob holding f * N nodes: its surface ~ (f N)^((d-1)/d)
-    surface = (f * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
-    M = min(N, f * N + 2 * margin_cells * surface)
+    R = _active_nodes(grid, f, margin_cells)
+    M = R if motion_grid is None else _active_nodes(motion_grid, f * _box(grid) / _box(motion_grid),
+                                                    margin_cells)
     out = {
         "nodes": int(N),
         "active_nodes": int(M),
+        "region_nodes": int(R),
         "process": int(P * _PROCESS_BYTES),
         "grid_nodes": int(P * N * (_NODE_BYTES[d] + 8 * max(int(n_keyframes) - 2, 0))),
-        "active": int(P * M * _ACTIVE_BYTES[d]),
+        "motion": int(P * M * _MOTION_BYTES[d]),
+        "region": int(P * R * _REGION_BYTES[d]),
     }
+    out["active"] = out["motion"] + out["region"]
     out["peak"] = out["process"] + out["grid_nodes"] + out["active"]
     return out
+
+
+def _box(grid):
+    """The volume (area) of a grid's box."""
+    return float(np.prod(grid.upper - grid.origin))
+
+
+def _active_nodes(grid, fraction, margin_cells):
+    """Nodes of ``grid`` in a compact blob filling ``fraction`` of its box, and in a margin
+    of ``margin_cells`` around it: the blob's surface ~ (f N)^((d-1)/d) nodes a layer."""
+    N, d = grid.size, grid.dim
+    surface = (fraction * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
+    return min(N, fraction * N + 2 * margin_cells * surface)
 
 
 def check_memory(grid: Grid, max_bytes, **memory_options):
@@ -129,13 +154,17 @@ def check_memory(grid: Grid, max_bytes, **memory_options):
     return est
 
 
-def largest_fitting(grid_of, low, high, max_bytes, **memory_options):
+def largest_fitting(grid_of, low, high, max_bytes, motion_of=None, **memory_options):
     """The largest size m in [low, high] whose grid ``grid_of(m)`` fits in ``max_bytes``
-    (`estimate_memory`), or None: a binary search, the estimate growing with m."""
+    (`estimate_memory`, with the motion grid ``motion_of(m, grid)`` when given), or None:
+    a binary search, the estimate growing with m."""
     fits = None
     while low <= high:
         m = (low + high) // 2
-        if estimate_memory(grid_of(m), **memory_options)["peak"] <= max_bytes:
+        g = grid_of(m)
+        if motion_of is not None:
+            memory_options = dict(memory_options, motion_grid=motion_of(m, g))
+        if estimate_memory(g, **memory_options)["peak"] <= max_bytes:
             fits, low = m, m + 1
         else:
             high = m - 1

@@ -181,12 +181,12 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         max_bytes = int(0.75 * phys) if phys else None
 
     rep(0.0, "Choosing the grid")
+    stats = {}
     surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
-    grid = _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding_cells,
-                      max_bytes)
-    stats = {"grid_shape": tuple(grid.shape), "grid_spacing": grid.spacing}
-    stats["motion_resolution"], opts["motion_grid"] = _motion_grid(
-        keyframes, features, feature_names, grid, resolution, motion_resolution)
+    grid, stats["motion_resolution"], opts["motion_grid"] = _bake_grid(
+        keyframes, surfaces, features, feature_names, resolution, motion_resolution,
+        padding_cells, max_bytes)
+    stats.update(grid_shape=tuple(grid.shape), grid_spacing=grid.spacing)
     if opts["motion_grid"] is not None:
         stats["motion_grid_shape"] = tuple(opts["motion_grid"].shape)
 
@@ -224,12 +224,13 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         _keyframe_attributes(keyframes, surfaces, artist[2]))
 
 
-def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding_cells,
-               max_bytes):
-    """The one grid of the bake (`gridfit.fit_grid`): it holds every keyframe's faces (loose
-    vertices are ignored), every feature point and the rigid sweeps between them. Refused
-    before any work, with the resolution that would fit, when `memory.estimate_memory`
-    puts it over ``max_bytes`` (None: no limit)."""
+def _bake_grid(keyframes, surfaces, features, feature_names, resolution, motion_resolution,
+               padding_cells, max_bytes):
+    """The bake's surface grid (`gridfit.fit_grid`), its Motion Resolution and motion grid
+    (`_motion_grid`). The grid holds every keyframe's faces (loose vertices are ignored),
+    every feature point and the rigid sweeps between them. Refused before any work, with
+    the resolution that would fit, when `memory.estimate_memory` puts it over
+    ``max_bytes`` (None: no limit)."""
     from .gridfit import fit_grid
     from .memory import MemoryLimitError, check_memory, largest_fitting
 
@@ -245,22 +246,38 @@ def _bake_grid(keyframes, surfaces, features, feature_names, resolution, padding
 
     grid = fitted(resolution)
     check_feature_spacing(features, grid.spacing, feature_names)
+    motion, mgrid = _motion_grid(keyframes, features, feature_names, grid, resolution,
+                                 motion_resolution)
     if max_bytes is None:
-        return grid
+        return grid, motion, mgrid
     # the largest keyframe's share of the box sets the solver's and the trajectories' size
-    mem = dict(n_keyframes=len(keyframes),
-               material_fraction=max(_material_fraction(kf, grid) for kf in keyframes))
+    fraction = max(_material_fraction(kf, grid) for kf in keyframes)
+    mem = dict(n_keyframes=len(keyframes), material_fraction=fraction)
     try:
-        check_memory(grid, max_bytes, **mem)
+        check_memory(grid, max_bytes, motion_grid=mgrid, **mem)
     except MemoryLimitError as exc:
-        best = largest_fitting(fitted, 4, int(resolution) - 1, max_bytes, **mem)
+        best = largest_fitting(fitted, 4, int(resolution) - 1, max_bytes,
+                               motion_of=_motion_rule(motion_resolution, fraction), **mem)
         hint = (f"lower the resolution to {best} or less" if best else
                 "even the smallest grid does not fit: free memory or simplify the keyframes")
         raise MemoryLimitError(
             f"Resolution {resolution} would need about {exc.required / 2**20:,.0f} MB but "
             f"the limit is {max_bytes / 2**20:,.0f} MB: {hint}.",
             exc.required, max_bytes, best) from None
-    return grid
+    return grid, motion, mgrid
+
+
+def _motion_rule(motion_resolution, fraction):
+    """The motion grid a bake at resolution r on grid g would use, as (r, g) -> grid or
+    None: the given Motion Resolution (no finer than r) or the automatic one."""
+    from .gridfit import auto_motion_resolution, motion_grid
+
+    def motion_of(r, g):
+        m = (auto_motion_resolution(r, fraction, g) if motion_resolution is None
+             else min(int(motion_resolution), r))
+        return motion_grid(g, r, m)
+
+    return motion_of
 
 
 def _motion_grid(keyframes, features, feature_names, grid, resolution, motion_resolution):
