@@ -149,8 +149,6 @@ class Inbetween:
         self.forward = forward
         self.backward = backward
         self.trajectories = forward.trajectories
-        self.mapped = forward.trajectories.mapped
-        self.mapped_back = None if backward is None else backward.trajectories.mapped
         self.transport = "one-sided" if backward is None else "two-sided"
         self.options = MotionOptions() if options is None else options
         self.keep_volume = self.options.keep_volume and backward is not None
@@ -166,8 +164,8 @@ class Inbetween:
         self.stats["trajectory"] = forward.trajectories.stats
         if backward is not None:
             self.stats["trajectory_back"] = backward.trajectories.stats
-            self.stats["map_agreement_h"] = map_agreement(grid, self.mapped, self.mapped_back,
-                                                          phi_a < 0)
+            self.stats["map_agreement_h"] = map_agreement(grid, forward.trajectories,
+                                                          backward.trajectories, phi_a < 0)
         self._coef_b = None  # Psi's spline coefficients, for the one-sided form
         self._cache = {}
 
@@ -233,6 +231,16 @@ class Inbetween:
             mapped_back=mapped_back, material=material, components=components,
             motion_grid=motion_grid, options=options))
         return out
+
+    @property
+    def mapped(self):
+        """The map A -> B on the surface grid, grid.shape + (d,)."""
+        return self.forward.trajectories.mapped
+
+    @property
+    def mapped_back(self):
+        """The map B -> A on the surface grid (None for the one-sided transport)."""
+        return None if self.backward is None else self.backward.trajectories.mapped
 
     def __reduce__(self):
         """Pickled as the inputs of `from_map` (maps, fields, options), which rebuilds it
@@ -470,13 +478,14 @@ class Recipe:
         return _from_recipe, (self.args, self.kwargs)
 
 
-def map_agreement(grid, mapped, mapped_back, material):
-    """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max)."""
-    x = grid.points()[material]
-    if x.size == 0:
+def map_agreement(grid, forward, backward, material):
+    """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max), from the
+    two maps' paths at s = 1 (`Trajectories` or `finepaths.FinePaths`)."""
+    nodes = np.flatnonzero(material)
+    if nodes.size == 0:
         return (float("nan"), float("nan"))
-    there = mapped[material]
-    back = sample(mapped_back, grid, there)
+    x = grid.node_points(nodes)
+    back = backward(forward.node_positions(1.0, nodes), 1.0)
     err = np.linalg.norm(back - x, axis=-1) / grid.spacing
     return (float(err.mean()), float(err.max()))
 

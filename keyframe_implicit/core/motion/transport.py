@@ -429,8 +429,7 @@ class Transport:
         lookup has found each point's cell, so it is not searched for again; a point up to
         `_ON_FACE` outside its cell reads that cell's polynomial, not the next cell's."""
         if self._corner_mapped is None:
-            d = self.grid.dim
-            self._corner_mapped = self.trajectories.mapped.reshape(-1, d)[self._corner_nodes]
+            self._corner_mapped = self.trajectories.node_positions(1.0, self._corner_nodes)
         return multilinear_in_cells(self._corner_mapped, self._cnodes_local, cell, local)
 
     def surface_motion(self, t, near, dt=1e-3):
