@@ -425,8 +425,11 @@ class _Paths:
         if self.motion_grid is None:
             return Trajectories(self.grid, mapped, material, components, **self.keywords)
         mass = material_mass(field < 0, self.grid, self.motion_grid)
-        coarse = Trajectories(self.motion_grid, mapped, material, components, mass=mass,
-                              **self.keywords)
+        # the margin keeps its width in world units: the trajectories' margin of motion cells
+        # is wider, and the Poisson paths there (the empty gap of a merge) come out otherwise
+        kw = dict(self.keywords, margin_cells=max(
+            1.0, self.keywords["margin_cells"] * self.grid.spacing / self.motion_grid.spacing))
+        coarse = Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
         return FinePaths(self.grid, coarse, field < 0, self.keywords["margin_cells"])
 
     def back_map(self, forward):
