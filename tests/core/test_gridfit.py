@@ -120,6 +120,7 @@ import numpy as np
 sys.path.insert(0, "tests/core")
 from inbetween_cases import rotation, sphere_features, uv_sphere
 from keyframe_implicit.core import Keyframe, animate, estimate_memory, mesh_to_sdf
+from keyframe_implicit.core.bake.gridfit import motion_grid
 
 def main():
     res = int(sys.argv[1])
@@ -132,9 +133,11 @@ def main():
     with open("/proc/self/status") as fh:
         own = next(int(l.split()[1]) for l in fh if l.startswith("VmHWM")) * 1024
     frac = float(np.mean(mesh_to_sdf(va, fa, anim.grid) < 0))
-    print(json.dumps(dict(nodes=anim.grid.size,
+    motion = motion_grid(anim.grid, res, anim.stats["motion_resolution"])
+    print(json.dumps(dict(nodes=anim.grid.size, motion=anim.stats["motion_resolution"],
                           peak=own + anim.stats["helper_peak_rss_kib"] * 1024,
-                          est=estimate_memory(anim.grid, material_fraction=frac)["peak"])))
+                          est=estimate_memory(anim.grid, material_fraction=frac,
+                                              motion_grid=motion)["peak"])))
 
 if __name__ == "__main__":
     main()
@@ -144,14 +147,12 @@ if __name__ == "__main__":
 @pytest.mark.heavy
 def test_whole_bake_estimate_within_25_percent_of_the_measured_peak_rss():
     """A turning sphere through `animate` with its helper process, in a fresh interpreter:
-    the peak resident sets of both processes against the model, at two sizes. The model
-    is fitted on Python 3.13 / numpy 2 to the benchmark's cases (benchmarks/README.md,
-    "Scale and the memory model": 11.2 % at most on sixteen rows); here it meets the other Python and numpy line too (3.11 / numpy 1). The sphere is
-    lighter than those cases for its grid, and below 64 cells the two interpreters are
-    most of the peak (constants of earlier fits were 20-28 % high at 56-64 cells); with the
-    current constants the model is low by 19.0 % at 72 cells and by 0.2 % at 88 (3.13 /
-    numpy 2; the constants before were low by 9.7-10.8 % and high by 2.6-3.4 % on both
-    lines)."""
+    the peak resident sets of both processes against the model with the motion grid the
+    bake chose, at two sizes. The model is fitted on Python 3.13 / numpy 2 to the
+    benchmark's cases (benchmarks/README.md, "Scale and the memory model": 11.7 % at most
+    on 21 rows). The sphere is lighter than those cases for its grid, and below 64 cells
+    the two interpreters are most of the peak; with the current constants the model is
+    high by 3.4 % at 72 cells (motion 51) and by 8.2 % at 88 (motion 52) on 3.13 / numpy 2."""
     import json
     import pathlib
     import subprocess

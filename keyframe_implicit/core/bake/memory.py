@@ -12,7 +12,8 @@ import numpy as np
 
 from ..base.grid import Grid
 
-__all__ = ["MemoryLimitError", "estimate_memory", "check_memory", "largest_fitting", "megabytes"]
+__all__ = ["MemoryLimitError", "estimate_memory", "active_nodes", "check_memory", "largest_fitting",
+           "megabytes"]
 
 
 class MemoryLimitError(ValueError):
@@ -39,19 +40,20 @@ class MemoryLimitError(ValueError):
 # ---------------------------------------------------------------------------
 # Peak resident set of a bake (VmHWM of the process running `animate`, plus its helper
 # process's with processes=2), per process: an interpreter with numpy, scipy and
-# scikit-image; per grid node the keyframes' distance grids, their spline coefficients,
-# the maps, the in-between fields and the level-set transients; per active solver node
-# the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables, and the
-# trajectories' multigrid. Fitted to the largest relative error (benchmarks/fit_memory.py)
-# on the peaks benchmarks/bench_scale.py measured on its seven cases at 64 and 128 cells
-# and two of them (bend, morph) at 256; tables in benchmarks/README.md.
-# 2D: not measured; per active node scaled by the stencil (9 blocks of 2 x 2 against 27
-# of 3 x 3).
+# scikit-image; per surface grid node the keyframes' distance grids, their spline
+# coefficients, the in-between fields and the level-set transients; per active motion
+# node the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables and the
+# trajectories' multigrid; per surface region node the transports' corners and lookups.
+# Fitted to the largest relative error (benchmarks/fit_memory.py) on the peaks
+# benchmarks/bench_scale.py measured on its seven cases at 64 cells on one grid and on
+# the automatic motion grid, and at 128 cells on the automatic motion grid; table in
+# benchmarks/README.md. 2D: not measured; per active node scaled by the stencil (9 blocks
+# of 2 x 2 against 27 of 3 x 3).
 _COPIES = 2
-_PROCESS_BYTES = 106.9 * 2 ** 20
-_NODE_BYTES = {2: 194.5, 3: 194.5}
-_MOTION_BYTES = {2: 1142.6 * 36 / 243, 3: 1142.6}
-_REGION_BYTES = {2: 1142.7 * 36 / 243, 3: 1142.7}
+_PROCESS_BYTES = 131.4 * 2 ** 20
+_NODE_BYTES = {2: 127.8, 3: 127.8}
+_MOTION_BYTES = {2: 1892.8 * 36 / 243, 3: 1892.8}
+_REGION_BYTES = {2: 751.8 * 36 / 243, 3: 751.8}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
@@ -98,9 +100,7 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
         raise ValueError(f"material_fraction must lie in [0, 1], got {material_fraction}.")
     N, d = grid.size, grid.dim
     P = _COPIES
-    R = _active_nodes(grid, f, margin_cells)
-    M = R if motion_grid is None else _active_nodes(motion_grid, f * _box(grid) / _box(motion_grid),
-                                                    margin_cells)
+    M, R = active_nodes(grid, f, margin_cells, motion_grid)
     out = {
         "nodes": int(N),
         "active_nodes": int(M),
@@ -115,14 +115,24 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
     return out
 
 
+def active_nodes(grid, material_fraction, margin_cells=3, motion_grid=None):
+    """(M, R): the nodes the model counts on the motion grid (the maps' and trajectories'
+    active nodes) and on the surface grid (the transports' regions): a compact blob
+    filling ``material_fraction`` of ``grid``'s box, and a margin of ``margin_cells``
+    cells around it, on each grid (its surface ~ (f N)^((d-1)/d) nodes a layer)."""
+    R = _blob_nodes(grid, material_fraction, margin_cells)
+    if motion_grid is None:
+        return R, R
+    share = material_fraction * _box(grid) / _box(motion_grid)
+    return _blob_nodes(motion_grid, share, margin_cells), R
+
+
 def _box(grid):
     """The volume (area) of a grid's box."""
     return float(np.prod(grid.upper - grid.origin))
 
 
-def _active_nodes(grid, fraction, margin_cells):
-    """Nodes of ``grid`` in a compact blob filling ``fraction`` of its box, and in a margin
-    of ``margin_cells`` around it: the blob's surface ~ (f N)^((d-1)/d) nodes a layer."""
+def _blob_nodes(grid, fraction, margin_cells):
     N, d = grid.size, grid.dim
     surface = (fraction * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
     return min(N, fraction * N + 2 * margin_cells * surface)
