@@ -3,10 +3,8 @@ section 11)."""
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
-from inbetween_cases import (RIGID_AXIS, l_centroid, make_grid, rigid_case, rigid_expected,
-                             sd_sphere, turning_sphere)
+from inbetween_cases import make_grid, rigid_case, rigid_expected, sd_sphere, turning_sphere
 from keyframe_implicit.core import Grid, Inbetween, animate, extract_surface, inbetween
 from keyframe_implicit.core.bake import gridfit, pipeline
 
@@ -109,10 +107,12 @@ def test_automatic_motion_resolution_follows_the_budget():
     grid = Grid((0.0, 0.0, 0.0), 1.0, (137, 137, 109))
     small = gridfit.auto_motion_resolution(24, 0.2, Grid((0.0, 0.0, 0.0), 1.0, (33, 33, 29)))
     assert small == 24  # a small bake keeps one grid
-    big = gridfit.auto_motion_resolution(128, 0.2, grid)
-    assert gridfit.MIN_AUTO_MOTION <= big < 128
-    nodes = 0.2 * grid.size * (big / 128) ** 3
-    assert 0.5 * gridfit.MOTION_NODES <= nodes <= 2 * gridfit.MOTION_NODES
+    sparse = gridfit.auto_motion_resolution(128, 0.01, grid)  # the budget decides
+    assert 64 < sparse < 128
+    nodes = 0.01 * grid.size * (sparse / 128) ** 3
+    assert 0.8 * gridfit.MOTION_NODES <= nodes <= 1.25 * gridfit.MOTION_NODES
+    dense = gridfit.auto_motion_resolution(128, 0.3, grid)  # never coarser than half
+    assert dense == 128 // gridfit.MAX_COARSENING
 
 
 def test_features_closer_than_a_motion_cell_raise_the_automatic_motion_resolution():

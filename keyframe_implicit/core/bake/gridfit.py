@@ -127,17 +127,22 @@ MIN_MOTION_RESOLUTION = 8
 #: Material nodes of the motion grid the automatic Motion Resolution aims at: the size at
 #: which one map solve takes a couple of seconds (benchmarks/README.md, "Motion grid").
 MOTION_NODES = 16_000
+#: The automatic motion cell is at most this many surface cells wide: coarser, a merge's
+#: or a splash's in-betweens move by more than a surface cell (benchmarks/README.md).
+MAX_COARSENING = 2
 #: The automatic Motion Resolution is never below this (unless Resolution is).
 MIN_AUTO_MOTION = 24
 
 
 def auto_motion_resolution(resolution, material_fraction, grid):
     """The Motion Resolution the bake picks: the one whose motion grid holds about
-    `MOTION_NODES` nodes of the largest keyframe (``material_fraction`` of ``grid``'s
-    box), between `MIN_AUTO_MOTION` and ``resolution``."""
+    `MOTION_NODES` nodes of the largest keyframe (``material_fraction`` of ``grid``'s box),
+    but no coarser than ``resolution / MAX_COARSENING`` or `MIN_AUTO_MOTION`, and no finer
+    than ``resolution``."""
     material = max(float(material_fraction) * grid.size, 1.0)
     r = int(round(resolution * (MOTION_NODES / material) ** (1.0 / grid.dim)))
-    return int(min(resolution, max(MIN_AUTO_MOTION, r)))
+    least = max(MIN_AUTO_MOTION, int(np.ceil(resolution / MAX_COARSENING)))
+    return int(min(resolution, max(least, r)))
 
 
 def motion_grid(grid, resolution, motion_resolution, padding_cells=2):
