@@ -19,7 +19,7 @@ from ..base.parallel import cores, share
 from ..base.progress import Reporter
 from ..map import solver
 from ..map.options import MapOptions
-from ..motion.finepaths import on_motion_grid
+from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
 from ..motion.options import MotionOptions
 
@@ -102,13 +102,11 @@ def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *
 
 def on_solve_grid(map_options, grid, solve_grid):
     """``map_options`` for a solve on ``solve_grid``: the map's margin keeps its width in
-    world units (``margin_cells`` counts the surface grid's cells), at least one cell of the
-    solve grid. A margin of the motion grid's own cells would be wider, and the empty gap
-    of a merge would resist it the more (benchmarks/README.md, "Motion grid")."""
+    world units (``margin_cells`` counts the surface grid's cells; `finepaths.same_width`)."""
     if solve_grid == grid:
         return map_options
-    cells = max(1.0, map_options.margin_cells * grid.spacing / solve_grid.spacing)
-    return dataclasses.replace(map_options, margin_cells=cells)
+    return dataclasses.replace(
+        map_options, margin_cells=same_width(map_options.margin_cells, grid, solve_grid))
 
 
 def solve_fields(phis, grid, motion_grid):

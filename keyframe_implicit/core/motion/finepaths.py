@@ -25,7 +25,7 @@ from scipy import ndimage
 from ..base.grid import Grid
 from ..base.sampling import cell_weights, sample
 
-__all__ = ["FinePaths", "material_mass", "on_motion_grid"]
+__all__ = ["FinePaths", "material_mass", "on_motion_grid", "same_width"]
 
 _KEPT = 3  # node sets whose motion-cell weights `FinePaths` keeps
 _CHUNK = 1 << 18  # surface nodes read at once when the whole map is made
@@ -35,6 +35,14 @@ def on_motion_grid(field, grid: Grid, motion_grid: Grid):
     """A surface-grid field read at the motion grid's nodes (multilinear; beyond the surface
     grid's box the distance to it is added, so a distance field stays outside)."""
     return sample(field, grid, motion_grid.points(), outside="distance")
+
+
+def same_width(cells, grid: Grid, motion_grid: Grid):
+    """A band ``cells`` of ``grid``'s cells wide, in cells of the ``motion_grid`` (at least
+    one): the margins the solves add around the material keep their width in world units
+    on the motion grid. A margin of motion cells is wider, and the empty gap of a merge
+    resists it the more (benchmarks/results/motion_grid.md)."""
+    return max(1.0, float(cells) * grid.spacing / motion_grid.spacing)
 
 
 def material_mass(material, grid: Grid, motion_grid: Grid):

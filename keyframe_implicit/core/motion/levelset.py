@@ -53,7 +53,7 @@ from scipy import ndimage
 from ..base.elements import inverse
 from ..base.grid import Grid
 from ..base.sampling import sample
-from .finepaths import FinePaths, material_mass, on_motion_grid
+from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
 from .isovolume import volume_offset
 from .options import MotionOptions
 from ..surface.extract import enclosed_volume
@@ -425,10 +425,8 @@ class _Paths:
         if self.motion_grid is None:
             return Trajectories(self.grid, mapped, material, components, **self.keywords)
         mass = material_mass(field < 0, self.grid, self.motion_grid)
-        # the margin keeps its width in world units: the trajectories' margin of motion cells
-        # is wider, and the Poisson paths there (the empty gap of a merge) come out otherwise
-        kw = dict(self.keywords, margin_cells=max(
-            1.0, self.keywords["margin_cells"] * self.grid.spacing / self.motion_grid.spacing))
+        kw = dict(self.keywords, margin_cells=same_width(self.keywords["margin_cells"],
+                                                         self.grid, self.motion_grid))
         coarse = Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
         return FinePaths(self.grid, coarse, field < 0, self.keywords["margin_cells"])
 
