@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from keyframe_implicit.core.base.grid import Grid
+from keyframe_implicit.shapes import capsule_sdf as sd_capsule
+from keyframe_implicit.shapes import sphere_sdf as sd_sphere
 
 __all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "rotation"]
 
@@ -61,23 +63,11 @@ def make_grid(n: int) -> Grid:
 
 
 # -- primitive signed distances (points (..., 3) -> (...)) -------------------
-def sd_sphere(p, centre, radius):
-    return np.linalg.norm(p - np.asarray(centre, float), axis=-1) - radius
-
-
 def sd_box(p, centre, half):
     q = np.abs(p - np.asarray(centre, float)) - np.asarray(half, float)
     outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
     inside = np.minimum(np.max(q, axis=-1), 0.0)
     return outside + inside
-
-
-def sd_capsule(p, a, b, radius):
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    ab = b - a
-    t = np.clip(((p - a) @ ab) / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1) - radius
 
 
 def sd_spheroid(p, centre, a, c, iterations=60):
