@@ -18,7 +18,6 @@ frame (9 frames a pair, s = 0 ... 1):
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -107,6 +106,7 @@ def print_table(rows):
 
 def main():
     import cases
+    from bench_scale import run_rows
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[96])
@@ -114,15 +114,8 @@ def main():
     ap.add_argument("--motion", default="auto", help='"auto" or a Motion Resolution')
     ap.add_argument("--json", help="also write the rows to this file")
     args = ap.parse_args()
-    rows = []
-    for n in args.sizes:
-        for name in args.cases:
-            rows.append(run_case(name, n, args.motion))
-            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
-    print_table(rows)
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(rows, fh, indent=1)
+    run_rows(args.sizes, args.cases, lambda name, n: run_case(name, n, args.motion), print_table,
+             args.json)
 
 
 if __name__ == "__main__":

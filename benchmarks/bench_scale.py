@@ -149,6 +149,21 @@ def print_table(rows):
           f"{pooled_slope(rows, 'model_active'):.2f}")
 
 
+def run_rows(sizes, names, run, table, json_path=None):
+    """``run(name, n)`` for every size and case, each row to stderr as it comes (a long run
+    shows its progress), then ``table(rows)`` and the rows to ``json_path`` if given."""
+    rows = []
+    for n in sizes:
+        for name in names:
+            rows.append(run(name, n))
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    table(rows)
+    if json_path:
+        with open(json_path, "w") as fh:
+            json.dump(rows, fh, indent=1)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
@@ -166,15 +181,8 @@ def main():
         print(json.dumps(run_one(args.child[0], int(args.child[1]), int(args.child[2]),
                                  args.child[3])))
         return
-    rows = []
-    for n in args.sizes:
-        for name in args.cases:
-            rows.append(run_child(name, n, args.processes, args.motion))
-            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
-    print_table(rows)
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(rows, fh, indent=1)
+    run_rows(args.sizes, args.cases, lambda name, n: run_child(name, n, args.processes, args.motion),
+             print_table, args.json)
 
 
 if __name__ == "__main__":
