@@ -246,12 +246,12 @@ def _bake_grid(keyframes, surfaces, features, feature_names, resolution, motion_
 
     grid = fitted(resolution)
     check_feature_spacing(features, grid.spacing, feature_names)
-    motion, mgrid = _motion_grid(keyframes, features, feature_names, grid, resolution,
-                                 motion_resolution)
-    if max_bytes is None:
-        return grid, motion, mgrid
     # the largest keyframe's share of the box sets the solver's and the trajectories' size
     fraction = max(_material_fraction(kf, grid) for kf in keyframes)
+    motion, mgrid = _motion_grid(features, feature_names, grid, resolution, motion_resolution,
+                                 fraction)
+    if max_bytes is None:
+        return grid, motion, mgrid
     mem = dict(n_keyframes=len(keyframes), material_fraction=fraction)
     try:
         check_memory(grid, max_bytes, motion_grid=mgrid, **mem)
@@ -280,10 +280,11 @@ def _motion_rule(motion_resolution, fraction):
     return motion_of
 
 
-def _motion_grid(keyframes, features, feature_names, grid, resolution, motion_resolution):
+def _motion_grid(features, feature_names, grid, resolution, motion_resolution, fraction):
     """The bake's Motion Resolution and motion grid (`gridfit.motion_grid`; None when it is
-    the surface grid). Automatic: `gridfit.auto_motion_resolution`, raised where two
-    feature points would share a motion cell; given: refused in that case."""
+    the surface grid). Automatic: `gridfit.auto_motion_resolution` for the largest
+    keyframe's ``fraction`` of the box, raised where two feature points would share a
+    motion cell; given: refused in that case."""
     from .gridfit import auto_motion_resolution, motion_grid
 
     def grid_of(m):
@@ -297,7 +298,6 @@ def _motion_grid(keyframes, features, feature_names, grid, resolution, motion_re
     if motion_resolution is not None:
         spacing_fits(int(motion_resolution))
         return int(motion_resolution), grid_of(int(motion_resolution))
-    fraction = max(_material_fraction(kf, grid) for kf in keyframes)
     m = auto_motion_resolution(resolution, fraction, grid)
     while m < resolution:
         try:
