@@ -111,11 +111,6 @@ class FinePaths:
         disp = coarse.node_positions(s, cnodes) - coarse.grid.node_points(cnodes)
         return x + np.einsum("pk,pkd->pd", w, disp[inv])
 
-    def positions(self, s):
-        """Positions x(s) of every surface node, array of grid.shape + (d,)."""
-        out = self.node_positions(s, np.arange(self.grid.size))
-        return out.reshape(self.grid.shape + (self.dim,))
-
     def __call__(self, points, s):
         """Positions at time s of points given at time 0 ((P, d) -> (P, d)): the motion
         grid's trajectories read there directly."""
