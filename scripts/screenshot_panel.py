@@ -77,11 +77,11 @@ def steps():
     ops = addon_module("blender.ops")
     with bpy.context.temp_override(window=win, area=area, region=main):
         assert bpy.ops.keyframe_implicit.bake("INVOKE_DEFAULT") == {"RUNNING_MODAL"}
-    while ops._running and ops._running[0].status()[0] < 0.3:
+    while ops.running and ops.running[0].status()[0] < 0.3:
         yield 0.2
-    if ops._running:
+    if ops.running:
         yield from settled("baking", strict=False)
-    while ops._running:
+    while ops.running:
         yield 0.5
     settings = bpy.context.scene.keyframe_implicit
     assert settings.output_object is not None, "the bake made no result"

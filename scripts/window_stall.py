@@ -133,9 +133,9 @@ def bake(rec, res):
     settings.resolution = res or settings.resolution
 
     def label():
-        if not ops._running:
+        if not ops.running:
             return "after"
-        job = ops._running[0]
+        job = ops.running[0]
         return f"{job.state.lower()}: {job.status()[1]}"
 
     marks = {}
@@ -146,9 +146,9 @@ def bake(rec, res):
         assert bpy.ops.keyframe_implicit.bake("INVOKE_DEFAULT") == {"RUNNING_MODAL"}
     marks["invoked"] = time.perf_counter()
     rec.label = label
-    job = ops._running[0]
+    job = ops.running[0]
     grab, shot = None, os.path.join(OUT, f"window_baking_{settings.resolution}.xwd")
-    while ops._running:
+    while ops.running:
         if grab is None and job.status()[0] >= 0.5:
             marks["grab"] = time.perf_counter()
             grab = xwd(shot)
