@@ -2,7 +2,7 @@
 
 `read` is the one function that reads a bake's setup from the scene: the keyframe list,
 the feature pairs, the settings, what the pre-bake checks need (as plain facts: each
-keyframe object's kind and surface counts, which feature Empties are not parented to
+keyframe object's kind and its mesh as the bake reads it, which feature Empties are not parented to
 their keyframe objects, whether the OpenVDB export can run) and, for a bake, the
 keyframes' evaluated meshes and the feature points. `validate` checks that description
 and `bake` bakes it; neither reads the scene again.
@@ -28,39 +28,9 @@ import numpy as np
 
 from ..core.surface.attributes import MeshAttributes
 from ..core.bake.pipeline import Keyframe
+from ..core.fields.mesh import Surface
+from ..core.fields.mesh import read_surface as measure_surface
 from . import features, volumes
-
-
-@dataclass(frozen=True)
-class Surface:
-    """Counts of a keyframe object's evaluated mesh that tell whether it can be a keyframe.
-
-    Read once per state of the object (`cached_surface`) so that the checks
-    (`validate.surface_problem`) can run on every redraw of the panel.
-
-    Attributes
-    ----------
-    faces : int
-        Number of polygons; 0 means there is nothing else to count.
-    open_edges : int
-        Edges with one face: they lie on a hole.
-    shared_edges : int
-        Edges with three or more faces: non-manifold.
-    volume : float
-        |Volume| the triangles enclose, about the centre of the hole edges when there are
-        holes, so their missing caps add next to nothing (`_volume`).
-    extent : float
-        The largest side of the vertices' bounding box (what a volume is compared with).
-    modified : bool
-        Whether the counts are of the mesh after the object's modifiers.
-    """
-
-    faces: int
-    open_edges: int = 0
-    shared_edges: int = 0
-    volume: float = 0.0
-    extent: float = 0.0
-    modified: bool = False
 
 
 @dataclass(frozen=True)
@@ -77,8 +47,11 @@ class ListedKeyframe:
         Its object's type ("MESH", "CURVE", ...); "" without an object.
     in_scene : bool
         Whether the object is in the scene that is read.
-    surface : Surface or None
-        The surface counts of a mesh object in the scene, else None.
+    surface : core.fields.mesh.Surface or None
+        Its evaluated mesh as the bake reads it (`cached_surface`), for a mesh object in
+        the scene; else None.
+    modified : bool
+        Whether that mesh is the object's after its modifiers.
     """
 
     frame: int
@@ -86,6 +59,7 @@ class ListedKeyframe:
     kind: str = ""
     in_scene: bool = False
     surface: Surface | None = None
+    modified: bool = False
 
     @property
     def readable(self):
@@ -105,9 +79,10 @@ class ListedPair:
         The pair lies between keyframe ``segment`` and ``segment + 1`` (from 0).
     a, b : str or None
         The names of the Empties on side A and side B; None for a missing side.
-    unparented : tuple of str
+    unparented : tuple of (str, str or None)
         The sides ("A", "B") of a complete pair of an existing segment whose Empty is not
-        parented to its keyframe's object (a fact only the objects tell, read with them).
+        parented to its keyframe's object, each with the name of the object it is parented
+        to instead (None: none); a fact only the objects tell, read with them.
     """
 
     pair_id: str
@@ -242,7 +217,8 @@ def mesh_arrays(obj, depsgraph, attributes=False):
 
 
 def read_surface(obj, depsgraph):
-    """The `Surface` counts of ``obj``'s evaluated mesh (its own mesh without modifiers).
+    """``obj``'s evaluated mesh in world space as the bake reads it: faces only, each part
+    facing one way (`core.fields.mesh.read_surface`, the measure the bake's own check uses).
 
     Parameters
     ----------
@@ -253,72 +229,45 @@ def read_surface(obj, depsgraph):
 
     Returns
     -------
-    Surface
-        Faces per edge from one ``foreach_get`` and a ``bincount``, and the enclosed volume:
-        cheap enough for the panel, which asks through `cached_surface`.
+    core.fields.mesh.Surface
+        With no triangles when the mesh has no faces. The panel asks through
+        `cached_surface`.
     """
-    modified = len(obj.modifiers) > 0
-    ob = obj.evaluated_get(depsgraph) if modified else obj
-    mesh = ob.to_mesh() if modified else obj.data
+    verts, tris = mesh_arrays(obj, depsgraph)
     try:
-        return _count_surface(mesh, modified)
-    finally:
-        if modified:
-            ob.to_mesh_clear()
-
-
-def _count_surface(mesh, modified):
-    if len(mesh.polygons) == 0:
-        return Surface(faces=0, modified=modified)
-    faces_per_edge = np.bincount(_get(mesh.loops, "edge_index", len(mesh.loops), np.int32),
-                                 minlength=len(mesh.edges))
-    co = _get(mesh.vertices, "co", len(mesh.vertices), np.float64, 3)
-    on_hole = faces_per_edge == 1
-    return Surface(faces=len(mesh.polygons), open_edges=int(np.count_nonzero(on_hole)),
-                   shared_edges=int(np.count_nonzero(faces_per_edge > 2)),
-                   volume=_volume(mesh, co, on_hole), extent=float(np.ptp(co, axis=0).max()),
-                   modified=modified)
-
-
-def _volume(mesh, co, on_hole):
-    """|Volume| enclosed by the triangles, about the centre of the hole edges (if any)."""
-    if on_hole.any():
-        ends = _get(mesh.edges, "vertices", len(mesh.edges), np.int32, 2)
-        origin = co[ends[on_hole].ravel()].mean(axis=0)
-    else:
-        origin = co.mean(axis=0)
-    mesh.calc_loop_triangles()
-    tris = _get(mesh.loop_triangles, "vertices", len(mesh.loop_triangles), np.int32, 3)
-    a, b, c = (co[tris[:, k]] - origin for k in range(3))
-    return abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
+        return measure_surface(verts, tris)
+    except ValueError:  # no faces
+        return Surface(triangles=0)
 
 
 _surfaces = {}  # cheap state of a keyframe object -> read_surface's answer
 
 
 def cached_surface(obj, depsgraph):
-    """`read_surface`, kept per cheap state of ``obj`` (its mesh, counts and modifiers).
+    """`read_surface`, kept per cheap state of ``obj`` (its mesh, counts and modifiers)
+    and its world transform (the measure is in world units).
 
-    The panel and the Bake button's poll read the setup on every redraw; the counts are
+    The panel and the Bake button's poll read the setup on every redraw; the readings are
     kept until a depsgraph update changes some geometry (`forget_surfaces`).
     """
     mesh = obj.data
     key = (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
-           tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers))
+           tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers),
+           tuple(map(tuple, obj.matrix_world)))
     if key not in _surfaces:
         _surfaces[key] = read_surface(obj, depsgraph)
     return _surfaces[key]
 
 
 def forget_surfaces(scene=None, depsgraph=None):
-    """Drop the kept surface counts: after a geometry update, a file load, re-registering.
+    """Drop the kept surface readings: after a geometry update, a file load, re-registering.
 
     Parameters
     ----------
     scene : bpy.types.Scene, optional
         Unused; the handlers pass it.
     depsgraph : bpy.types.Depsgraph, optional
-        A depsgraph update: the counts go only if it updated some geometry. None forgets
+        A depsgraph update: the readings go only if it updated some geometry. None forgets
         them in any case.
     """
     if depsgraph is None or any(u.is_updated_geometry for u in depsgraph.updates):
@@ -433,7 +382,8 @@ def _listed_keyframe(scene, kf, depsgraph):
         return ListedKeyframe(int(kf.frame))
     in_scene = obj.name in scene.objects
     surface = cached_surface(obj, depsgraph) if obj.type == "MESH" and in_scene else None
-    return ListedKeyframe(int(kf.frame), obj.name, obj.type, in_scene, surface)
+    return ListedKeyframe(int(kf.frame), obj.name, obj.type, in_scene, surface,
+                          len(obj.modifiers) > 0)
 
 
 def _listed_pair(pair, objects):
@@ -441,7 +391,8 @@ def _listed_pair(pair, objects):
     unparented = ()
     if pair.complete and 0 <= pair.segment < len(objects) - 1:
         sides = (("A", pair.a, objects[pair.segment]), ("B", pair.b, objects[pair.segment + 1]))
-        unparented = tuple(side for side, e, kf in sides if kf is not None and e.parent != kf)
+        unparented = tuple((side, e.parent.name if e.parent is not None else None)
+                           for side, e, kf in sides if kf is not None and e.parent != kf)
     return ListedPair(pair.pair_id, pair.segment, pair.a.name if pair.a is not None else None,
                       pair.b.name if pair.b is not None else None, unparented)
 

@@ -8,13 +8,14 @@ scene's objects can tell (a keyframe object's kind, its surface counts, a featur
 parent) comes as plain facts of the reading. `problems` reads a scene's setup and checks
 it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
 
-The surface checks (`surface_problem`) judge cheap topology counts of each keyframe's
-evaluated mesh (`scene_io.Surface`): a keyframe that encloses no volume (a plane) is
-refused before any grid is built; holes and non-manifold edges, which the core reads
-anyway (generalised winding numbers, core/fields/sdf.py), are pointed out. The panel and the
-Bake button's poll ask on every redraw, so the counts are kept until a depsgraph update
-changes some geometry (`scene_io.cached_surface`). Keyframes are numbered from 1 in list
-order, as the core's messages number them.
+The surface checks (`surface_problems`) judge each keyframe's evaluated mesh by the
+bake's own measure (`core.fields.mesh.read_surface`: faces only, each part facing one
+way): a keyframe that encloses no volume (a plane) is refused, in the words the bake's own
+refusal uses; what the bake reads correctly as it is (faces facing inward, loose vertices,
+holes, non-manifold edges) is a warning that says so. The panel and the Bake button's poll
+ask on every redraw, so the readings are kept until a depsgraph update changes some
+geometry (`scene_io.cached_surface`). Keyframes are numbered from 1 in list order, as the
+core's messages number them; repeated problems of one kind are one line with a count.
 """
 
 from dataclasses import dataclass
@@ -27,9 +28,10 @@ WARNING = "WARNING"
 MIN_PAIRS_HINT = 4
 
 
-def count(n, noun):
-    """``n`` ``noun``s in words: "no feature pairs", "1 feature pair", "3 feature pairs"."""
-    return f"{n or 'no'} {noun}{'' if n == 1 else 's'}"
+def count(n, noun, plural=None):
+    """``n`` ``noun``s in words: "no feature pairs", "1 feature pair", "3 feature pairs";
+    ``plural`` where it is not ``noun`` + "s" ("loose vertices")."""
+    return f"{n or 'no'} {noun if n == 1 else plural or noun + 's'}"
 
 
 @dataclass(frozen=True)
@@ -131,9 +133,8 @@ def _keyframe_problems(listed):
             out.append(Problem(ERROR, f"{name} is not in this scene: link it into the scene or "
                                       "pick another object."))
         else:
-            found = surface_problem(kf.surface)
-            if found:
-                out.append(Problem(found[0], f"{name} {found[1]}"))
+            out += [Problem(level, f"{name} {text}")
+                    for level, text in surface_problems(kf.surface, kf.modified)]
     return out
 
 
@@ -161,10 +162,11 @@ def _frame_problems(frames, scene_frames):
 
 
 def _pair_problems(pairs, listed):
-    """Pairs of missing segments, lone Empties, Empties off their keyframe objects, and
-    segments with few pairs."""
+    """Pairs of missing segments, lone Empties, Empties off their keyframe objects (one line
+    per segment, side and parent), and segments with few pairs."""
     out = []
     counts = [0] * max(len(listed) - 1, 0)
+    off = {}  # (segment, keyframe number, parent) -> names of the Empties parented there
     for pair in pairs:
         name = pair.a if pair.a is not None else pair.b
         if not 0 <= pair.segment < len(counts):
@@ -175,13 +177,12 @@ def _pair_problems(pairs, listed):
             out.append(Problem(ERROR, f"Feature '{name}' has no partner: delete it, or select it "
                                       "with another Empty and press Pair Selected.", pair.segment))
             continue
-        for side in pair.unparented:
+        for side, parent in pair.unparented:
             empty, number = (pair.a, pair.segment + 1) if side == "A" else (pair.b, pair.segment + 2)
-            out.append(Problem(WARNING, f"'{empty}' is not parented to keyframe {number} "
-                                        f"'{listed[number - 1].name}': it will not follow that "
-                                        "object; parent it (Ctrl+P > Keep Transform).",
-                               pair.segment))
+            off.setdefault((pair.segment, number, parent), []).append(empty)
         counts[pair.segment] += 1
+    for (seg, number, parent), empties in off.items():
+        out.append(Problem(WARNING, _off_keyframe(seg, number, parent, empties, listed), seg))
     for seg, n in enumerate(counts):
         if n < MIN_PAIRS_HINT:
             out.append(Problem(WARNING, f"Keyframes {seg + 1} \u2192 {seg + 2} have "
@@ -191,38 +192,73 @@ def _pair_problems(pairs, listed):
     return out
 
 
-def surface_problem(surface):
-    """``(level, message)`` about a keyframe's surface, or None if it is sound.
+def _off_keyframe(seg, number, parent, empties, listed):
+    """One line for the feature Empties of segment ``seg`` meant to sit on keyframe ``number``
+    but parented to ``parent`` (an object name, or None), with the advice that fits."""
+    target = f"keyframe {number} '{listed[number - 1].name}'"
+    which = (f"'{empties[0]}'" if len(empties) == 1 else
+             f"{len(empties)} feature Empties of keyframes {seg + 1} \u2192 {seg + 2}")
+    verb = "is" if len(empties) == 1 else "are"
+    them = "it" if len(empties) == 1 else "them"
+    if parent is None:
+        return (f"{which} {verb} not parented to {target}: {'it does' if len(empties) == 1 else 'they do'} "
+                f"not follow that object; parent {them} to it (Ctrl+P > Keep Transform).")
+    on = [i for i, kf in enumerate(listed, start=1) if kf.name == parent]
+    if on:  # a keyframe was added or moved between the pair's two keyframes
+        return (f"{which} {verb} on keyframe {on[0]} '{parent}', not on {target}: the keyframe "
+                f"list changed since {them} {'was' if len(empties) == 1 else 'were'} placed. "
+                f"Move {them} onto '{listed[number - 1].name}' and parent {them} to it, or "
+                "remove those pairs.")
+    return (f"{which} {verb} parented to '{parent}', not to {target}: parent {them} to "
+            f"'{listed[number - 1].name}' (Ctrl+P > Keep Transform).")
+
+
+def surface_problems(surface, modified=False):
+    """``(level, message)`` of each problem of a keyframe's surface (none when it is sound).
 
     Parameters
     ----------
-    surface : scene_io.Surface
-        The counts of the keyframe object's evaluated mesh.
+    surface : core.fields.mesh.Surface
+        The keyframe object's evaluated mesh as the bake reads it.
+    modified : bool
+        Whether that mesh is the object's after its modifiers.
 
     Returns
     -------
-    tuple of (str, str) or None
-        An edge with one face lies on a hole, one with three or more is non-manifold: the
-        core reads both as solids, so they are a `WARNING`. What it cannot read is a
-        surface that encloses no volume, such as a plane: an `ERROR`. The message follows
+    list of (str, str)
+        A surface that encloses no volume, such as a plane, is the one `ERROR`, worded as
+        the bake's own refusal words it (`core.bake.checks.no_volume_words`). Faces facing
+        inward, loose vertices, holes and non-manifold edges the bake reads correctly as
+        they are: `WARNING` s that say so and how to clean the mesh. Each message follows
         the keyframe's name ("Keyframe 2 'Plane' ...").
     """
-    after = " after its modifiers" if surface.modified else ""
-    if surface.faces == 0:
-        return ERROR, f"has no faces{after}: a keyframe must be a closed surface."
-    if surface.volume <= 1e-6 * surface.extent ** 3:
-        if surface.open_edges:
-            return ERROR, ("is open and encloses no volume: close it with Mesh > Clean Up > "
-                           "Fill Holes, or give it thickness with a Solidify modifier.")
-        return ERROR, "encloses no volume (it is flat): give it thickness with a Solidify modifier."
+    from ..core.bake.checks import no_volume_words
+
+    if surface.triangles == 0:
+        after = " after its modifiers" if modified else ""
+        return [(ERROR, f"has no faces{after}: a keyframe must be a closed surface.")]
+    if not surface.encloses_volume:
+        return [(ERROR, no_volume_words(surface))]
+    out = []
+    if surface.reoriented:
+        out.append((WARNING, f"has {count(surface.reoriented, 'triangle')} facing inward: the "
+                             "bake reads it correctly as it is; Mesh > Normals > Recalculate "
+                             "Outside fixes it."))
+    if surface.loose:
+        where = (f"up to {surface.loose_reach:.3g} units outside its faces" if
+                 surface.loose_reach > 0 else "among its faces")
+        out.append((WARNING, f"has {count(surface.loose, 'loose vertex', 'loose vertices')} "
+                             f"(in no face), {where}: the bake ignores "
+                             f"{'it' if surface.loose == 1 else 'them'}; Select > Select All by "
+                             "Trait > Loose Geometry finds them."))
     if surface.open_edges:
-        return WARNING, (f"has holes ({surface.open_edges} open edges): the bake fills small ones; "
-                         "to be sure, close them with Mesh > Clean Up > Fill Holes.")
+        out.append((WARNING, f"has holes ({surface.open_edges} open edges): the bake fills small "
+                             "ones; to be sure, close them with Mesh > Clean Up > Fill Holes."))
     if surface.shared_edges:
-        return WARNING, (f"is non-manifold ({surface.shared_edges} edges shared by 3 or more "
-                         "faces): if its parts come out wrong, find them with Select > Select All "
-                         "by Trait > Non Manifold.")
-    return None
+        out.append((WARNING, f"is non-manifold ({surface.shared_edges} edges shared by 3 or more "
+                             "faces): if its parts come out wrong, find them with Select > Select "
+                             "All by Trait > Non Manifold."))
+    return out
 
 
 def errors(found):

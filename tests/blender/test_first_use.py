@@ -198,8 +198,8 @@ def test_open_plane_is_refused_before_any_work(scene, kfi, monkeypatch):
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
     msg = str(err.value)
     # numbered as the list shows it, with what to do; nothing from the grid
-    assert "Keyframe 2 'Plane' is open and encloses no volume: close it with Mesh > Clean Up > " \
-           "Fill Holes" in msg
+    assert "Keyframe 2 'Plane' is open (4 open edges) and encloses no volume: close it with " \
+           "Mesh > Clean Up > Fill Holes" in msg
     assert ".;" not in msg and "grid" not in msg and "resolution" not in msg
     assert not calls
     assert kfi.snapshot() == state
@@ -209,8 +209,8 @@ def test_open_plane_is_refused_before_any_work(scene, kfi, monkeypatch):
 
 
 def _surface_check(obj, depsgraph):
-    """The surface check of one object: its counts read, then judged."""
-    return validate.surface_problem(scene_io.read_surface(obj, depsgraph))
+    """The surface checks of one object: its mesh read as the bake reads it, then judged."""
+    return validate.surface_problems(scene_io.read_surface(obj, depsgraph))
 
 
 def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, kfi):
@@ -231,19 +231,20 @@ def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, 
     bm.to_mesh(holed.data)
     bm.free()
     dg = bpy.context.evaluated_depsgraph_get()
-    level, msg = _surface_check(bow, dg)
+    [(level, msg)] = _surface_check(bow, dg)
     assert level == validate.WARNING  # the core reads it as a solid
     assert msg.startswith("is non-manifold (1 edges shared by 3") and "Non Manifold" in msg
-    level, msg = _surface_check(holed, dg)
+    [(level, msg)] = _surface_check(holed, dg)
     assert level == validate.WARNING and msg.startswith("has holes (8 open edges)"), msg
-    assert _surface_check(pillow, dg) == (
-        validate.ERROR, "encloses no volume (it is flat): give it thickness with a Solidify modifier.")
-    assert _surface_check(ball, dg) is None
+    [(level, msg)] = _surface_check(pillow, dg)
+    assert level == validate.ERROR and msg.startswith("encloses no volume (it is flat"), msg
+    assert msg.endswith("give it thickness with a Solidify modifier.")
+    assert _surface_check(ball, dg) == []
     _keyframe(bow, 1)
     _keyframe(pillow, 9)
     errs = [p.message for p in validate.errors(validate.problems(scene))]
-    assert errs == ["Keyframe 2 'Pillow' encloses no volume (it is flat): give it thickness "
-                    "with a Solidify modifier."]
+    assert len(errs) == 1 and errs[0].startswith("Keyframe 2 'Pillow' encloses no volume (it is "
+                                                 "flat"), errs
     with pytest.raises(RuntimeError, match=r"Cannot bake: Keyframe 2 'Pillow' encloses no volume"):
         bpy.ops.keyframe_implicit.bake()
 

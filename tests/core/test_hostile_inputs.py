@@ -141,15 +141,16 @@ def test_open_mesh_is_told_to_close_it():
     kfs = _spheres()
     sheet = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], float)
     kfs[0] = Keyframe(sheet, [[0, 1, 2, 3]], 1, "Sheet")  # a flat open square
-    with pytest.raises(ValueError, match="Keyframe 1 \\('Sheet', frame 1\\).*4 open edges.*Close"):
+    with pytest.raises(ValueError, match="Keyframe 1 \\('Sheet', frame 1\\) is open \\(4 open edges\\).*close it"):
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES)
 
 
-def test_open_mesh_whose_distance_grid_the_helper_makes_is_named_too(started_helper):
+def test_thin_mesh_whose_distance_grid_the_helper_makes_is_named_too(started_helper):
     kfs = _spheres()
-    sheet = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], float)
-    kfs[1] = Keyframe(sheet + (2.0, 0.0, 0.0), [[0, 1, 2, 3]], 5, "Sheet")
-    with pytest.raises(ValueError, match="Keyframe 2 \\('Sheet', frame 5\\).*4 open edges.*Close"):
+    corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (0.05, 0.051)])
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    kfs[1] = Keyframe(corners + (2.0, 0.0, 0.0), quads, 5, "Slab")  # closed, thinner than a cell
+    with pytest.raises(ValueError, match="Keyframe 2 \\('Slab', frame 5\\).*thinner than a cell"):
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES, processes=2,
                 helper=started_helper)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes"]
+__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes"]
 
 
 def keyframe_label(k, kf):
@@ -25,8 +25,10 @@ def _segment_label(i):
 
 
 def surface_vertices(k, kf):
-    """(vertices (V, 3), triangles, loose) of a keyframe; loose counts vertices of no face."""
-    from ..fields.mesh import check_vertices, triangulate
+    """(vertices (V, 3), triangles, loose, face vertices) of a keyframe; loose counts vertices
+    of no face. Refuses, before any grid work, a keyframe that encloses no volume
+    (`fields.mesh.read_surface`, the measure the Blender panel judges it by too)."""
+    from ..fields.mesh import check_vertices, read_surface, triangulate
 
     label = keyframe_label(k, kf)
     try:
@@ -34,9 +36,31 @@ def surface_vertices(k, kf):
         tris = triangulate(kf.faces, len(v))
     except ValueError as exc:
         raise ValueError(f"{label}: {exc}") from None
+    surface = read_surface(v, tris)
+    if not surface.encloses_volume:
+        raise ValueError(f"{label} {no_volume_words(surface)}")
     used = np.zeros(len(v), dtype=bool)
     used[tris.reshape(-1)] = True
-    return v, tris, int(len(v) - used.sum()), v[used]
+    return v, tris, surface.loose, v[used]
+
+
+def no_volume_words(surface):
+    """What is wrong with a surface that encloses no volume and what to do, after the
+    keyframe's name ("Keyframe 2 'Plane' is open and ...").
+
+    Parameters
+    ----------
+    surface : fields.mesh.Surface
+        A reading whose ``encloses_volume`` is False.
+    """
+    if surface.triangles == 0:
+        return "has only faces of zero area: a keyframe must be a closed surface."
+    if surface.open_edges:
+        return (f"is open ({surface.open_edges} open edges) and encloses no volume: close it "
+                "with Mesh > Clean Up > Fill Holes, or give it thickness with a Solidify "
+                "modifier.")
+    return ("encloses no volume (it is flat, or made of parts that cancel, such as a copy "
+            "turned inside out on top of it): give it thickness with a Solidify modifier.")
 
 
 def _feature_array(points, what):
