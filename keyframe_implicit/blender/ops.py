@@ -298,7 +298,7 @@ WRITE_BUDGET = 0.025
 
 
 class KFI_OT_bake(bpy.types.Operator):
-    """Bake the keyframes into one mesh with a shape key per frame (ESC cancels)"""
+    """Bake the keyframes into one animated object: with Output Auto, shape keys when one mesh can follow the shape on every frame, else a mesh sequence (ESC cancels)"""
 
     bl_idname = "keyframe_implicit.bake"
     bl_label = "Bake"
@@ -465,6 +465,8 @@ class KFI_OT_bake(bpy.types.Operator):
         frames = f"frames {span[0]}-{span[1]}" if span is not None else "no frames"
         took = f" in {seconds:.1f} s" if seconds is not None else ""
         where = ", ".join(f"'{c.name}'" for c in obj.users_collection)
+        for line in obj.get("kfi_report_details", "").splitlines():  # the info log keeps them
+            self.report({"INFO"}, f"Bake figures: {line}.")
         self.report({"INFO"}, f"Baked '{obj.name}' ({frames}){took} into collection {where}; "
                               + "; ".join(shown) + ". " + obj.get("kfi_report", ""))
         return {"FINISHED"}

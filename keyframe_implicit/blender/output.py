@@ -252,14 +252,18 @@ def slot_materials(own, material_names):
         [m for i, m in enumerate(mats) if i < len(own) or m is not None]
 
 
-def bake_report(kind, reason, frames, stats):
-    """What the artist reads after a bake: the output, why, and its worst frame."""
-    label = "shape keys" if kind == "shape_keys" else "a mesh sequence"
-    text = f"Stored as {label}" + (f": {reason}." if reason else ".")
+def bake_report(kind, reason, frames):
+    """What the artist reads after a bake, in one line: what was made, on which frames, why
+    ("Mesh sequence, frames 1-25: one mesh cannot follow the shape at frame 14 ...")."""
+    label = "Shape keys" if kind == SHAPE_KEYS else "Mesh sequence"
+    return f"{label}, frames {frames[0]}-{frames[-1]}" + (f": {reason}." if reason else ".")
+
+
+def report_details(kind, frames, stats):
+    """The figures behind `bake_report`, one explained figure a line (`describe_worst`):
+    what the panel shows behind its disclosure and the bake prints to the info log."""
     quality = (stats or {}).get("quality")
-    if quality:
-        text += f" {describe_worst(frames, quality[kind]).capitalize()}."
-    return text
+    return describe_worst(frames, quality[kind]) if quality else []
 
 
 def _ensure_collection(scene, name):
@@ -416,7 +420,9 @@ def _tag_output(obj, kind, reason, frames, animation, stats):
     obj["kfi_frames"] = [frames[0], frames[-1]]
     obj["kfi_output_kind"] = kind
     obj["kfi_output_reason"] = reason
-    obj["kfi_report"] = bake_report(kind, reason, frames, getattr(animation, "stats", {}))
+    obj["kfi_report"] = bake_report(kind, reason, frames)
+    obj["kfi_report_details"] = "\n".join(report_details(kind, frames,
+                                                         getattr(animation, "stats", {})))
     grid = getattr(animation, "grid", None)
     if grid is not None:
         obj["kfi_spacing"] = float(grid.spacing)

@@ -70,11 +70,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         op = col.operator("keyframe_implicit.move_keyframe", icon="TRIA_DOWN", text="")
         op.index, op.direction = settings.active_keyframe_index, "DOWN"
 
-        found = validate.problems(scene, context.view_layer.depsgraph)
-        if found:
-            box = layout.box()
-            for p in found:
-                _wrapped(box, context, p.message, p.icon)
+        _problems(layout, context, settings, validate.problems(scene, context.view_layer.depsgraph))
 
         col = layout.column(align=True)
         col.use_property_split = True  # labels in a column of their own: not cut at 291 px
@@ -103,8 +99,14 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             span = out.get("kfi_frames")
             if span is not None:  # a line of its own: wrapped, "1-25)" was left alone
                 col.label(text=f"Frames {span[0]}-{span[1]}", icon="BLANK1")
-            if out.get("kfi_report"):  # how it is stored (shape keys / mesh sequence) and why
+            if out.get("kfi_report"):  # what was made and why, in one line
                 _wrapped(col, context, out["kfi_report"], "INFO")
+            if out.get("kfi_report_details"):  # its figures, each explained, folded
+                col.prop(settings, "show_report_details", emboss=False,
+                         icon="DOWNARROW_HLT" if settings.show_report_details else "RIGHTARROW")
+                if settings.show_report_details:
+                    for line in out["kfi_report_details"].split("\n"):
+                        _wrapped(col, context, line, "BLANK1")
             layout.prop(settings, "show_keyframes", icon="MOD_WIREFRAME")
 
 
@@ -171,6 +173,26 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         col.prop(settings, "rigidity_weight")
         col.prop(settings, "levelset_weight")
         self.layout.prop(settings, "motion_resolution")
+
+
+#: Problems listed before the rest fold away: Bake and the first problems stay in view at
+#: the default sidebar height.
+SHOWN_PROBLEMS = 2
+
+
+def _problems(layout, context, settings, found):
+    """The problems found, errors first; past `SHOWN_PROBLEMS` behind a disclosure."""
+    if not found:
+        return
+    box = layout.box()
+    shown = found if settings.show_all_problems else found[:SHOWN_PROBLEMS]
+    for p in shown:
+        _wrapped(box, context, p.message, p.icon)
+    if len(found) > SHOWN_PROBLEMS:
+        more = len(found) - SHOWN_PROBLEMS
+        box.prop(settings, "show_all_problems", emboss=False,
+                 text="Fewer" if settings.show_all_problems else f"{more} more",
+                 icon="DOWNARROW_HLT" if settings.show_all_problems else "RIGHTARROW")
 
 
 def ui_scale(context):

@@ -131,6 +131,14 @@ class KFI_Settings(bpy.types.PropertyGroup):
         "them (they stay out of renders)",
         update=_show_keyframes_changed,
     )
+    show_all_problems: BoolProperty(
+        name="All Problems", default=False,
+        description="List every problem found, not only the first ones",
+    )
+    show_report_details: BoolProperty(
+        name="Figures", default=False,
+        description="The figures behind the bake report, each explained",
+    )
 
     def motion(self):
         """The Motion Resolution as the core expects it: None for automatic."""

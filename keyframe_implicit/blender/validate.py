@@ -196,20 +196,19 @@ def _off_keyframe(seg, number, parent, empties, listed):
     """One line for the feature Empties of segment ``seg`` meant to sit on keyframe ``number``
     but parented to ``parent`` (an object name, or None), with the advice that fits."""
     target = f"keyframe {number} '{listed[number - 1].name}'"
-    which = (f"'{empties[0]}'" if len(empties) == 1 else
+    one = len(empties) == 1
+    which = (f"'{empties[0]}'" if one else
              f"{len(empties)} feature Empties of keyframes {seg + 1} \u2192 {seg + 2}")
-    verb = "is" if len(empties) == 1 else "are"
-    them = "it" if len(empties) == 1 else "them"
+    it, does, are, were = ("it", "it does", "is", "was") if one else ("them", "they do", "are", "were")
     if parent is None:
-        return (f"{which} {verb} not parented to {target}: {'it does' if len(empties) == 1 else 'they do'} "
-                f"not follow that object; parent {them} to it (Ctrl+P > Keep Transform).")
+        return (f"{which} {are} not parented to {target}: {does} not follow that object; "
+                f"parent {it} to it (Ctrl+P > Keep Transform).")
     on = [i for i, kf in enumerate(listed, start=1) if kf.name == parent]
     if on:  # a keyframe was added or moved between the pair's two keyframes
-        return (f"{which} {verb} on keyframe {on[0]} '{parent}', not on {target}: the keyframe "
-                f"list changed since {them} {'was' if len(empties) == 1 else 'were'} placed. "
-                f"Move {them} onto '{listed[number - 1].name}' and parent {them} to it, or "
-                "remove those pairs.")
-    return (f"{which} {verb} parented to '{parent}', not to {target}: parent {them} to "
+        return (f"{which} {are} on keyframe {on[0]} '{parent}', not on {target}: the keyframe "
+                f"list changed since {'it' if one else 'they'} {were} placed. Move {it} onto "
+                f"'{listed[number - 1].name}' and parent {it} to it, or remove those pairs.")
+    return (f"{which} {are} parented to '{parent}', not to {target}: parent {it} to "
             f"'{listed[number - 1].name}' (Ctrl+P > Keep Transform).")
 
 

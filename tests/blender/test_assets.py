@@ -125,7 +125,13 @@ def test_asset_bakes_at_low_resolution(name):
     out = scene.keyframe_implicit.output_object
     assert out is not None and out not in objs
     assert out["kfi_output_kind"] in ("shape_keys", "mesh_sequence")
-    assert out["kfi_report"].startswith("Stored as") and "Worst frame" in out["kfi_report"]
+    label = "Shape keys" if out["kfi_output_kind"] == "shape_keys" else "Mesh sequence"
+    report = out["kfi_report"]  # one line: what was made, on which frames, why
+    assert report.startswith(f"{label}, frames {frames[0]}-{frames[-1]}: ") and "\n" not in report
+    assert " h " not in report and "limits" not in report and len(report) < 160, report
+    details = out["kfi_report_details"].splitlines()  # the figures, each in words
+    assert details[0].startswith(("Worst frame: ", "Least clean frame: ")), details
+    assert len(details) >= 4 and not any(line.endswith(" h") or " h " in line for line in details)
     if out["kfi_output_kind"] == "shape_keys":
         blocks = out.data.shape_keys.key_blocks
         assert len(blocks) == 1 + frames[-1] - frames[0] + 1  # Basis + one per frame

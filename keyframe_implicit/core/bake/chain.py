@@ -337,7 +337,7 @@ def _frames(inb, frames, segment, rep=None):
         rep.check()
         rec.update(_frame_outputs(inb, s, segment, rec["vertices"], rep))
         records.append(rec)
-        rep((i + 1) / len(frames), f"frame {f} ({i + 1}/{len(frames)})")
+        rep((i + 1) / len(frames), f"frame {f} (keyframes {k + 1} \u2192 {k + 2}, frames {f0}-{f1})")
     return records
 
 

@@ -204,9 +204,9 @@ def no_volume_message(k, kf, v, tris, grid):
         return (f"{label} is only {cells:.1f} grid cells across: the grid spans all keyframes and "
                 "feature points, which are far apart compared to this keyframe. Move them closer "
                 "together or raise the resolution.")
-    edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
-    _, count = np.unique(edges, axis=0, return_counts=True)
-    open_edges = int(np.sum(count == 1))
+    from ..fields.mesh import read_surface
+
+    open_edges = read_surface(v, tris).open_edges
     if open_edges:
         return (f"{label} encloses no volume: its surface has {open_edges} open edges. Close the "
                 "mesh (e.g. Mesh > Clean Up > Fill Holes).")

@@ -220,9 +220,9 @@ class Surface:
         Triangles of non-zero area (0: nothing to measure).
     volume : float
         |Volume| the triangles enclose once each connected part faces one way
-        (`orient_faces`), about the centre of the hole edges when there are holes, so that
-        their missing caps add next to nothing. When the parts' volumes cancel in sum, the
-        volume where the winding number reads inside, sampled (`_inside_volume`).
+        (`orient_faces`). With holes, where a volume depends on the point it is taken
+        about, or when the parts' volumes cancel in sum, the volume where the winding
+        number reads inside as the distance field does, sampled (`_inside_volume`).
     extent : float
         The largest side of the faces' bounding box (what the bake's grid spans).
     open_edges, shared_edges : int
@@ -285,12 +285,11 @@ def read_surface(vertices, faces):
     except ValueError:
         return Surface(0, **counts)
     tris, reoriented, non_orientable = orient_faces(v, tris)
-    open_edges, shared_edges, hole_ends = _edge_counts(tris)
-    origin = v[hole_ends].mean(axis=0) if len(hole_ends) else on_faces.mean(axis=0)
-    a, b, c = (v[tris[:, k]] - origin for k in range(3))
+    open_edges, shared_edges = _edge_counts(tris)
+    a, b, c = (v[tris[:, k]] - on_faces.mean(axis=0) for k in range(3))
     volume = abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
-    if not volume > VOLUME_SHARE * counts["extent"] ** 3:  # parts may cancel only in sum
-        volume = _inside_volume(v, tris, lo, hi)
+    if open_edges or not volume > VOLUME_SHARE * counts["extent"] ** 3:
+        volume = _inside_volume(v, tris, lo, hi)  # holes; parts that cancel only in sum
     return Surface(len(tris), volume, open_edges=open_edges, shared_edges=shared_edges,
                    reoriented=reoriented, non_orientable=non_orientable, **counts)
 
@@ -298,8 +297,9 @@ def read_surface(vertices, faces):
 def _inside_volume(v, tris, lo, hi, cells=16):
     """Volume of the faces' box where the winding number reads inside (|w| >= 0.5, as the
     distance field does), sampled at the centres of about ``cells`` cells along its longest
-    side: the volume of a surface whose parts' volumes cancel in sum although they do not
-    cancel in space (a copy turned inside out beside the original, not on top of it)."""
+    side: the volume of an open surface (holes bridged as the distance field bridges them),
+    or of one whose parts' volumes cancel in sum although they do not cancel in space (a
+    copy turned inside out beside the original, not on top of it)."""
     from .winding import WindingTree
 
     side = hi - lo
@@ -313,7 +313,7 @@ def _inside_volume(v, tris, lo, hi, cells=16):
 
 
 def _edge_counts(tris):
-    """(open edges, edges of 3+ triangles, the open edges' end vertices) of triangles."""
+    """(open edges, edges of 3+ triangles) of triangles."""
     edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
-    unique, count = np.unique(edges, axis=0, return_counts=True)
-    return int(np.sum(count == 1)), int(np.sum(count > 2)), unique[count == 1].reshape(-1)
+    _, count = np.unique(edges, axis=0, return_counts=True)
+    return int(np.sum(count == 1)), int(np.sum(count > 2))

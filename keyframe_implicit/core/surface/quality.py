@@ -156,7 +156,7 @@ def failures(figures, limits=LIMITS):
     for key, label in (("keyframe_mean", "keyframe mean distance"),
                        ("keyframe_max", "keyframe max distance")):
         if key in figures and figures[key] > limits[key]:
-            out.append(f"{label} {figures[key]:.2f} h")
+            out.append(f"{label} {figures[key]:.2f} grid cells")
     return out
 
 
@@ -212,20 +212,26 @@ def choose_output(frames, quality, limits=LIMITS):
     """
     frame, _, fails = worst_frame(frames, quality["shape_keys"], limits)
     if not fails:
-        return "shape_keys", "every frame of the tracked mesh passes the cleanliness limits"
-    return "mesh_sequence", (f"the tracked mesh fails the cleanliness limits on frame {frame} "
-                             f"({', '.join(fails)}): each frame gets its own surface instead")
+        return "shape_keys", "one mesh follows the shape on every frame"
+    return "mesh_sequence", (f"one mesh cannot follow the shape at frame {frame} (it would "
+                             "stretch, fold or leave gaps), so each frame has its own surface")
 
 
 def describe_worst(frames, per_frame, limits=LIMITS):
-    """One sentence on the worst frame of an output, for the bake report: the frame
-    farthest past the limits, or, when all pass, the one nearest to them."""
+    """The figures of an output's worst frame in words, for the details of the bake report:
+    the frame farthest past the limits, or, when all pass, the one nearest to them. A grid
+    cell is the bake's grid spacing (Resolution cells along the keyframes' longest side)."""
     frame, q, fails = worst_frame(frames, per_frame, limits)
-    figures = (f"area ratio {q['area_ratio']:.3f}, inverted area "
-               f"{100 * q['inverted_fraction']:.1f} %, coverage {100 * q['coverage']:.1f} %")
+    lo, hi = limits["area_ratio"]
+    lines = [f"{'Worst' if fails else 'Least clean'} frame: {frame}"
+             + (f" (past the limits: {', '.join(fails)})" if fails else " (every frame is within the limits)"),
+             f"Surface area: {q['area_ratio']:.3f} times the shape's own (clean: {lo}-{hi})",
+             f"Surface facing inward: {100 * q['inverted_fraction']:.1f} % "
+             f"(clean: at most {100 * limits['inverted_fraction']:.1f} %)",
+             f"Shape covered by the mesh: {100 * q['coverage']:.1f} % "
+             f"(clean: at least {100 * limits['coverage']:.0f} %)"]
     if "keyframe_max" in q:
-        figures += (f", keyframe distance mean {q['keyframe_mean']:.2f} h max "
-                    f"{q['keyframe_max']:.2f} h")
-    if not fails:
-        return f"worst frame {frame}, within the limits: {figures}"
-    return f"worst frame {frame}: {figures} (over the limits: {', '.join(fails)})"
+        lines.append(f"Distance to the keyframe meshes: mean {q['keyframe_mean']:.2f}, largest "
+                     f"{q['keyframe_max']:.2f} grid cells (clean: {limits['keyframe_mean']}, "
+                     f"{limits['keyframe_max']})")
+    return lines
