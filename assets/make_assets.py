@@ -16,10 +16,12 @@ location_a=..., location_b=..., name=...)`` (world coordinates). The timeline ru
 first keyframe's frame to the last's; a camera frames every keyframe, a sun lights them,
 and keyframe A carries a material (the bake copies it to its result).
 
-Visibility: the keyframe objects stay visible in the viewport (the artist edits them and
-their feature Empties) but are hidden from renders: they are set-up data, like a rig's
-control shapes, and what renders is the baked object. The demo also hides them in the
-viewport of the baked file so pressing play shows the result alone.
+Visibility: the keyframe objects are hidden from renders: they are set-up data, like a rig's
+control shapes, and what renders is the baked object. The scene opens on its first keyframe
+with only that keyframe and its feature Empties shown (the others overlap it; Alt+H or the
+outliner shows them), so the artist sees one shape, not all of them on top of each other.
+The demo also hides them in the viewport of the baked file so pressing play shows the
+result alone.
 """
 
 from __future__ import annotations
@@ -239,7 +241,16 @@ def build(name):
     scene.frame_set(int(frames[0]))
     setup_look(scene)
     frame_camera(scene, np.vstack([world_points(o) for o in objs]))
+    show_first_keyframe(scene, objs)
     return scene
+
+
+def show_first_keyframe(scene, objs):
+    """Hide every keyframe object but the first, with the feature Empties on them."""
+    hidden = set(objs[1:])
+    for obj in scene.objects:
+        if obj in hidden or (obj.type == "EMPTY" and obj.parent in hidden):
+            obj.hide_set(True)
 
 
 def save(path):

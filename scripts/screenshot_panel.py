@@ -6,9 +6,9 @@ With the extension installed and enabled: open SCENE with the default UI, open t
 3D view's sidebar on the "Keyframe Implicit" tab at its default width, and write
 ``panel_<step>.png`` (the sidebar cut out of the X display's pixels, once it has stopped
 changing) for the steps before, baking (mid-bake), after, compare (the middle frame with
-Show Keyframes on) and problems (an open plane added as a keyframe past the scene's end,
-and a feature without its partner); ``window_<step>.png`` keeps the whole window after the
-bake. The bake is started as a user starts it (the modal operator); the script quits
+Show Keyframes on) and problems (an open plane added as a middle keyframe, which leaves the
+feature pairs of the first segment on the last keyframe); ``window_<step>.png`` keeps the
+whole window as the scene opens and after the bake. The bake is started as a user starts it (the modal operator); the script quits
 Blender when done, with exit code 1 on any error.
 """
 
@@ -20,7 +20,7 @@ import numpy as np
 from blender_window import addon_module, decode_xwd, open_scene, run, save_png, view3d, xwd
 
 SCENE, OUT = sys.argv[sys.argv.index("--") + 1:][:2]
-WINDOWS = ("after", "compare")  # the steps whose whole window is kept too
+WINDOWS = ("before", "after", "compare")  # the steps whose whole window is kept too
 STABLE_GRABS = 3  # identical sidebar grabs in a row (half a second apart) count as settled
 MAX_GRABS = 40
 
@@ -91,13 +91,11 @@ def steps():
     scene.frame_set((scene.frame_start + scene.frame_end) // 2)
     settings.show_keyframes = True
     yield from settled("compare")
-    # what a new user hit: an open plane as a keyframe past the scene's end, a lone feature
+    # what a new user hit: an open plane added as a middle keyframe
     with bpy.context.temp_override(window=win, area=area, region=main):
         bpy.ops.mesh.primitive_plane_add(location=(0, 3, 0))
         bpy.context.active_object.name = "Plane"
-        bpy.ops.keyframe_implicit.add_keyframe(frame=40)
-        bpy.ops.keyframe_implicit.add_feature_pair(segment=1)
-    bpy.data.objects.remove(bpy.data.objects["KFI 1.0 B"])
+        bpy.ops.keyframe_implicit.add_keyframe(frame=(scene.frame_start + scene.frame_end) // 2)
     yield from settled("problems")
 
 

@@ -118,10 +118,11 @@ def object_name(pair_id, side, label=""):
 
 
 def display_size(keyframe_object):
-    """Empty size: a few percent of the keyframe object's largest dimension."""
+    """Empty size: a small share of the keyframe object's largest dimension, so that the
+    Empties mark points on it without hiding its surface."""
     dims = keyframe_object.dimensions if keyframe_object is not None else (0.0, 0.0, 0.0)
-    size = 0.04 * max(dims)
-    return size if size > 0 else 0.05
+    size = 0.025 * max(dims)
+    return size if size > 0 else 0.03
 
 
 def tag(empty, pair_id, segment, side, label="", keyframe_object=None):
@@ -135,7 +136,7 @@ def tag(empty, pair_id, segment, side, label="", keyframe_object=None):
     empty.color = pair_color(pair_id)
     empty.empty_display_type = "SPHERE"
     empty.empty_display_size = display_size(keyframe_object)
-    empty.show_name = True
+    empty.show_name = False  # many labels overlap; the selected one's name is in the header
     if keyframe_object is not None and empty.parent != keyframe_object:
         parent_keep_world(empty, keyframe_object)
 

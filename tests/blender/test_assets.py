@@ -167,3 +167,21 @@ def test_asset_was_saved_by_the_oldest_supported_blender(name):
     bpy.ops.wm.open_mainfile(filepath=os.path.join(ASSETS, f"{name}.blend"))
     assert tuple(bpy.data.version[:2]) == (4, 2), (
         f"{name}.blend was saved by Blender {bpy.data.version}; regenerate it with bpy 4.2")
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_asset_opens_tidy_on_its_first_keyframe(name):
+    """One shape in view on the first frame, not every keyframe on top of each other; small
+    feature Empties without a label each; the scene's frames are the keyframes' range."""
+    scene = _open(name)
+    keys = scene.keyframe_implicit.keyframes
+    objs = [k.object for k in keys]
+    assert scene.frame_current == keys[0].frame == scene.frame_start
+    assert scene.frame_end == keys[-1].frame
+    assert objs[0].visible_get() and not any(o.visible_get() for o in objs[1:])
+    pairs, _ = _pairs(scene)
+    empties = [e for sides in pairs.values() for e in sides.values()]
+    assert empties and not any(e.show_name for e in empties)
+    assert all(e.visible_get() == (e.parent == objs[0]) for e in empties)
+    size = max(objs[0].dimensions)
+    assert all(e.empty_display_size <= 0.03 * max(e.parent.dimensions) for e in empties), size
