@@ -314,6 +314,7 @@ def _inside_volume(v, tris, lo, hi, cells=16):
 
 def _edge_counts(tris):
     """(open edges, edges of 3+ triangles) of triangles."""
-    edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
-    _, count = np.unique(edges, axis=0, return_counts=True)
+    a, b = tris.reshape(-1), tris[:, [1, 2, 0]].reshape(-1)
+    key = np.minimum(a, b) * (int(tris.max()) + 1) + np.maximum(a, b)  # one number per edge
+    _, count = np.unique(key, return_counts=True)
     return int(np.sum(count == 1)), int(np.sum(count > 2))
