@@ -109,3 +109,16 @@ def test_the_grid_holds_a_turning_body_half_way_not_only_its_keyframes():
     assert np.all(anim.grid.contains(half_way))
     lo, hi = anim.grid.origin, anim.grid.origin + anim.grid.spacing * (np.array(anim.grid.shape) - 1)
     assert hi[0] - lo[0] >= 2 * 0.5 * np.sqrt(2)  # not only the keyframes' 1.0 + padding
+
+
+def test_progress_names_the_artists_frames():
+    """The frames a progress report counts are timeline frames, with their segment's range,
+    never a count within one segment ("frame 12 (12/13)" on a 25-frame animation)."""
+    va, fa = uv_sphere(np.zeros(3), 0.3)
+    kfs = [Keyframe(va, fa, 1), Keyframe(va + [0.3, 0, 0], fa, 4), Keyframe(va + [0.6, 0, 0], fa, 7)]
+    seen = []
+    animate(kfs, [(np.zeros((0, 3)), np.zeros((0, 3)))] * 2, resolution=16,
+            progress=lambda f, m: seen.append(m))
+    frames = [m for m in seen if m.startswith("frame ")]
+    assert "frame 6 (keyframes 2 \u2192 3, frames 4-7)" in frames, frames
+    assert not any("/" in m for m in frames), frames
