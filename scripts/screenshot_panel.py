@@ -5,7 +5,8 @@
 With the extension installed and enabled: open SCENE with the default UI, open the
 3D view's sidebar on the "Keyframe Implicit" tab at its default width, and write
 ``panel_<step>.png`` (the sidebar cut out of the X display's pixels, once it has stopped
-changing) for the steps before, baking (mid-bake), after, compare (the middle frame with
+changing) for the steps before, baking (mid-bake), after, figures (the report's figures
+unfolded), compare (the middle frame with
 Show Keyframes on) and problems (an open plane added as a middle keyframe, which leaves the
 feature pairs of the first segment on the last keyframe); ``window_<step>.png`` keeps the
 whole window as the scene opens and after the bake. The bake is started as a user starts it (the modal operator); the script quits
@@ -86,6 +87,9 @@ def steps():
     settings = bpy.context.scene.keyframe_implicit
     assert settings.output_object is not None, "the bake made no result"
     yield from settled("after")
+    settings.show_report_details = True  # the figures behind the report
+    yield from settled("figures")
+    settings.show_report_details = False
     # comparing: the middle frame, with the keyframes shown as wireframes
     scene = bpy.context.scene
     scene.frame_set((scene.frame_start + scene.frame_end) // 2)

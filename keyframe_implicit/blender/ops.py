@@ -461,14 +461,12 @@ class KFI_OT_bake(bpy.types.Operator):
         ``notes`` (faces reoriented, loose vertices ignored, ...) come as warnings."""
         shown = result_view.present(context.scene, context.view_layer, _settings(context), obj)
         self._hints(context, notes)
-        span = obj.get("kfi_frames")
-        frames = f"frames {span[0]}-{span[1]}" if span is not None else "no frames"
         took = f" in {seconds:.1f} s" if seconds is not None else ""
         where = ", ".join(f"'{c.name}'" for c in obj.users_collection)
         for line in obj.get("kfi_report_details", "").splitlines():  # the info log keeps them
             self.report({"INFO"}, f"Bake figures: {line}.")
-        self.report({"INFO"}, f"Baked '{obj.name}' ({frames}){took} into collection {where}; "
-                              + "; ".join(shown) + ". " + obj.get("kfi_report", ""))
+        self.report({"INFO"}, f"Baked '{obj.name}'{took} into collection {where}; "  # the report
+                              + "; ".join(shown) + ". " + obj.get("kfi_report", ""))  # has frames
         return {"FINISHED"}
 
     def cancel(self, context):

@@ -4,9 +4,9 @@
 objects whose message says what is wrong AND what to do. ERROR problems block the bake;
 WARNING problems are hints (e.g. fewer than 4 feature pairs is allowed by the core but
 gives the solver a poor start). The checks read nothing from the scene: what only the
-scene's objects can tell (a keyframe object's kind, its surface counts, a feature Empty's
-parent) comes as plain facts of the reading. `problems` reads a scene's setup and checks
-it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
+scene's objects can tell (a keyframe object's kind, its surface as the bake reads it, a
+feature Empty's parent) comes as plain facts of the reading. `problems` reads a scene's
+setup and checks it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
 
 The surface checks (`surface_problems`) judge each keyframe's evaluated mesh by the
 bake's own measure (`core.fields.mesh.read_surface`: faces only, each part facing one
@@ -249,7 +249,7 @@ def surface_problems(surface, modified=False):
         out.append((WARNING, f"has {count(surface.loose, 'loose vertex', 'loose vertices')} "
                              f"(in no face), {where}: the bake ignores "
                              f"{'it' if surface.loose == 1 else 'them'}; Select > Select All by "
-                             "Trait > Loose Geometry finds them."))
+                             f"Trait > Loose Geometry finds {'it' if surface.loose == 1 else 'them'}."))
     if surface.open_edges:
         out.append((WARNING, f"has holes ({surface.open_edges} open edges): the bake fills small "
                              "ones; to be sure, close them with Mesh > Clean Up > Fill Holes."))

@@ -442,13 +442,24 @@ def test_a_bake_reads_the_scene_once_then_checks_and_bakes_that_reading(scene, k
     assert baked[0]["features"] is reads[0].features and len(reads[0].keyframes) == 2
 
 
-def test_the_problem_list_reads_no_meshes(scene, kfi, monkeypatch):
+def test_the_problem_list_reads_each_mesh_once_per_state(scene, kfi, monkeypatch):
     kfi.build_spheres(TWO)
     scene.frame_end = 5  # keyframe B on frame 7: a problem to find
-    meshes = []
+    scene_io.forget_surfaces()
+    meshes, frames = [], []
     monkeypatch.setattr(scene_io, "mesh_arrays", _spy(meshes, scene_io.mesh_arrays))
-    found = validate.problems(scene)
+    handlers = bpy.app.handlers.frame_change_pre
+    changed = lambda *a: frames.append(a)  # noqa: E731
+    handlers.append(changed)
+    try:
+        found = validate.problems(scene)
+    finally:
+        handlers.remove(changed)
     assert [p.message for p in found] == [
         "Keyframe 2 is on frame 7, outside the scene's frames 1-5: Bake widens the frame "
         "range to cover it."]
-    assert meshes == []  # the panel asks on every redraw: frames and meshes are the bake's
+    # the panel asks on every redraw: each keyframe's faces are read once, as they are now,
+    # without their attributes (those, and the keyframes' own frames, are the bake's)
+    assert len(meshes) == 2 and all(len(m) == 2 for m in meshes) and frames == []
+    validate.problems(scene)
+    assert len(meshes) == 2
