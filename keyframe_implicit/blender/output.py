@@ -42,8 +42,8 @@ every data-block created here is removed again, so the scene is as before.
 import bpy
 import numpy as np
 
-from ..core.surface.meshdata import FRAME_ATTRIBUTE, SHAPE_KEYS, resolve_output
-from ..core.surface.quality import describe_worst
+from ..core.surface.meshdata import FRAME_ATTRIBUTE, MESH_SEQUENCE, SHAPE_KEYS, resolve_output
+from ..core.surface.quality import describe_worst, worst_frame
 from . import fcurves, features
 
 OUTPUT_TAG = "kfi_output"
@@ -252,18 +252,26 @@ def slot_materials(own, material_names):
         [m for i, m in enumerate(mats) if i < len(own) or m is not None]
 
 
+OUTPUT_LABELS = {SHAPE_KEYS: "Shape keys", MESH_SEQUENCE: "Mesh sequence"}
+
+
 def bake_report(kind, reason, frames):
     """What the artist reads after a bake, in one line: what was made, on which frames, why
     ("Mesh sequence, frames 1-25: one mesh cannot follow the shape at frame 14 ...")."""
-    label = "Shape keys" if kind == SHAPE_KEYS else "Mesh sequence"
-    return f"{label}, frames {frames[0]}-{frames[-1]}" + (f": {reason}." if reason else ".")
+    return f"{OUTPUT_LABELS[kind]}, frames {frames[0]}-{frames[-1]}" + (f": {reason}." if reason else ".")
 
 
 def report_details(kind, frames, stats):
     """The figures behind `bake_report`, one explained figure a line (`describe_worst`):
-    what the panel shows behind its disclosure and the bake prints to the info log."""
-    quality = (stats or {}).get("quality")
-    return describe_worst(frames, quality[kind]) if quality else []
+    what the panel shows behind its disclosure and the bake prints to the info log. A mesh
+    sequence stored because the shape keys fail the limits shows the shape keys' figures
+    first (why not them), then its own."""
+    quality = (stats or {}).get("quality") or {}
+    lines = []
+    for name in ((SHAPE_KEYS, kind) if kind != SHAPE_KEYS else (kind,)):
+        if quality.get(name) and (name == kind or worst_frame(frames, quality[name])[2]):
+            lines += describe_worst(frames, quality[name], OUTPUT_LABELS[name])
+    return lines
 
 
 def _ensure_collection(scene, name):

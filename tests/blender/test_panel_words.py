@@ -74,13 +74,17 @@ def test_the_report_is_one_line_and_its_figures_are_explained(scene, kfi):
     q = dict(area_ratio=0.907, inverted_fraction=0.207, coverage=1.0, keyframe_mean=0.0,
              keyframe_max=0.0)
     ok = dict(q, area_ratio=1.0, inverted_fraction=0.0)
-    lines = output.report_details("shape_keys", frames, {"quality": {"shape_keys": [ok, q, ok]}})
-    assert lines[0] == "Worst frame: 2 (past the limits: area ratio 0.907, inverted area 20.7 %)"
+    quality = {"shape_keys": [ok, q, ok], "mesh_sequence": [ok, ok, ok]}
+    lines = output.report_details("mesh_sequence", frames, {"quality": quality})
+    # why not shape keys, then the mesh sequence's own figures: no contradiction
+    assert lines[0] == ("Shape keys: worst frame 2 (past the limits: area ratio 0.907, inverted "
+                        "area 20.7 %)")
     assert lines[1].startswith("Surface area: 0.907 times the shape's own")
     assert lines[2].startswith("Surface facing inward: 20.7 %")
-    assert lines[-1].startswith("Distance to the keyframe meshes: mean 0.00, largest 0.00 grid cells")
+    assert lines[4].startswith("Distance to the keyframe meshes: mean 0.00, largest 0.00 grid cells")
+    assert lines[5].startswith("Mesh sequence: least clean frame ") and "within the limits" in lines[5]
     clean = output.report_details("shape_keys", frames, {"quality": {"shape_keys": [ok, ok, ok]}})
-    assert clean[0].startswith("Least clean frame: ") and "within the limits" in clean[0]
+    assert len(clean) == 5 and clean[0].startswith("Shape keys: least clean frame ")
 
 
 def test_the_bake_after_baking_says_what_was_made_and_keeps_the_figures(scene, kfi):

@@ -217,14 +217,16 @@ def choose_output(frames, quality, limits=LIMITS):
                              "stretch, fold or leave gaps), so each frame has its own surface")
 
 
-def describe_worst(frames, per_frame, limits=LIMITS):
+def describe_worst(frames, per_frame, what, limits=LIMITS):
     """The figures of an output's worst frame in words, for the details of the bake report:
-    the frame farthest past the limits, or, when all pass, the one nearest to them. A grid
-    cell is the bake's grid spacing (Resolution cells along the keyframes' longest side)."""
+    the frame farthest past the limits, or, when all pass, the one nearest to them; ``what``
+    names the output ("Shape keys"). A grid cell is the bake's grid spacing (Resolution cells
+    along the keyframes' longest side)."""
     frame, q, fails = worst_frame(frames, per_frame, limits)
     lo, hi = limits["area_ratio"]
-    lines = [f"{'Worst' if fails else 'Least clean'} frame: {frame}"
-             + (f" (past the limits: {', '.join(fails)})" if fails else " (every frame is within the limits)"),
+    lines = [f"{what}: {'worst' if fails else 'least clean'} frame {frame}"
+             + (f" (past the limits: {', '.join(fails)})" if fails else
+                " (every frame is within the limits)"),
              f"Surface area: {q['area_ratio']:.3f} times the shape's own (clean: {lo}-{hi})",
              f"Surface facing inward: {100 * q['inverted_fraction']:.1f} % "
              f"(clean: at most {100 * limits['inverted_fraction']:.1f} %)",
