@@ -96,9 +96,6 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         if out is not None:
             col = layout.column(align=True)
             _wrapped(col, context, f"Output: {out.name}", "OUTLINER_OB_MESH")
-            span = out.get("kfi_frames")
-            if span is not None:  # a line of its own: wrapped, "1-25)" was left alone
-                col.label(text=f"Frames {span[0]}-{span[1]}", icon="BLANK1")
             if out.get("kfi_report"):  # what was made and why, in one line
                 _wrapped(col, context, out["kfi_report"], "INFO")
             if out.get("kfi_report_details"):  # its figures, each explained, folded
