@@ -56,11 +56,13 @@ from ..base.sampling import sample
 from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
 from .isovolume import volume_offset
 from .options import MotionOptions
+from .spline import blend_weight, start_velocity
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
 
-__all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement"]
+__all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
+           "back_map", "path_start_velocity"]
 
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
@@ -157,6 +159,7 @@ class Inbetween:
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
         self.threads = 2
+        self.blend = (1.0, 1.0)  # end slopes of B's weight in the blend (`spline.blend_weight`)
         self.stats = dict(stats or {})
         self.stats.setdefault("levelset_seconds", 0.0)
         self.stats.setdefault("levelset_calls", 0)
@@ -172,8 +175,8 @@ class Inbetween:
     # ------------------------------------------------------------------
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
-                 components=None, motion_grid=None, options=None, stats=None, map_result=None,
-                 map_result_back=None, cancel=None, **keywords):
+                 components=None, motion_grid=None, bends=None, blend=None, options=None,
+                 stats=None, map_result=None, map_result_back=None, cancel=None, **keywords):
         """In-betweens from given maps.
 
         Parameters
@@ -194,6 +197,13 @@ class Inbetween:
             The coarser grid the maps are given on, covering ``grid``'s box: the
             trajectories are solved there and read at ``grid``'s nodes
             (`finepaths.FinePaths`). None: the maps are on ``grid``.
+        bends : (`spline.Bend`, `spline.Bend` or None), optional
+            The Hermite corrections of the forward paths (on A's nodes) and the backward
+            ones (on B's), on the maps' grid, that carry the velocity through the
+            keyframes of a chain (`spline.chain_bends`); None: the straight timing.
+        blend : (float, float), optional
+            The end slopes of the blend's weight (`spline.blend_weight`); None: (1, 1),
+            the weight s.
         options : `options.MotionOptions`, optional
             All settings at once (the bake passes them so); keywords override them.
         stats, map_result, map_result_back : optional
@@ -223,13 +233,14 @@ class Inbetween:
         if material is None:
             material = paths.on_motion(phi_a) < 0
         forward, backward = _transports(phi_a, phi_b, paths, mapped, mapped_back, material,
-                                        components, options, cancel)
+                                        components, options, cancel, bends or (None, None))
         st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
         out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
                   map_result=map_result, map_result_back=map_result_back)
+        out.blend = (1.0, 1.0) if blend is None else tuple(float(m) for m in blend)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, material=material, components=components,
-            motion_grid=motion_grid, options=options))
+            motion_grid=motion_grid, bends=bends, blend=blend, options=options))
         return out
 
     @property
@@ -283,7 +294,8 @@ class Inbetween:
         return field
 
     def _two_sided(self, s):
-        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach."""
+        """(1 - w) Phi_s + w Psi_s (w = `spline.blend_weight`, s unless in a chain), each
+        transport at its truncation where it does not reach."""
         w = self.outside_value
         if self.threads > 1:
             with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
@@ -295,8 +307,9 @@ class Inbetween:
             psi_s = self.backward.carry(1.0 - s, other=self.forward)
         self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
         field, other = (np.nan_to_num(a, copy=False, nan=w) for a in (phi_s, psi_s))
-        field *= 1.0 - s  # in place: both are grid-sized and this call's own
-        other *= s
+        w = blend_weight(s, self.blend)
+        field *= 1.0 - w  # in place: both are grid-sized and this call's own
+        other *= w
         field += other
         return field
 
@@ -357,7 +370,7 @@ class Inbetween:
         -dx_B/dt at t = 1 - s). Each point gets the value at it of a weighted
         least-squares affine fit of the velocities of its ``neighbours``
         nearest moved nodes (moving least squares, exact for any rigid or
-        affine motion); A's nodes weigh (1 - s), B's s, as in the blend, so
+        affine motion); A's nodes weigh (1 - w), B's w, as in the blend, so
         the velocity hands over from A's motion to B's without a jump.
 
         Parameters
@@ -387,10 +400,11 @@ class Inbetween:
         if p.ndim != 2 or p.shape[1] != d:
             raise ValueError(f"points must have shape (P, {d}), got {p.shape}.")
         h = self.grid.spacing
-        parts = [self.forward.surface_motion(s, near_cells * h, ds) + (1.0 - s,)]
+        w = blend_weight(s, self.blend)
+        parts = [self.forward.surface_motion(s, near_cells * h, ds) + (1.0 - w,)]
         if self.backward is not None:
             pos, vel = self.backward.surface_motion(1.0 - s, near_cells * h, ds)
-            parts.append((pos, -vel, s))
+            parts.append((pos, -vel, w))
         parts = [(pos, vel, np.full(len(pos), wt)) for pos, vel, wt in parts if wt > 0]
         pos, vel, weight = (np.concatenate(a) for a in zip(*parts))
         if p.shape[0] == 0 or pos.shape[0] == 0:
@@ -419,16 +433,23 @@ class _Paths:
             return field
         return on_motion_grid(field, self.grid, self.motion_grid)
 
-    def __call__(self, field, mapped, material, components=None):
+    def __call__(self, field, mapped, material, components=None, bend=None):
         """The paths of the keyframe whose surface-grid field is ``field``, along ``mapped``
-        (``material``, ``components`` on the maps' grid)."""
+        (``material``, ``components`` and the ``bend`` on the maps' grid)."""
+        solved = self.solved(field, mapped, material, components)
+        solved.bend = bend
+        if self.motion_grid is None:
+            return solved
+        return FinePaths(self.grid, solved, field < 0, self.keywords["margin_cells"])
+
+    def solved(self, field, mapped, material, components=None):
+        """The as-rigid-as-possible paths on the maps' grid (`trajectory.Trajectories`)."""
         if self.motion_grid is None:
             return Trajectories(self.grid, mapped, material, components, **self.keywords)
         mass = material_mass(field < 0, self.grid, self.motion_grid)
         kw = dict(self.keywords, margin_cells=same_width(self.keywords["margin_cells"],
                                                          self.grid, self.motion_grid))
-        coarse = Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
-        return FinePaths(self.grid, coarse, field < 0, self.keywords["margin_cells"])
+        return Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
 
     def back_map(self, forward):
         """The map B -> A as the inverse of ``forward``'s, on the maps' grid."""
@@ -439,29 +460,62 @@ class _Paths:
         return points + sample(inverse - self.grid.points(), self.grid, points)
 
 
-def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel):
+def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel,
+                bends):
     """The forward transport of A's field along the map A -> B, and (two-sided) the backward
     one of B's field along B -> A (`invert_map` of the forward one when not given), both
-    truncated at one value so that the far field is one value."""
+    truncated at one value so that the far field is one value; their paths bent by
+    ``bends`` (forward, backward)."""
     lookup = dict(options.lookup_keywords(), cancel=cancel)
 
-    def carried(field, y, mat, comps=None):
-        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps), **lookup)
+    def carried(field, y, mat, comps=None, bend=None):
+        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps, bend),
+                         **lookup)
 
     backward = None
     if options.two_sided and mapped_back is not None:
         with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
-            back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0)
-            forward = carried(phi_a, mapped, material, components)
+            back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0,
+                               None, bends[1])
+            forward = carried(phi_a, mapped, material, components, bends[0])
             backward = back.result()
     else:
-        forward = carried(phi_a, mapped, material, components)
+        forward = carried(phi_a, mapped, material, components, bends[0])
         if options.two_sided:
-            backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0)
+            backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0,
+                               None, bends[1])
     if backward is not None:
         w = min(forward.border_value, backward.border_value)
         forward.truncation = backward.truncation = w
     return forward, backward
+
+
+def back_map(phi_a, phi_b, grid, mapped, *, material=None, components=None, motion_grid=None,
+             options=None, cancel=None):
+    """The map B -> A of a segment given only its map A -> B: `invert_map` of the forward
+    paths, on the maps' grid (as `Inbetween.from_map` makes it when not given)."""
+    options = options or MotionOptions()
+    paths = _Paths(grid, motion_grid, options, cancel)
+    if material is None:
+        material = paths.on_motion(phi_a) < 0
+    forward, _ = _transports(phi_a, phi_b, paths, np.asarray(mapped, dtype=float), None,
+                             material, components,
+                             dataclasses.replace(options, transport="one-sided"), cancel,
+                             (None, None))
+    return paths.back_map(forward)
+
+
+def path_start_velocity(field, grid, mapped, *, material=None, components=None,
+                        motion_grid=None, options=None, cancel=None):
+    """The velocity (per unit s) as they leave their keyframe of the paths a segment's
+    transport of ``field`` follows along ``mapped`` (``material``, ``components`` on the
+    maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them, on the
+    maps' grid: (size, d), for `spline.chain_bends`."""
+    paths = _Paths(grid, motion_grid, options or MotionOptions(), cancel)
+    if material is None:
+        material = paths.on_motion(field) < 0
+    return start_velocity(paths.solved(field, np.asarray(mapped, dtype=float), material,
+                                       components))
 
 
 def _from_recipe(args, kwargs):
