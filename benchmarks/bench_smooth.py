@@ -24,8 +24,12 @@ nearest it on the first frame. Per inner keyframe and path:
 - ease: the speed at the eased keyframe (second-order one-sided differences on either
   side, the larger) as a percentage of the mean speed of its two segments.
 
+Also: the ball with its keyframes at frames 1, 5 and 25 (speeds either side of the middle
+one, whether it rises above the top or runs back); the splash's volume drift and extra
+pieces on its frames' own surfaces; ``--plot PNG`` draws every path and its speed a frame.
+
 Cost: seconds of a whole bake of the ball, "linear" (the code path of a chain without
-bends, today's) against "smooth", the smallest of ``--repeat`` alternating runs.
+bends) against "smooth", the smallest of ``--repeat`` alternating runs.
 
     python benchmarks/bench_smooth.py --resolution 40
 """
@@ -63,11 +67,12 @@ def ball_arc(frames=(1, 13, 25), positions=ARC):
 
 
 def splash():
-    """(keyframes, features) of the splash chain of `keyframe_implicit.examples`."""
+    """(keyframes, features, names of the first segment's feature points) of the splash
+    chain of `keyframe_implicit.examples`."""
     from keyframe_implicit.examples import splash as example
 
     ex = example()
-    return ex.keyframes, ex.features
+    return ex.keyframes, ex.features, ex.feature_names[0]
 
 
 def material_centroid(vertices, faces):
@@ -150,13 +155,15 @@ def bake(keyframes, features, resolution, key_interpolation):
     return anim, time.perf_counter() - t0
 
 
-def paths(anim, keyframes, features, droplet=None):
+def paths(anim, features, droplet=None, names=None):
     """The measured paths of a bake: {name: (n, 3)}: the material centroid ("centre"), or
     with ``droplet`` (a centre and radius on the first keyframe) the mean of the template
     vertices within it ("droplet"), and each feature point of the first segment within
-    that region (all when None) by its nearest template vertex."""
+    that region (all when None) by its nearest template vertex, under its name in
+    ``names`` (default "feature j")."""
     verts = np.asarray(anim.vertices, dtype=float)
     points = np.asarray(features[0][0], dtype=float)
+    names = np.array(names or [f"feature {j}" for j in range(len(points))])
     out = {}
     if droplet is None:
         out["centre"] = material_centroid(verts, np.asarray(anim.faces))
@@ -164,10 +171,75 @@ def paths(anim, keyframes, features, droplet=None):
         centre, radius = droplet
         on = np.linalg.norm(verts[0] - centre, axis=1) <= radius
         out["droplet"] = verts[:, on].mean(axis=1)
-        points = points[np.linalg.norm(points - centre, axis=1) <= radius]
-    for j, idx in enumerate(nearest_vertices(verts[0], points)):
-        out[f"feature {j}"] = verts[:, idx]
+        near = np.linalg.norm(points - centre, axis=1) <= radius
+        points, names = points[near], names[near]
+    for name, idx in zip(names, nearest_vertices(verts[0], points)):
+        out[str(name)] = verts[:, idx]
     return out
+
+
+def plot_trails(trails, path):
+    """One picture of the paths: per chain two rows, the paths seen from the front (x, z,
+    a dot a frame) and their speed a frame, the linear bake on the left and the smooth
+    one on the right; keyframes ringed (paths) or dashed (speeds) in orange."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2 * len(trails), 2, figsize=(11, 4.2 * 2 * len(trails)),
+                             squeeze=False)
+    for c, (chain, (frames, key_frames, by_kind)) in enumerate(trails.items()):
+        keys = [int(np.flatnonzero(frames == f)[0]) for f in key_frames]
+        top = max(np.linalg.norm(np.diff(p, axis=0), axis=1).max()
+                  for named in by_kind.values() for p in named.values())
+        for col, (kind, named) in enumerate(by_kind.items()):
+            trail, speed = axes[2 * c, col], axes[2 * c + 1, col]
+            for i, (name, p) in enumerate(named.items()):
+                colour = "black" if i == 0 else f"C{i - 1}"
+                trail.plot(p[:, 0], p[:, 2], ".-", color=colour, ms=5, lw=0.7, label=name)
+                trail.plot(p[keys, 0], p[keys, 2], "o", mfc="none", mec="orange", ms=10,
+                           mew=1.5)
+                step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+                speed.plot(frames[:-1] + 0.5, step, ".-", color=colour, ms=5, lw=0.7)
+            for f in key_frames:
+                speed.axvline(f, color="orange", ls="--", lw=1)
+            trail.set_title(f"{chain}, {kind}: paths (front view)")
+            trail.set_aspect("equal")
+            trail.set_xlabel("x")
+            trail.set_ylabel("z")
+            speed.set_title(f"{chain}, {kind}: distance moved each frame")
+            speed.set_xlabel("frame")
+            speed.set_ylim(0, 1.05 * top)
+        axes[2 * c, 0].legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+
+
+def volume_and_pieces(anim, key_frames):
+    """The largest volume drift (%) of any frame's own surface from the keyframes' volumes
+    interpolated linearly in time, and the most pieces (connected surfaces) of any frame
+    beyond the more of its two keyframes'."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from keyframe_implicit.core.surface.extract import mesh_volume
+
+    def pieces(v, f):
+        n = len(v)
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+        graph = coo_matrix((np.ones(len(edges)), tuple(edges.T)), shape=(n, n))
+        return connected_components(graph, directed=False)[0] - int(n - len(np.unique(f)))
+
+    vols = np.array([abs(mesh_volume(np.asarray(v, float), np.asarray(f))) for v, f in
+                     anim.surfaces])
+    count = np.array([pieces(np.asarray(v), np.asarray(f)) for v, f in anim.surfaces])
+    frames = np.asarray(anim.frames)
+    at = [int(np.flatnonzero(frames == f)[0]) for f in key_frames]
+    lin = np.interp(frames, key_frames, vols[at])
+    seg = np.clip(np.searchsorted(key_frames, frames, side="right") - 1, 0, len(at) - 2)
+    most = np.maximum(count[np.asarray(at)[seg]], count[np.asarray(at)[seg + 1]])
+    return float(100 * np.abs(vols / lin - 1).max()), int(np.maximum(count - most, 0).max())
 
 
 def _row(label, figures):
@@ -181,6 +253,7 @@ def main():
     ap.add_argument("--resolution", type=int, default=40)
     ap.add_argument("--repeat", type=int, default=3, help="cost runs of each timing")
     ap.add_argument("--skip-splash", action="store_true")
+    ap.add_argument("--plot", help="also draw the paths into this PNG (matplotlib)")
     args = ap.parse_args()
     n = args.resolution
     kfs, feats = ball_arc()
@@ -190,24 +263,40 @@ def main():
     print("| timing, path | turn at the top / elsewhere (deg) | speed ratio at the top / "
           "elsewhere |\n|---|---|---|")
     seconds = {"linear": [], "smooth": []}
+    trails = {}
     for kind in ("linear", "smooth"):
         anim, sec = bake(kfs, feats, n, kind)
         seconds[kind].append(sec)
-        for name, path in paths(anim, kfs, feats).items():
+        named = paths(anim, feats)
+        trails.setdefault("ball on an arc", (anim.frames, keys, {}))[2][kind] = named
+        for name, path in named.items():
             print(_row(f"{kind}, {name}", across_keyframes(path, anim.frames, keys)))
     anim, _ = bake(kfs, feats, n, ["smooth", "ease", "smooth"])
-    centre = paths(anim, kfs, feats)["centre"]
+    centre = paths(anim, feats)["centre"]
     print(f"ease at the top: centre's speed there {100 * speed_at(centre, anim.frames, 13):.1f} "
           "% of its segments' mean")
     for _ in range(args.repeat - 1):
         for kind in ("linear", "smooth"):
             seconds[kind].append(bake(kfs, feats, n, kind)[1])
+    uneven = (1, 5, 25)
+    anim, _ = bake(*ball_arc(uneven), n, "smooth")
+    centre = paths(anim, feats)["centre"]
+    before, after = sided_speeds(centre, anim.frames, uneven[1])
+    print(f"keyframes at {uneven}: speeds either side of the middle one {before:.3f} / "
+          f"{after:.3f} a frame; top {centre[:, 2].max():.4f} (keyframe {ARC[1, 2]}), x "
+          f"increasing every frame: {bool(np.all(np.diff(centre[:, 0]) > 0))}")
     lin, smo = min(seconds["linear"]), min(seconds["smooth"])
     print(f"cost, three keyframes: linear {lin:.2f} s, smooth {smo:.2f} s: {smo / lin:.2f}x "
           f"(smallest of {args.repeat})")
-    if args.skip_splash:
-        return
-    kfs, feats = splash()
+    if not args.skip_splash:
+        splash_figures(n, trails)
+    if args.plot:
+        plot_trails(trails, args.plot)
+
+
+def splash_figures(n, trails):
+    """The splash chain's table, its paths added to ``trails``."""
+    kfs, feats, names = splash()
     keys = [kf.frame for kf in kfs]
     drop = (np.asarray(feats[0][0][4]), 0.5)  # the droplet: its centre feature, radius 0.35
     print(f"\nsplash, {n} cells, keyframes {keys}: per inner keyframe turn at / elsewhere "
@@ -217,8 +306,13 @@ def main():
     print("|---" * (1 + 2 * (len(keys) - 2)) + "|")
     for kind in ("linear", "smooth"):
         anim, _ = bake(kfs, feats, n, kind)
-        for name, path in paths(anim, kfs, feats, droplet=drop).items():
+        named = paths(anim, feats, droplet=drop, names=names)
+        trails.setdefault("splash", (anim.frames, keys, {}))[2][kind] = named
+        for name, path in named.items():
             print(_row(f"{kind}, {name}", across_keyframes(path, anim.frames, keys)))
+        drift, extra = volume_and_pieces(anim, keys)
+        print(f"| {kind}: volume drift of the frames' own surfaces {drift:.2f} %, pieces "
+              f"beyond the keyframes' {extra} |")
 
 
 if __name__ == "__main__":

@@ -160,3 +160,12 @@ def test_bad_interpolation_is_refused_before_any_work():
     with pytest.raises(ValueError, match="bounce"):
         check_key_interpolation(["smooth", "bounce", "linear"], 3)
     assert check_key_interpolation("LINEAR", 2) == ("linear", "linear")
+
+
+def test_a_helper_process_bakes_the_same_smooth_chain(arc):
+    # maps shared with the helper, bends sent with each segment's recipe, frames split
+    kfs, feats = bench.ball_arc()
+    shared = animate(kfs, feats, resolution=RESOLUTION, processes=2, surfaces=False,
+                     coverage=False)
+    alone = arc["smooth"][0]
+    assert np.abs(shared.vertices - alone.vertices).max() <= 1e-4 * alone.grid.spacing

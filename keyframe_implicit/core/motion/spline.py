@@ -25,7 +25,7 @@ the start of segment k (its forward paths'). Per keyframe, by its `KEY_INTERPOLA
   frames (Catmull-Rom with the keyframes' own times). A point four frames from one
   keyframe and twenty from the next passes at its mean speed over the two segments and
   overshoots neither (the parabola's tangent, weighted the other way, throws it forward
-  out of the box: benchmarks/README.md, "Paths through keyframes"). At the first and
+  out of the box: benchmarks/README.md, "Tangents for uneven gaps"). At the first and
   last keyframe, a natural end: the correction's second derivative vanishes there;
 - "linear": each segment keeps its own slope (a corner);
 - "ease": velocity zero, the motion comes to rest on the keyframe.
