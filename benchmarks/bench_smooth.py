@@ -25,8 +25,9 @@ nearest it on the first frame. Per inner keyframe and path:
   side, the larger) as a percentage of the mean speed of its two segments.
 
 Also: the ball with its keyframes at frames 1, 5 and 25 (speeds either side of the middle
-one, whether it rises above the top or runs back); the splash's volume drift and extra
-pieces on its frames' own surfaces; ``--plot PNG`` draws every path and its speed a frame.
+one, whether it rises above the top or runs back); the splash's volume drift, extra
+pieces and changes of topology (Euler characteristic against linear's) on its frames' own
+surfaces; ``--plot PNG`` draws every path and its speed a frame.
 
 Cost: seconds of a whole bake of the ball, "linear" (the code path of a chain without
 bends) against "smooth", the smallest of ``--repeat`` alternating runs.
@@ -216,6 +217,17 @@ def plot_trails(trails, path):
     fig.savefig(path, dpi=80)
 
 
+def euler_characteristics(anim):
+    """V - E + F of every frame's own surface: 2 a closed piece, less a hole through one."""
+    out = []
+    for _, f in anim.surfaces:
+        f = np.asarray(f)
+        edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]),
+                                  axis=1), axis=0)
+        out.append(len(np.unique(f)) - len(edges) + len(f))
+    return np.array(out)
+
+
 def volume_and_pieces(anim, key_frames):
     """The largest volume drift (%) of any frame's own surface from the keyframes' volumes
     interpolated linearly in time, and the most pieces (connected surfaces) of any frame
@@ -304,8 +316,10 @@ def splash_figures(n, trails):
     print("| timing, path | " + " | ".join(f"turn {f}" for f in keys[1:-1]) + " | "
           + " | ".join(f"speed {f}" for f in keys[1:-1]) + " |")
     print("|---" * (1 + 2 * (len(keys) - 2)) + "|")
+    euler = {}
     for kind in ("linear", "smooth"):
         anim, _ = bake(kfs, feats, n, kind)
+        euler[kind] = euler_characteristics(anim)
         named = paths(anim, feats, droplet=drop, names=names)
         trails.setdefault("splash", (anim.frames, keys, {}))[2][kind] = named
         for name, path in named.items():
@@ -313,6 +327,8 @@ def splash_figures(n, trails):
         drift, extra = volume_and_pieces(anim, keys)
         print(f"| {kind}: volume drift of the frames' own surfaces {drift:.2f} %, pieces "
               f"beyond the keyframes' {extra} |")
+    differ = anim.frames[euler["smooth"] != euler["linear"]].tolist()
+    print(f"frames whose own surface's Euler characteristic differs from linear's: {differ}")
 
 
 if __name__ == "__main__":

@@ -9,8 +9,7 @@ from scipy.spatial.transform import Rotation
 from benchmark_modules import load
 from inbetween_cases import l_centroid, l_shape, make_grid
 from keyframe_implicit.core import animate, animate_chain
-from keyframe_implicit.core.motion.spline import (Bend, blend_slopes, blend_weight,
-                                                  check_key_interpolation)
+from keyframe_implicit.core.motion.spline import Bend, check_key_interpolation
 
 bench = load("bench_smooth")
 RESOLUTION = 32
@@ -136,7 +135,7 @@ def test_a_part_turning_faster_stays_rigid_while_its_turn_rate_flows():
             assert fig["speed_ratio"] <= bound
 
 
-def test_bend_and_blend_weight_leave_the_keyframes_where_they_are():
+def test_a_bend_leaves_the_keyframes_where_they_are():
     a0, a1 = np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 2.0, 0.0]])
     bend = Bend(a0, a1)
     assert np.allclose(bend(0.0, [0]), 0) and np.allclose(bend(1.0, [0]), 0)
@@ -145,12 +144,6 @@ def test_bend_and_blend_weight_leave_the_keyframes_where_they_are():
     assert np.allclose(-bend(1 - eps, [0]) / eps, a1, atol=1e-5)
     back = bend.reversed()
     assert np.allclose(back(0.3, [0]), bend(0.7, [0]))
-    for slopes in [(1.0, 1.0), (0.0, 1.5), (0.0, 0.0)]:
-        assert blend_weight(0.0, slopes) == 0.0 and blend_weight(1.0, slopes) == 1.0
-    assert blend_weight(0.3, (1.0, 1.0)) == pytest.approx(0.3)
-    assert blend_slopes(("smooth", "smooth"), 0) == (1.0, 1.0)
-    assert blend_slopes(("smooth", "smooth", "smooth"), 0) == (1.5, 0.0)
-    assert blend_slopes(("linear", "linear", "ease"), 1) == (1.0, 0.0)
 
 
 def test_bad_interpolation_is_refused_before_any_work():

@@ -38,8 +38,8 @@ from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
-from ..motion.spline import (bends_needed, blend_slopes, chain_bends,
-                             check_key_interpolation, velocities_needed)
+from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
+                             velocities_needed)
 
 __all__ = ["animate_chain", "HELPER_PRELOAD"]
 
@@ -257,17 +257,14 @@ class _Inbetweens:
             self._bend_all(helper, rep.sub(0.0, 0.4))
         rep(0.4, "trajectories")
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
-        blend = blend_slopes(self.timing[1], k)
         if self.maps is not None:
             inb = Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
                                      mapped_back=self._back[k], bends=self.bends[k],
-                                     blend=blend, options=self.motion_options,
-                                     motion_grid=self.motion_grid)
+                                     options=self.motion_options, motion_grid=self.motion_grid)
         else:
             res, back, seconds = self._solved.pop(k)
             inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
-                              on_maps=split.start, cancel=cancel, bends=self.bends[k],
-                              blend=blend)
+                              on_maps=split.start, cancel=cancel, bends=self.bends[k])
         rep(0.5, "in-betweens ready")
         return inb
 

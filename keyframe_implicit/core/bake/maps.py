@@ -118,17 +118,17 @@ def solve_fields(phis, grid, motion_grid):
 
 
 def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,
-                cancel=None, bends=None, blend=None):
+                cancel=None, bends=None):
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
     `solver.MapResult`, solved on ``grid`` or on a motion grid (``res.grid``); ``seconds``
-    the time the maps took, for its stats. ``on_maps`` as in `inbetween`; ``bends`` and
-    ``blend`` as in `Inbetween.from_map`."""
+    the time the maps took, for its stats. ``on_maps`` as in `inbetween`; ``bends`` as in
+    `Inbetween.from_map`."""
     st = {"map_seconds": seconds, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
                   components=res.components, options=motion_options,
-                  motion_grid=None if res.grid == grid else res.grid, bends=bends, blend=blend)
+                  motion_grid=None if res.grid == grid else res.grid, bends=bends)
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,

@@ -12,7 +12,8 @@ in the spirit of the warp-and-blend of Cohen-Or, Levin and Solomovici (1998):
     Phi_s(x_A(s)) = Phi(x),   Psi_s(x_B(1 - s)) = Psi(x),
 
 with x_A(t), x_B(t) the node paths of A and B (material a map tears fades on
-the way: `transport.Transport.carry`). Both transported fields are truncated
+the way: `transport.Transport.carry`). In a chain the paths carry its
+`spline.Bend`, so the motion flows through the keyframes (docs/method.md, section 12). Both transported fields are truncated
 at one value w > 0, the smallest value either field has on the border of its
 region (a few cells around the material). Where a transport does not reach
 z, z lies beyond that border of the moved keyframe, so its value is w: "not
@@ -56,7 +57,7 @@ from ..base.sampling import sample
 from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
 from .isovolume import volume_offset
 from .options import MotionOptions
-from .spline import blend_weight, start_velocity
+from .spline import start_velocity
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
@@ -159,7 +160,6 @@ class Inbetween:
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
         self.threads = 2
-        self.blend = (1.0, 1.0)  # end slopes of B's weight in the blend (`spline.blend_weight`)
         self.stats = dict(stats or {})
         self.stats.setdefault("levelset_seconds", 0.0)
         self.stats.setdefault("levelset_calls", 0)
@@ -175,8 +175,8 @@ class Inbetween:
     # ------------------------------------------------------------------
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
-                 components=None, motion_grid=None, bends=None, blend=None, options=None,
-                 stats=None, map_result=None, map_result_back=None, cancel=None, **keywords):
+                 components=None, motion_grid=None, bends=None, options=None, stats=None,
+                 map_result=None, map_result_back=None, cancel=None, **keywords):
         """In-betweens from given maps.
 
         Parameters
@@ -201,9 +201,6 @@ class Inbetween:
             The Hermite corrections of the forward paths (on A's nodes) and the backward
             ones (on B's), on the maps' grid, that carry the velocity through the
             keyframes of a chain (`spline.chain_bends`); None: the straight timing.
-        blend : (float, float), optional
-            The end slopes of the blend's weight (`spline.blend_weight`); None: (1, 1),
-            the weight s.
         options : `options.MotionOptions`, optional
             All settings at once (the bake passes them so); keywords override them.
         stats, map_result, map_result_back : optional
@@ -237,10 +234,9 @@ class Inbetween:
         st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
         out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
                   map_result=map_result, map_result_back=map_result_back)
-        out.blend = (1.0, 1.0) if blend is None else tuple(float(m) for m in blend)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, material=material, components=components,
-            motion_grid=motion_grid, bends=bends, blend=blend, options=options))
+            motion_grid=motion_grid, bends=bends, options=options))
         return out
 
     @property
@@ -294,8 +290,7 @@ class Inbetween:
         return field
 
     def _two_sided(self, s):
-        """(1 - w) Phi_s + w Psi_s (w = `spline.blend_weight`, s unless in a chain), each
-        transport at its truncation where it does not reach."""
+        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach."""
         w = self.outside_value
         if self.threads > 1:
             with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
@@ -307,9 +302,8 @@ class Inbetween:
             psi_s = self.backward.carry(1.0 - s, other=self.forward)
         self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
         field, other = (np.nan_to_num(a, copy=False, nan=w) for a in (phi_s, psi_s))
-        w = blend_weight(s, self.blend)
-        field *= 1.0 - w  # in place: both are grid-sized and this call's own
-        other *= w
+        field *= 1.0 - s  # in place: both are grid-sized and this call's own
+        other *= s
         field += other
         return field
 
@@ -370,7 +364,7 @@ class Inbetween:
         -dx_B/dt at t = 1 - s). Each point gets the value at it of a weighted
         least-squares affine fit of the velocities of its ``neighbours``
         nearest moved nodes (moving least squares, exact for any rigid or
-        affine motion); A's nodes weigh (1 - w), B's w, as in the blend, so
+        affine motion); A's nodes weigh (1 - s), B's s, as in the blend, so
         the velocity hands over from A's motion to B's without a jump.
 
         Parameters
@@ -400,11 +394,10 @@ class Inbetween:
         if p.ndim != 2 or p.shape[1] != d:
             raise ValueError(f"points must have shape (P, {d}), got {p.shape}.")
         h = self.grid.spacing
-        w = blend_weight(s, self.blend)
-        parts = [self.forward.surface_motion(s, near_cells * h, ds) + (1.0 - w,)]
+        parts = [self.forward.surface_motion(s, near_cells * h, ds) + (1.0 - s,)]
         if self.backward is not None:
             pos, vel = self.backward.surface_motion(1.0 - s, near_cells * h, ds)
-            parts.append((pos, -vel, w))
+            parts.append((pos, -vel, s))
         parts = [(pos, vel, np.full(len(pos), wt)) for pos, vel, wt in parts if wt > 0]
         pos, vel, weight = (np.concatenate(a) for a in zip(*parts))
         if p.shape[0] == 0 or pos.shape[0] == 0:

@@ -41,9 +41,8 @@ difference of two turning velocity fields: itself a turn, so rigid to first orde
 
 A point carried forward from keyframe k and the same point carried backward from k + 1
 get the same correction (each reads the other end's at its own position through the
-segment's map), so the two transports of a segment stay on the same curves. Their blend
-moves the surface too, from one transport's to the other's, at the rate of its weight;
-`blend_weight` makes that rate vanish at a keyframe the motion flows through.
+segment's map), so the two transports of a segment stay on the same curves and their
+blend has no seam.
 """
 
 from __future__ import annotations
@@ -53,8 +52,7 @@ import numpy as np
 from ..base.sampling import sample
 
 __all__ = ["Bend", "KEY_INTERPOLATIONS", "check_key_interpolation", "start_velocity",
-           "velocities_needed", "chain_bends", "bends_needed", "blend_slopes",
-           "blend_weight"]
+           "velocities_needed", "chain_bends", "bends_needed"]
 
 #: How the motion passes a keyframe (Blender's F-curve names): continuous velocity, a
 #: corner, or coming to rest.
@@ -85,42 +83,6 @@ def bends_needed(key_interpolation):
     "ease" anywhere (two natural ends bend nothing)."""
     inner = key_interpolation[1:-1]
     return any(v != "linear" for v in inner) or "ease" in key_interpolation
-
-
-def blend_slopes(key_interpolation, k):
-    """The slopes (w'(0), w'(1)) of segment ``k``'s blend weight `blend_weight`: 0 at a
-    keyframe the motion flows through or rests on, 1 at a "linear" one, and at a natural
-    end (3 - the other) / 2, so a segment with no bend keeps w = s."""
-    nk = len(key_interpolation)
-
-    def flows(j):
-        return key_interpolation[j] == "ease" or (key_interpolation[j] == "smooth"
-                                                  and 0 < j < nk - 1)
-
-    def natural(j):
-        return key_interpolation[j] == "smooth" and j in (0, nk - 1)
-
-    m0 = 0.0 if flows(k) else None if natural(k) else 1.0
-    m1 = 0.0 if flows(k + 1) else None if natural(k + 1) else 1.0
-    if m0 is None:
-        m0 = 1.0 if m1 is None else (3.0 - m1) / 2.0
-    if m1 is None:
-        m1 = (3.0 - m0) / 2.0
-    return m0, m1
-
-
-def blend_weight(s, slopes):
-    """The weight w(s) of keyframe B's transport in a segment's blend (docs/method.md,
-    section 8): the cubic from w(0) = 0 to w(1) = 1 with the given end ``slopes``; w = s
-    for slopes (1, 1).
-
-    The blend moves the level set from the forward transport's to the backward one's at
-    a rate w'(s), which the paths' bend does not see; a slope 0 at an inner keyframe
-    makes that rate vanish there on both sides, so the surface's velocity does not jump
-    where the two transports disagree."""
-    s = float(s)
-    m0, m1 = slopes
-    return s * s * (3.0 - 2.0 * s) + m0 * s * (1.0 - s) ** 2 - m1 * s * s * (1.0 - s)
 
 
 class Bend:
