@@ -121,14 +121,20 @@ def start_velocity(paths):
     return (4.0 * x1 - 3.0 * x0 - x2) / (2.0 * _START_STEP)
 
 
+def _sets_velocity(key_interpolation, k):
+    """Whether keyframe ``k`` sets the velocity there: neither "linear" nor a natural end."""
+    kind, last = key_interpolation[k], len(key_interpolation) - 1
+    return kind == "ease" or (kind == "smooth" and 0 < k < last)
+
+
 def velocities_needed(key_interpolation):
     """The paths whose `start_velocity` `chain_bends` reads: (segment, "forward") for the
     segment leaving a keyframe, (segment, "backward") for the one arriving at it, at
-    every keyframe that is neither "linear" nor a natural end."""
+    every keyframe that sets its velocity."""
     nk = len(key_interpolation)
     out = []
-    for k, kind in enumerate(key_interpolation):
-        if kind == "linear" or (kind == "smooth" and (k == 0 or k == nk - 1)):
+    for k in range(nk):
+        if not _sets_velocity(key_interpolation, k):
             continue
         if k > 0:
             out.append((k - 1, "backward"))
@@ -170,12 +176,13 @@ def chain_bends(grid, frames, key_interpolation, forward, backward, velocities):
     # the one arriving at it; None where that segment keeps its slope (or ends naturally)
     depart, reach = [None] * nk, [None] * nk
     for k, kind in enumerate(key_interpolation):
-        if kind == "linear" or (kind == "smooth" and (k == 0 or k == nk - 1)):
+        if not _sets_velocity(key_interpolation, k):
             continue
         if kind == "ease":
             wanted = np.zeros((grid.size, d))
-        else:
-            wanted = (gaps[k - 1] * arriving[k] + gaps[k] * leaving[k]) / (gaps[k - 1] + gaps[k])
+        else:  # each side weighted by its own segment's frames
+            wanted = ((gaps[k - 1] * arriving[k] + gaps[k] * leaving[k])
+                      / (gaps[k - 1] + gaps[k]))
         if k in leaving:
             depart[k] = wanted - leaving[k]
         if k in arriving:
@@ -184,7 +191,8 @@ def chain_bends(grid, frames, key_interpolation, forward, backward, velocities):
     for k in range(nk - 1):
         fw, bw = _read_at(forward[k], grid), _read_at(backward[k], grid)
         a0 = None if depart[k] is None else (depart[k] * gaps[k], bw(depart[k] * gaps[k]))
-        a1 = None if reach[k + 1] is None else (fw(reach[k + 1] * gaps[k]), reach[k + 1] * gaps[k])
+        a1 = None if reach[k + 1] is None else (fw(reach[k + 1] * gaps[k]),
+                                                reach[k + 1] * gaps[k])
         if a0 is None and a1 is None:
             out.append(None)
             continue
