@@ -15,16 +15,28 @@ bench = load("bench_smooth")
 RESOLUTION = 32
 
 
-def _centre(key_interpolation, frames=(1, 13, 25)):
+def _centre(key_interpolation, frames=(1, 13, 25), surfaces=False):
     kfs, feats = bench.ball_arc(frames)
     anim = animate(kfs, feats, resolution=RESOLUTION, key_interpolation=key_interpolation,
-                   surfaces=False, coverage=False)
+                   surfaces=surfaces, coverage=False)
     return anim, bench.material_centroid(anim.vertices, anim.faces)
 
 
 @pytest.fixture(scope="module")
 def arc():
-    return {kind: _centre(kind) for kind in ("linear", "smooth")}
+    return {kind: _centre(kind, surfaces=True) for kind in ("linear", "smooth")}
+
+
+def test_the_motion_blur_velocities_turn_with_the_path(arc):
+    # the mesh sequence's velocities (world units a frame), averaged over each frame's
+    # surface: through the top keyframe they turn a frame's worth, not the corner
+    def turn(kind, a, b):
+        vel = [np.asarray(arc[kind][0].velocities[f - 1], float).mean(axis=0) for f in (a, b)]
+        cos = vel[0] @ vel[1] / np.linalg.norm(vel[0]) / np.linalg.norm(vel[1])
+        return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+    arc_turn = bench.arc_turn_per_frame()
+    assert turn("smooth", 13, 14) <= 2 * arc_turn and turn("smooth", 12, 13) <= 2 * arc_turn
+    assert turn("linear", 13, 14) > 60
 
 
 def test_the_ball_flows_through_the_top_of_its_arc_and_corners_there_when_linear(arc):
