@@ -107,7 +107,8 @@ class BakeJob:
         inp = self.inputs
         return dict(keyframes=inp.keyframes, features=inp.features, resolution=inp.resolution,
                     motion_resolution=inp.motion_resolution, weights=inp.weights,
-                    feature_names=inp.feature_names or None, levelsets=inp.levelsets)
+                    feature_names=inp.feature_names or None, levelsets=inp.levelsets,
+                    key_interpolation=inp.key_interpolation or None)
 
     def _bake(self):
         """The core's `Animation`, from a worker process started here."""

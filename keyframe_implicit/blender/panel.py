@@ -20,13 +20,14 @@ ICON_WIDTH = 20
 
 
 class KFI_UL_keyframes(bpy.types.UIList):
-    """One row per keyframe: its object's name (editable in place) and its frame, compact."""
+    """One row per keyframe: its object's name (editable in place), its frame and its
+    interpolation (an icon, as on an F-curve key), compact."""
 
     bl_idname = "KFI_UL_keyframes"
     NAME_SHARE = 0.72  # the frame number keeps the rest: room for five digits at 291 px
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        """One keyframe: its object's name and its frame."""
+        """One keyframe: its object's name, its frame and its interpolation."""
         if self.layout_type == "GRID":
             layout.label(text=item.object.name if item.object else "?")
             return
@@ -35,7 +36,9 @@ class KFI_UL_keyframes(bpy.types.UIList):
             split.prop(item.object, "name", text="", emboss=False, icon="OUTLINER_OB_MESH")
         else:
             split.label(text="No object", icon="ERROR")
-        split.prop(item, "frame", text="", emboss=False)
+        right = split.row(align=True)
+        right.prop(item, "frame", text="", emboss=False)
+        right.prop(item, "interpolation", text="", icon_only=True, emboss=False)
 
 
 class _Sidebar:

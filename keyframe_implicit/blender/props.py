@@ -42,6 +42,20 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
         description="Mesh object whose (evaluated, world-space) shape is this keyframe",
     )
     frame: IntProperty(name="Frame", default=1, description="Timeline frame of this keyframe")
+    interpolation: EnumProperty(
+        name="Interpolation",
+        items=(
+            ("SMOOTH", "Smooth", "The motion flows through this keyframe without a jump in "
+             "speed or direction (a natural start or end on the first and last keyframe)",
+             "IPO_BEZIER", 0),
+            ("LINEAR", "Linear", "The motion turns a corner here: each side moves at its own "
+             "constant pace", "IPO_LINEAR", 1),
+            ("EASE", "Ease", "The motion slows to rest on this keyframe and starts again "
+             "from rest", "IPO_EASE_IN_OUT", 2),
+        ),
+        default="SMOOTH",
+        description="How the motion passes this keyframe",
+    )
     display_type: StringProperty(
         name="Display As", default="", options={"HIDDEN"},
         description="The object's own viewport display type while the bake shows it as a wireframe",

@@ -128,6 +128,9 @@ class BakeInput:
         Keep every frame's level set (the OpenVDB volume).
     output_mode : str
         The output setting when the bake started.
+    key_interpolation : list of str
+        Per listed keyframe, how the motion passes it, as the core names it ("smooth",
+        "linear", "ease": the list's Interpolation).
     listed_keyframes : list of ListedKeyframe
         The keyframe list as read, for the checks.
     listed_pairs : list of ListedPair
@@ -148,6 +151,7 @@ class BakeInput:
     feature_names: list = field(default_factory=list)
     levelsets: bool = False
     output_mode: str = "AUTO"
+    key_interpolation: list = field(default_factory=list)
     listed_keyframes: list = field(default_factory=list)
     listed_pairs: list = field(default_factory=list)
     scene_frames: tuple = (1, 250)
@@ -447,6 +451,7 @@ def read(scene, depsgraph=None, resolution=0, meshes=True):
         feature_names=[[(p.a.name, p.b.name) for p in seg] for seg in rows],
         levelsets=bool(settings.volume_export),
         output_mode=str(settings.output_mode),
+        key_interpolation=[str(kf.interpolation).lower() for kf in kfs],
         listed_keyframes=[_listed_keyframe(scene, kf, depsgraph) for kf in kfs],
         listed_pairs=[_listed_pair(p, objects) for p in found],
         scene_frames=(int(scene.frame_start), int(scene.frame_end)),

@@ -115,8 +115,10 @@ def test_list_rows_show_names_first_and_compact_frames(scene, kfi):
     assert len(rows) == 2
     for row, (name, frame) in zip(rows, (("merge_A", "1"), ("merge_B", "40"))):
         drawn = [e for e in row if e[0] == "drawn"]
-        # name first, then the frame number alone: no "Object"/"Frame" captions, no index label
-        assert drawn == [("drawn", "", name), ("drawn", "", frame)], row
+        # name first, then the frame number and the interpolation's icon alone: no
+        # "Object"/"Frame" captions, no index label
+        assert drawn == [("drawn", "", name), ("drawn", "", frame),
+                         ("drawn", "", "SMOOTH")], row
         assert not [e for e in row if e[0] == "label"], row
         factor = next(e[1] for e in row if e[0] == "split")
         assert factor >= 0.6  # the name gets most of the row

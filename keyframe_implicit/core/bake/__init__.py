@@ -6,6 +6,6 @@
 ``memory``    the memory model: a request that would not fit is refused first
 ``maps``      `inbetween`: a pair's two maps solved (threads or helper), then its
               in-betweens
-``chain``     `animate_chain`: several keyframes in sequence, segments shared with
-              the helper process
+``chain``     `animate_chain`: several keyframes in sequence, paths bent through the
+              inner keyframes, segments shared with the helper process
 """

@@ -16,13 +16,16 @@ Where topology changes one template cannot stay clean (docs/method.md, section
 vertices for motion blur, and both outputs are measured against it
 (`quality`): the caller picks the output.
 
-The thesis's own limitation remains (its chapter 5): there is no inertial
-term, so velocities jump at every inner keyframe.
+Each segment alone would move every point on a path of its own, its velocity
+jumping at every inner keyframe (the thesis's limitation, its chapter 5). By
+default the paths bend so that it does not (`spline`, docs/method.md, section
+12): every map is solved first, then each segment's paths read its neighbours'.
 """
 
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +38,8 @@ from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
+from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
+                             velocities_needed)
 
 __all__ = ["animate_chain", "HELPER_PRELOAD"]
 
@@ -44,7 +49,8 @@ HELPER_PRELOAD = (__name__,)
 
 def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
                   levelsets=False, template=None, keyframe_meshes=None, processes=1,
-                  helper=None, motion_grid=None, progress=None, cancel=None, **options):
+                  helper=None, motion_grid=None, key_interpolation=None, progress=None,
+                  cancel=None, **options):
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -92,6 +98,12 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     motion_grid : Grid, optional
         The coarser grid the maps and trajectories are solved on (`gridfit.motion_grid`;
         ``maps`` are then given on it); None: on ``grid``.
+    key_interpolation : sequence of str, or str, optional
+        Per keyframe, how the motion passes it (`spline.KEY_INTERPOLATIONS`): "smooth"
+        (default: continuous velocity, natural first and last keyframes), "linear" (each
+        segment on its own, a corner) or "ease" (coming to rest). Where any segment's paths
+        bend (`spline.bends_needed`), every map is solved before the first segment's
+        frames, since a segment's paths read its neighbours' (docs/method.md, section 12).
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
         The fields of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...)
@@ -105,6 +117,7 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     """
     rep = Reporter(progress, cancel)
     phis, frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
+    kinds = check_key_interpolation(key_interpolation, len(phis))
     nk = len(phis)
     t0 = time.perf_counter()
     if template is None:
@@ -115,7 +128,8 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
                              levelsets=levelsets)
     kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, outputs)
     own = helper is None and processes > 1
-    segments = _Inbetweens(phis, grid, features, maps, options, cancel, motion_grid)
+    segments = _Inbetweens(phis, grid, features, maps, options, cancel, motion_grid,
+                           (frames, kinds))
     blas = one_blas_thread()
     try:
         if own:
@@ -177,9 +191,15 @@ def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
 class _Inbetweens:
     """Each segment's `levelset.Inbetween`, as `animate_chain` gets its maps: given
     (``maps``), solved with a helper a window of segments at a time
-    (`maps.solve_maps_shared`), or solved in this process (`maps.pair_inbetweens`)."""
+    (`maps.solve_maps_shared`), or solved in this process (`maps.pair_inbetweens`).
 
-    def __init__(self, phis, grid, features, maps, options, cancel, motion_grid=None):
+    When the paths bend through the keyframes (``timing``: the keyframes' frames and
+    `spline.KEY_INTERPOLATIONS`), every map is solved first, then every segment's `Bend`s
+    made from its neighbours' paths (`spline.chain_bends`), then the segments one by one.
+    """
+
+    def __init__(self, phis, grid, features, maps, options, cancel, motion_grid=None,
+                 timing=None):
         from .maps import solve_fields, stage_options
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
@@ -188,14 +208,18 @@ class _Inbetweens:
         options = {k: v for k, v in options.items() if k != "parallel"}
         self.map_options, self.motion_options = stage_options(options)
         self._solved = {}  # segment -> its maps, solved ahead in a window
+        self.timing = timing
+        self.bends = None if timing is None or not bends_needed(timing[1]) else {}
 
     def make(self, k, helper, split, rep):
         """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
         their recipe is known; progress to 0.5 of ``rep``."""
         from ..motion.levelset import Inbetween
-        from .maps import from_solved, on_solve_grid, pair_inbetweens, solve_maps_shared
+        from .maps import from_solved, pair_inbetweens
 
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
+        if self.bends is not None:
+            return self._make_bent(k, helper, split, rep)
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
                                       options=self.motion_options, motion_grid=self.motion_grid)
@@ -205,18 +229,84 @@ class _Inbetweens:
                                    cancel=cancel, on_maps=split.start,
                                    motion_grid=self.motion_grid)
         if k not in self._solved:
-            window = range(k, min(k + _MAP_WINDOW, len(self.phis) - 1))
-            solve_grid = self.grid if self.motion_grid is None else self.motion_grid
-            self._solved.update(solve_maps_shared(
-                self.solve_phis, solve_grid, self.features, window,
-                self.motion_options.two_sided, helper, rep.sub(0.0, 0.4), cancel,
-                on_solve_grid(self.map_options, self.grid, solve_grid)))
+            self._solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
+                        rep.sub(0.0, 0.4))
         res, back, seconds = self._solved.pop(k)
         rep(0.4, "trajectories")
         inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
                           on_maps=split.start, cancel=cancel)
         rep(0.5, "in-betweens ready")
         return inb
+
+    def _solve(self, window, helper, rep):
+        """The maps of the segments in ``window``, into ``_solved``."""
+        from .maps import on_solve_grid, solve_maps_shared
+
+        solve_grid = self.grid if self.motion_grid is None else self.motion_grid
+        self._solved.update(solve_maps_shared(
+            self.solve_phis, solve_grid, self.features, window, self.motion_options.two_sided,
+            helper, rep, self.cancel, on_solve_grid(self.map_options, self.grid, solve_grid)))
+
+    def _make_bent(self, k, helper, split, rep):
+        """`make` with the paths bent through the keyframes: on the first segment every
+        map and every `Bend` is made (to 0.4 of ``rep``)."""
+        from ..motion.levelset import Inbetween
+        from .maps import from_solved
+
+        if not self.bends:
+            self._bend_all(helper, rep.sub(0.0, 0.4))
+        rep(0.4, "trajectories")
+        a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
+        if self.maps is not None:
+            inb = Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
+                                     mapped_back=self._back[k], bends=self.bends[k],
+                                     options=self.motion_options, motion_grid=self.motion_grid)
+        else:
+            res, back, seconds = self._solved.pop(k)
+            inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
+                              on_maps=split.start, cancel=cancel, bends=self.bends[k])
+        rep(0.5, "in-betweens ready")
+        return inb
+
+    def _bend_all(self, helper, rep):
+        """Every segment's maps (solved or given), the velocities of the paths that meet at
+        the keyframes (`spline.velocities_needed`, two at a time: one per core), and every
+        segment's `Bend`s."""
+        from ..motion.levelset import back_map, path_start_velocity
+
+        nseg = len(self.phis) - 1
+        common = dict(motion_grid=self.motion_grid, options=self.motion_options,
+                      cancel=self.cancel)
+        if self.maps is None:
+            self._solve(range(nseg), helper, rep.sub(0.0, 0.7))
+            solved = [self._solved[k] for k in range(nseg)]
+            forward = [res.mapped for res, _, _ in solved]
+            ends = [dict(material=res.material, components=res.components)
+                    for res, _, _ in solved]
+            back = [None if b is None else b.mapped for _, b, _ in solved]
+        else:
+            forward, ends = list(self.maps), [{} for _ in range(nseg)]
+            back = [None] * nseg
+        for k in range(nseg):  # given maps, or a one-sided solve: B -> A by inversion
+            if back[k] is None:
+                back[k] = back_map(self.phis[k], self.phis[k + 1], self.grid, forward[k],
+                                   **ends[k], **common)
+        self._back = back
+        rep(0.7, "paths through the keyframes")
+
+        def velocity(job):
+            k, side = job
+            if side == "forward":
+                return path_start_velocity(self.phis[k], self.grid, forward[k], **ends[k],
+                                           **common)
+            return path_start_velocity(self.phis[k + 1], self.grid, back[k], **common)
+
+        jobs = velocities_needed(self.timing[1])
+        with ThreadPoolExecutor(max_workers=2) as pool:  # independent: one per core
+            velocities = dict(zip(jobs, pool.map(velocity, jobs)))
+        solve_grid = self.grid if self.motion_grid is None else self.motion_grid
+        self.bends.update(enumerate(chain_bends(solve_grid, *self.timing, forward, back,
+                                                velocities)))
 
 
 class _Kept:

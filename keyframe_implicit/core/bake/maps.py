@@ -118,16 +118,17 @@ def solve_fields(phis, grid, motion_grid):
 
 
 def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,
-                cancel=None):
+                cancel=None, bends=None):
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
     `solver.MapResult`, solved on ``grid`` or on a motion grid (``res.grid``); ``seconds``
-    the time the maps took, for its stats. ``on_maps`` as in `inbetween`."""
+    the time the maps took, for its stats. ``on_maps`` as in `inbetween`; ``bends`` as in
+    `Inbetween.from_map`."""
     st = {"map_seconds": seconds, "map": res.stats}
     if back is not None:
         st["map_back"] = back.stats
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
                   components=res.components, options=motion_options,
-                  motion_grid=None if res.grid == grid else res.grid)
+                  motion_grid=None if res.grid == grid else res.grid, bends=bends)
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,
@@ -181,11 +182,22 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     A -> B), the helper the second. With one segment (`inbetween`'s ``helper``) that is
     one map each.
 
+    Without a helper (None) the segments' maps are solved here, one segment after another
+    (its two maps in two threads, `inbetween`'s ``parallel``).
+
     Returns {segment: (map A -> B, map B -> A or None, seconds)}: a segment's seconds run
     from the end of the one before it (or the window's start) until both its maps are
     solved, so they add up to the window's time.
     """
     t0 = time.perf_counter()
+    if helper is None:
+        out, n = {}, len(window)
+        for i, k in enumerate(window):
+            start = time.perf_counter()
+            res, back = _solve_maps(phis[k], phis[k + 1], grid, *features[k], two_sided, True,
+                                    rep.sub(i / n, (i + 1) / n), cancel, map_options)
+            out[k] = (res, back, time.perf_counter() - start)
+        return out
     jobs = [(k, side) for k in window for side in ((0, 1) if two_sided else (0,))]
     mine = []
 

@@ -148,7 +148,8 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         one ``processes=2`` starts here, whose interpreter then loads while this one
         checks the keyframes (the worker process starts it before reading its inputs).
     **options : passed to `chain.animate_chain` (solver, trajectory and level-set options;
-        ``processes``: 2 shares the bake with a helper process).
+        ``processes``: 2 shares the bake with a helper process; ``key_interpolation``: per
+        keyframe "smooth", "linear" or "ease", how the motion passes it).
 
     Returns
     -------
@@ -165,11 +166,13 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     from ..map import terms
     from .chain import HELPER_PRELOAD, animate_chain
     from ..base.parallel import Helper, one_blas_thread
+    from ..motion.spline import check_key_interpolation
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
     keyframes, features = check_inputs(keyframes, features, feature_names)
     check_motion_resolution(motion_resolution, resolution)
+    check_key_interpolation(options.get("key_interpolation"), len(keyframes))
     opts = dict(options)
     weight_options = {t.name: t.weight_option for t in terms.TERMS}  # "volume" -> volume_weight
     for key, value in (weights or {}).items():

@@ -5,4 +5,6 @@
 ``levelset``    `Inbetween`: the two transports blended (eq. 3.4 read two-sided,
                 docs/method.md, section 8)
 ``isovolume``   the per-frame iso-value that keeps the in-between's volume
+``spline``      a chain's paths bent so the velocity flows through its keyframes
+                (docs/method.md, section 12)
 """

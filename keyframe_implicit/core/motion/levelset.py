@@ -12,7 +12,8 @@ in the spirit of the warp-and-blend of Cohen-Or, Levin and Solomovici (1998):
     Phi_s(x_A(s)) = Phi(x),   Psi_s(x_B(1 - s)) = Psi(x),
 
 with x_A(t), x_B(t) the node paths of A and B (material a map tears fades on
-the way: `transport.Transport.carry`). Both transported fields are truncated
+the way: `transport.Transport.carry`). In a chain the paths carry its
+`spline.Bend`, so the motion flows through the keyframes (docs/method.md, section 12). Both transported fields are truncated
 at one value w > 0, the smallest value either field has on the border of its
 region (a few cells around the material). Where a transport does not reach
 z, z lies beyond that border of the moved keyframe, so its value is w: "not
@@ -56,11 +57,13 @@ from ..base.sampling import sample
 from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
 from .isovolume import volume_offset
 from .options import MotionOptions
+from .spline import start_velocity
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
 
-__all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement"]
+__all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
+           "back_map", "path_start_velocity"]
 
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
@@ -172,8 +175,8 @@ class Inbetween:
     # ------------------------------------------------------------------
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
-                 components=None, motion_grid=None, options=None, stats=None, map_result=None,
-                 map_result_back=None, cancel=None, **keywords):
+                 components=None, motion_grid=None, bends=None, options=None, stats=None,
+                 map_result=None, map_result_back=None, cancel=None, **keywords):
         """In-betweens from given maps.
 
         Parameters
@@ -194,6 +197,10 @@ class Inbetween:
             The coarser grid the maps are given on, covering ``grid``'s box: the
             trajectories are solved there and read at ``grid``'s nodes
             (`finepaths.FinePaths`). None: the maps are on ``grid``.
+        bends : (`spline.Bend`, `spline.Bend` or None), optional
+            The Hermite corrections of the forward paths (on A's nodes) and the backward
+            ones (on B's), on the maps' grid, that carry the velocity through the
+            keyframes of a chain (`spline.chain_bends`); None: the straight timing.
         options : `options.MotionOptions`, optional
             All settings at once (the bake passes them so); keywords override them.
         stats, map_result, map_result_back : optional
@@ -223,13 +230,13 @@ class Inbetween:
         if material is None:
             material = paths.on_motion(phi_a) < 0
         forward, backward = _transports(phi_a, phi_b, paths, mapped, mapped_back, material,
-                                        components, options, cancel)
+                                        components, options, cancel, bends or (None, None))
         st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
         out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
                   map_result=map_result, map_result_back=map_result_back)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, material=material, components=components,
-            motion_grid=motion_grid, options=options))
+            motion_grid=motion_grid, bends=bends, options=options))
         return out
 
     @property
@@ -419,16 +426,23 @@ class _Paths:
             return field
         return on_motion_grid(field, self.grid, self.motion_grid)
 
-    def __call__(self, field, mapped, material, components=None):
+    def __call__(self, field, mapped, material, components=None, bend=None):
         """The paths of the keyframe whose surface-grid field is ``field``, along ``mapped``
-        (``material``, ``components`` on the maps' grid)."""
+        (``material``, ``components`` and the ``bend`` on the maps' grid)."""
+        solved = self.solved(field, mapped, material, components)
+        solved.bend = bend
+        if self.motion_grid is None:
+            return solved
+        return FinePaths(self.grid, solved, field < 0, self.keywords["margin_cells"])
+
+    def solved(self, field, mapped, material, components=None):
+        """The as-rigid-as-possible paths on the maps' grid (`trajectory.Trajectories`)."""
         if self.motion_grid is None:
             return Trajectories(self.grid, mapped, material, components, **self.keywords)
         mass = material_mass(field < 0, self.grid, self.motion_grid)
         kw = dict(self.keywords, margin_cells=same_width(self.keywords["margin_cells"],
                                                          self.grid, self.motion_grid))
-        coarse = Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
-        return FinePaths(self.grid, coarse, field < 0, self.keywords["margin_cells"])
+        return Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
 
     def back_map(self, forward):
         """The map B -> A as the inverse of ``forward``'s, on the maps' grid."""
@@ -439,29 +453,62 @@ class _Paths:
         return points + sample(inverse - self.grid.points(), self.grid, points)
 
 
-def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel):
+def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel,
+                bends):
     """The forward transport of A's field along the map A -> B, and (two-sided) the backward
     one of B's field along B -> A (`invert_map` of the forward one when not given), both
-    truncated at one value so that the far field is one value."""
+    truncated at one value so that the far field is one value; their paths bent by
+    ``bends`` (forward, backward)."""
     lookup = dict(options.lookup_keywords(), cancel=cancel)
 
-    def carried(field, y, mat, comps=None):
-        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps), **lookup)
+    def carried(field, y, mat, comps=None, bend=None):
+        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps, bend),
+                         **lookup)
 
     backward = None
     if options.two_sided and mapped_back is not None:
         with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
-            back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0)
-            forward = carried(phi_a, mapped, material, components)
+            back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0,
+                               None, bends[1])
+            forward = carried(phi_a, mapped, material, components, bends[0])
             backward = back.result()
     else:
-        forward = carried(phi_a, mapped, material, components)
+        forward = carried(phi_a, mapped, material, components, bends[0])
         if options.two_sided:
-            backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0)
+            backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0,
+                               None, bends[1])
     if backward is not None:
         w = min(forward.border_value, backward.border_value)
         forward.truncation = backward.truncation = w
     return forward, backward
+
+
+def back_map(phi_a, phi_b, grid, mapped, *, material=None, components=None, motion_grid=None,
+             options=None, cancel=None):
+    """The map B -> A of a segment given only its map A -> B: `invert_map` of the forward
+    paths, on the maps' grid (as `Inbetween.from_map` makes it when not given)."""
+    options = options or MotionOptions()
+    paths = _Paths(grid, motion_grid, options, cancel)
+    if material is None:
+        material = paths.on_motion(phi_a) < 0
+    forward, _ = _transports(phi_a, phi_b, paths, np.asarray(mapped, dtype=float), None,
+                             material, components,
+                             dataclasses.replace(options, transport="one-sided"), cancel,
+                             (None, None))
+    return paths.back_map(forward)
+
+
+def path_start_velocity(field, grid, mapped, *, material=None, components=None,
+                        motion_grid=None, options=None, cancel=None):
+    """The velocity (per unit s) as they leave their keyframe of the paths a segment's
+    transport of ``field`` follows along ``mapped`` (``material``, ``components`` on the
+    maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them, on the
+    maps' grid: (size, d), for `spline.chain_bends`."""
+    paths = _Paths(grid, motion_grid, options or MotionOptions(), cancel)
+    if material is None:
+        material = paths.on_motion(field) < 0
+    return start_velocity(paths.solved(field, np.asarray(mapped, dtype=float), material,
+                                       components))
 
 
 def _from_recipe(args, kwargs):

@@ -32,6 +32,10 @@ angles in [0, pi]: near half turns neighbouring cells may pick opposite axes
 (a limit of per-element log maps; keyframes turned more than ~170 degrees
 apart need an inner keyframe).
 
+In a chain, a `spline.Bend` set on the paths (``bend``) adds a cubic correction that is
+zero at s = 0 and 1, so the velocity flows through the keyframes (docs/method.md,
+section 12); the construction above is unchanged.
+
 Rigid maps are reproduced exactly (F_c = R, S = I: Y(s) is the rotation by s of
 the whole body about its centroid); articulated maps keep each part rigid and
 the parts joined, because every edge is shared by neighbouring cells.
@@ -276,6 +280,7 @@ class Trajectories:
         self.material = mat
         self._mass = mat if mass is None else np.asarray(mass, dtype=float)
         self.stats = {"method": method}
+        self.bend = None  # a `spline.Bend` of the paths through keyframes, or None
         self._cache = {}  # positions of the active nodes at the last few times s
 
         # Per grid node only what every node needs (the map, the region, the body); the
@@ -506,13 +511,21 @@ class Trajectories:
         return self._cache[key]
 
     def node_positions(self, s, nodes):
-        """Positions x(s) of the grid nodes with the given flat indices, (len(nodes), d)."""
+        """Positions x(s) of the grid nodes with the given flat indices, (len(nodes), d):
+        the as-rigid-as-possible paths, plus the ``bend`` when one is set."""
         s = self._check_s(s)
         nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
         if s == 0.0:
             return self.grid.node_points(nodes)
         if s == 1.0:
             return self._y[nodes].copy()
+        out = self._arap_positions(s, nodes)
+        if self.bend is not None:
+            out += self.bend(s, nodes)
+        return out
+
+    def _arap_positions(self, s, nodes):
+        """`node_positions` without the bend, for 0 < s < 1."""
         if self.method == "local":
             xb, yb, R, rv = (a[nodes] for a in self._ext)
             return self._formula(s, self.grid.node_points(nodes), self._y[nodes], xb, yb,

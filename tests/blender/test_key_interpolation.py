@@ -1,0 +1,64 @@
+"""Each keyframe's Interpolation (Smooth, Linear, Ease): stored per keyframe, read by the
+bake and passed to the core, shown in the keyframe list."""
+
+import bpy
+import numpy as np
+
+from keyframe_implicit.blender import bake
+
+THREE = [("K0", (0.0, 0.0, 0.0), 1.0, 1), ("K1", (1.2, 0.0, 1.2), 1.0, 7),
+         ("K2", (2.4, 0.0, 0.0), 1.0, 13)]
+
+
+def _read(scene, kfi):
+    return bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES)
+
+
+def test_the_interpolation_is_stored_per_keyframe_and_read_by_the_bake(scene, kfi):
+    kfi.build_spheres(THREE)
+    items = scene.keyframe_implicit.keyframes
+    assert [kf.interpolation for kf in items] == ["SMOOTH"] * 3
+    items[1].interpolation = "EASE"
+    items[2].interpolation = "LINEAR"
+    assert [kf.interpolation for kf in items] == ["SMOOTH", "EASE", "LINEAR"]
+    inputs = _read(scene, kfi)
+    assert inputs.key_interpolation == ["smooth", "ease", "linear"]
+    assert bake.BakeJob(inputs)._arguments()["key_interpolation"] == ["smooth", "ease", "linear"]
+
+
+def _step_at_the_middle_keyframe(scene, kfi, kind):
+    """The baked mesh's centre: its step into the middle keyframe's frame over its mean step."""
+    scene.keyframe_implicit.keyframes[1].interpolation = kind
+    job = bake.BakeJob(_read(scene, kfi))
+    job.run()
+    assert job.state == bake.DONE, job.error_message()
+    centre = np.asarray(job.result.vertices, dtype=float).mean(axis=1)
+    steps = np.linalg.norm(np.diff(centre, axis=0), axis=1)
+    return steps[5] / steps.mean()  # frame 6 -> 7
+
+
+def test_an_eased_keyframe_is_where_the_baked_motion_slows_down(scene, kfi):
+    kfi.build_spheres(THREE)
+    linear = _step_at_the_middle_keyframe(scene, kfi, "LINEAR")
+    eased = _step_at_the_middle_keyframe(scene, kfi, "EASE")
+    assert linear > 0.9 and eased < 0.6, (linear, eased)
+
+
+def test_the_list_shows_each_keyframes_interpolation(scene, kfi):
+    from test_panel import draw_all
+
+    kfi.build_spheres(THREE, pairs=False)
+    scene.keyframe_implicit.keyframes[1].interpolation = "EASE"
+    log = draw_all(bpy.context)
+    rows, current = [], None
+    for entry in log:
+        if entry[0] == "list_row":
+            current = []
+            rows.append(current)
+        elif entry[0] == "template_list":
+            current = None
+        elif current is not None:
+            current.append(entry)
+    shown = [[e[2] for e in row if e[0] == "drawn"][-1] for row in rows]
+    assert shown == ["SMOOTH", "EASE", "SMOOTH"]
+    assert all(("prop", "interpolation") in row for row in rows)
