@@ -1,0 +1,166 @@
+"""The volume each part of an in-between should have, from where its material comes.
+
+The first term of eq. 2.6 asks det F = 1 in every cell: each piece of material
+keeps its volume wherever it goes. One iso-value per frame (`isovolume`) holds
+only the total, and hides where the volume goes: in a merge of two unequal balls
+the small one grew while the big one shrank, before they touched. So each
+connected part p of the in-between at time s gets the volume of the material
+that arrives in it,
+
+    V_p(s) = (1 - s) sum_i V_A,i a_ip(s) + s sum_j V_B,j b_jp(1 - s),
+
+V_A,i the volume of keyframe A's part i and a_ip(s) the share of its material
+that A's paths carry into p by time s (B's parts likewise, along B's paths run
+backward). Material that arrives in no part (torn material fading on the way)
+is left out of the shares, so its part's volume goes where the rest of that part
+arrives; while parts are apart each keeps its own volume, and once they meet
+their volumes add up. docs/method.md, section 12.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from ..base.grid import Grid
+from ..surface.extract import enclosed_volume
+
+__all__ = ["Parts", "part_labels", "part_volumes", "sub_grid"]
+
+_SAMPLED_NODES = 200_000  # material nodes followed per keyframe (every k-th beyond that)
+
+
+def part_labels(field):
+    """Connected parts of the material ``field < 0`` (faces connect nodes): (labels, count),
+    labels 0 outside, 1..count inside (`scipy.ndimage.label`)."""
+    return ndimage.label(field < 0)
+
+
+def sub_grid(grid: Grid, box):
+    """The part of ``grid`` that a tuple of slices ``box`` cuts out, as a Grid of its own."""
+    start = np.array([b.start for b in box])
+    shape = tuple(b.stop - b.start for b in box)
+    return Grid(origin=tuple(grid.origin + start * grid.spacing), spacing=grid.spacing,
+                shape=shape)
+
+
+def _padded(box, pad, shape):
+    return tuple(slice(max(b.start - pad, 0), min(b.stop + pad, n)) for b, n in zip(box, shape))
+
+
+def part_volumes(field, grid: Grid, labels, count):
+    """Volume of each labelled part's own surface, (count,) world units.
+
+    Part k's volume is that of the surface marching cubes gives its field with every
+    other part turned inside out, cut to its box and one cell more (`enclosed_volume`):
+    the same measure as the whole in-between's, part by part.
+    """
+    out = np.zeros(count)
+    for k, box in enumerate(ndimage.find_objects(labels, max_label=count)):
+        if box is None:
+            continue
+        box = _padded(box, 2, grid.shape)
+        f, lab = field[box], labels[box]
+        own = np.where((lab == k + 1) | (lab == 0), f, np.abs(f))
+        out[k] = enclosed_volume(own, sub_grid(grid, box))
+    return out
+
+
+class _Source:
+    """A keyframe's parts, their volumes and a sample of their material nodes, each node
+    weighing its part's volume over the part's sampled nodes."""
+
+    def __init__(self, field, grid, paths):
+        labels, count = part_labels(field)
+        self.grid, self.paths, self.count = grid, paths, count
+        nodes = np.flatnonzero(labels.reshape(-1))
+        self.nodes = nodes[::max(1, -(-len(nodes) // _SAMPLED_NODES))]
+        self.part = labels.reshape(-1)[self.nodes] - 1
+        volume = part_volumes(field, grid, labels, count)
+        self.weight = (volume / np.bincount(self.part, minlength=count))[self.part]
+
+    def partners(self, other):
+        """The part of ``other`` (the other keyframe) each sampled node's path ends in at
+        t = 1: the part of the nearest of ``other``'s sampled nodes."""
+        ends = self.paths.node_positions(1.0, self.nodes)
+        _, nearest = cKDTree(self.grid.node_points(other.nodes)).query(ends, workers=-1)
+        return other.part[nearest]
+
+    def arrivals(self, atom, atoms, labels, count, t):
+        """Share of each atom's sampled nodes (on this side) that arrive in each of the
+        ``count`` parts ``labels`` marks when the paths are at time t: (atoms, count);
+        nodes arriving in no part are left out, so each row sums to 1 or is 0."""
+        pos = self.paths.node_positions(t, self.nodes)
+        idx = np.rint(self.grid.to_index(pos)).astype(np.int64)
+        inside = np.all((idx >= 0) & (idx < np.asarray(self.grid.shape)), axis=1)
+        at = np.zeros(len(idx), np.int64)
+        at[inside] = labels[tuple(idx[inside].T)]
+        counts = np.bincount(atom * (count + 1) + at, minlength=atoms * (count + 1))
+        arrived = counts.reshape(atoms, count + 1)[:, 1:].astype(float)
+        total = arrived.sum(axis=1, keepdims=True)
+        return np.divide(arrived, total, out=np.zeros_like(arrived), where=total > 0)
+
+
+class Parts:
+    """Where the two keyframes' parts go: the volume each part of an in-between should have.
+
+    The material is cut into atoms, one per (part i of A, part j of B) that the maps
+    join. Atom ij is the share mu_ij of the material that A's part i and B's part j have
+    in common: of A's volume V_A on A's side, of V_B on B's. At time s it wants
+    mu_ij ((1 - s) V_A + s V_B), handed to the in-between's parts its material arrives
+    in, A's side along A's paths and B's along B's.
+
+    The shares are fitted to both keyframes' own part volumes: each row i sums to
+    V_A,i / V_A and each column j to V_B,j / V_B (iterative proportional fitting, from
+    the two maps' own estimates of them). Where the atoms form a tree (merges, splits,
+    parts that stay themselves) these sums decide the shares alone, so a map that tears
+    a part, and stretches on the way, cannot misplace its volume: in a merge each ball
+    keeps its own volume whatever the torn backward map says.
+
+    Parameters
+    ----------
+    grid : Grid
+    phi_a, phi_b : ndarray, grid.shape
+        The keyframes' fields.
+    paths_a, paths_b : paths with ``node_positions(t, nodes)``
+        A's paths (A -> B) and B's (B -> A): `trajectory.Trajectories` or
+        `finepaths.FinePaths`.
+    """
+
+    def __init__(self, grid, phi_a, phi_b, paths_a, paths_b):
+        self.a = _Source(phi_a, grid, paths_a)
+        self.b = _Source(phi_b, grid, paths_b)
+        self.atoms = self.a.count * self.b.count
+        self.atom_a = self.a.part * self.b.count + self.a.partners(self.b)
+        self.atom_b = self.b.partners(self.a) * self.b.count + self.b.part
+        self.volumes = (self.a.weight.sum(), self.b.weight.sum())
+        self.share = _fitted_shares(
+            np.bincount(self.atom_a, self.a.weight, minlength=self.atoms) / self.volumes[0],
+            np.bincount(self.atom_b, self.b.weight, minlength=self.atoms) / self.volumes[1],
+            (self.a.count, self.b.count))
+
+    def targets(self, labels, count, s):
+        """V_p(s) of each of the ``count`` parts ``labels`` marks (the in-between's own
+        parts at time s, `part_labels`): (count,) world units; 0 for a part no material
+        arrives in."""
+        share_a = self.a.arrivals(self.atom_a, self.atoms, labels, count, s)
+        share_b = self.b.arrivals(self.atom_b, self.atoms, labels, count, 1.0 - s)
+        va, vb = self.volumes
+        return (1.0 - s) * va * self.share @ share_a + s * vb * self.share @ share_b
+
+
+def _fitted_shares(from_a, from_b, counts, sweeps=200):
+    """Atom shares (atoms,) with row sums those of ``from_a`` (A's part fractions) and
+    column sums those of ``from_b`` (B's), on the atoms either map joins, starting from
+    their mean (iterative proportional fitting; exact in one sweep on a tree)."""
+    shape = counts
+    a, b = from_a.reshape(shape), from_b.reshape(shape)
+    rows, cols = a.sum(axis=1, keepdims=True), b.sum(axis=0, keepdims=True)
+    mu = 0.5 * (a + b)
+    for _ in range(sweeps):
+        mu *= np.divide(rows, mu.sum(axis=1, keepdims=True), out=np.zeros_like(rows),
+                        where=mu.sum(axis=1, keepdims=True) > 0)
+        mu *= np.divide(cols, mu.sum(axis=0, keepdims=True), out=np.zeros_like(cols),
+                        where=mu.sum(axis=0, keepdims=True) > 0)
+    return mu.reshape(-1)
