@@ -313,7 +313,7 @@ class Inbetween:
         va, vb = self._end_volumes
         c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
         field -= c  # the blend's own array
-        labels, count = part_labels(field)
+        labels, count = part_labels(field) if self.options.volume_per_part else (None, 1)
         if count > 1:
             if self._parts is None:
                 self._parts = Parts(self.grid, self.phi_a, self.phi_b,
