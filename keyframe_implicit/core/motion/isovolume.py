@@ -26,9 +26,9 @@ from skimage.segmentation import expand_labels
 
 from ..base.grid import Grid
 from ..surface.extract import enclosed_volume
-from .parts import sub_grid
+from .components import sub_grid
 
-__all__ = ["volume_offset", "part_offsets"]
+__all__ = ["volume_offset", "component_offsets"]
 
 _CHUNK = 1 << 18  # nodes per gradient chunk (bounds the index temporaries)
 
@@ -104,15 +104,15 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     return float(c), float(err)
 
 
-def part_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **keywords):
-    """Shift each labelled part of ``field`` by its own iso-value, in place, so that its
-    volume is its target (`parts.Parts.targets`).
+def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **keywords):
+    """Shift each labelled component of ``field`` by its own iso-value, in place, so that its
+    volume is its target (`components.ComponentVolumes.targets`).
 
-    Every node within ``max_cells + 2`` cells of some part (the reach of `volume_offset`)
-    belongs to the nearest part (`skimage.segmentation.expand_labels`) and is shifted by
-    that part's iso-value c_p; nodes farther from every part are outside at any such
-    shift and keep their value. c changes only between two parts, where the field is
-    outside by half their gap. A part with no target (no material arrives in it) keeps
+    Every node within ``max_cells + 2`` cells of some component (the reach of `volume_offset`)
+    belongs to the nearest component (`skimage.segmentation.expand_labels`) and is shifted by
+    that component's iso-value c_p; nodes farther from every component are outside at any such
+    shift and keep their value. c changes only between two components, where the field is
+    outside by half their gap. A component with no target (no material arrives in it) keeps
     c = 0.
 
     Parameters
@@ -120,18 +120,18 @@ def part_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **keyword
     field : ndarray, grid.shape
         Modified in place.
     labels : int ndarray, grid.shape
-        The parts of ``field < 0`` (`parts.part_labels`), 1..len(targets).
+        The components of ``field < 0`` (`components.component_labels`), 1..len(targets).
     targets : (P,) array
-        Volume wanted of each part, world units.
+        Volume wanted of each component, world units.
     max_cells, **keywords
-        As `volume_offset`, per part.
+        As `volume_offset`, per component.
 
     Returns
     -------
     c : (P,) array
-        Each part's iso-value, world units.
+        Each component's iso-value, world units.
     error : (P,) array
-        Each part's relative volume error left (NaN for a part with no target).
+        Each component's relative volume error left (NaN for a component with no target).
     """
     reach = int(np.ceil(max_cells)) + 2
     whole = ndimage.find_objects((labels > 0).astype(np.int8))[0]
@@ -141,14 +141,14 @@ def part_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **keyword
     plateau = float(field.max())
     local = field[box]  # a view: shifting it shifts ``field``
     c, err = np.zeros(len(targets)), np.full(len(targets), np.nan)
-    for k, part in enumerate(ndimage.find_objects(near, max_label=len(targets))):
-        if part is None or targets[k] <= 0:
+    for k, component in enumerate(ndimage.find_objects(near, max_label=len(targets))):
+        if component is None or targets[k] <= 0:
             continue
-        part = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
-                     for b, n in zip(part, near.shape))
-        others = labels[box][part]
-        own = np.where((others > 0) & (others != k + 1), plateau, local[part])
-        origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, part))
+        component = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
+                     for b, n in zip(component, near.shape))
+        others = labels[box][component]
+        own = np.where((others > 0) & (others != k + 1), plateau, local[component])
+        origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, component))
         c[k], err[k] = volume_offset(own, sub_grid(grid, origin), targets[k],
                                      max_cells=max_cells, **keywords)
         local[near == k + 1] -= c[k]

@@ -54,9 +54,9 @@ from ..base.elements import inverse
 from ..base.grid import Grid
 from ..base.sampling import sample
 from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
-from .isovolume import part_offsets, volume_offset
+from .isovolume import component_offsets, volume_offset
 from .options import MotionOptions
-from .parts import Parts, part_labels
+from .components import ComponentVolumes, component_labels
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
@@ -304,21 +304,21 @@ class Inbetween:
 
     def _keep_volume(self, field, s):
         """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,
-        where the shifted in-between has several parts, each part by its own iso-value
-        that gives it the volume of the material arriving in it (`parts`,
-        `isovolume.part_offsets`)."""
+        where the shifted in-between has several components, each component by its own iso-value
+        that gives it the volume of the material arriving in it (`components`,
+        `isovolume.component_offsets`)."""
         if self._end_volumes is None:
             self._end_volumes = (enclosed_volume(self.phi_a, self.grid),
                                  enclosed_volume(self.phi_b, self.grid))
         va, vb = self._end_volumes
         c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
         field -= c  # the blend's own array
-        labels, count = part_labels(field) if self.options.volume_per_part else (None, 1)
+        labels, count = component_labels(field) if self.options.volume_per_component else (None, 1)
         if count > 1:
             if self._parts is None:
-                self._parts = Parts(self.grid, self.phi_a, self.phi_b,
+                self._parts = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
                                     self.forward.trajectories, self.backward.trajectories)
-            own, errors = part_offsets(field, self.grid, labels,
+            own, errors = component_offsets(field, self.grid, labels,
                                        self._parts.targets(labels, count, s))
             c += own[np.argmax(np.abs(own))]
             err = float(np.nanmax(np.abs(errors), initial=0.0))

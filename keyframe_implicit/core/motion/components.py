@@ -1,20 +1,14 @@
-"""The volume each part of an in-between should have, from where its material comes.
+"""The volume each component of an in-between should have, from where its material comes.
 
-The first term of eq. 2.6 asks det F = 1 in every cell: each piece of material
-keeps its volume wherever it goes. One iso-value per frame (`isovolume`) holds
-only the total, and hides where the volume goes: in a merge of two unequal balls
-the small one grew while the big one shrank, before they touched. So each
-connected part p of the in-between at time s gets the volume of the material
-that arrives in it,
-
-    V_p(s) = (1 - s) sum_i V_A,i a_ip(s) + s sum_j V_B,j b_jp(1 - s),
-
-V_A,i the volume of keyframe A's part i and a_ip(s) the share of its material
-that A's paths carry into p by time s (B's parts likewise, along B's paths run
-backward). Material that arrives in no part (torn material fading on the way)
-is left out of the shares, so its part's volume goes where the rest of that part
-arrives; while parts are apart each keeps its own volume, and once they meet
-their volumes add up. docs/method.md, section 12.
+The first term of eq. 2.6 asks det F = 1 in every cell: each piece of material keeps
+its volume wherever it goes. One iso-value per frame (`isovolume.volume_offset`) holds
+only the total: in a merge of two unequal balls the small one grew while the big one
+shrank, before they touched. Here the material is cut into atoms, one per pair of
+components (i of keyframe A, j of B) that the maps join, each with its share of the
+material fitted to both keyframes' own component volumes (`ComponentVolumes`). At time
+s each connected component p of the in-between wants the volume of the atoms whose
+material arrives in it, A's along A's paths and B's along B's; `isovolume.
+component_offsets` then gives each its own iso-value. docs/method.md, section 12.
 """
 
 from __future__ import annotations
@@ -26,19 +20,19 @@ from scipy.spatial import cKDTree
 from ..base.grid import Grid
 from ..surface.extract import enclosed_volume
 
-__all__ = ["Parts", "part_labels", "part_volumes", "sub_grid"]
+__all__ = ["ComponentVolumes", "component_labels", "component_volumes", "sub_grid"]
 
 _SAMPLED_NODES = 200_000  # material nodes followed per keyframe (every k-th beyond that)
 
 
-def part_labels(field):
-    """Connected parts of the material ``field < 0`` (faces connect nodes): (labels, count),
+def component_labels(field):
+    """Connected components of the material ``field < 0`` (faces connect nodes): (labels, count),
     labels 0 outside, 1..count inside (`scipy.ndimage.label`)."""
     return ndimage.label(field < 0)
 
 
 def sub_grid(grid: Grid, box):
-    """The part of ``grid`` that a tuple of slices ``box`` cuts out, as a Grid of its own."""
+    """The component of ``grid`` that a tuple of slices ``box`` cuts out, as a Grid of its own."""
     start = np.array([b.start for b in box])
     shape = tuple(b.stop - b.start for b in box)
     return Grid(origin=tuple(grid.origin + start * grid.spacing), spacing=grid.spacing,
@@ -49,12 +43,12 @@ def _padded(box, pad, shape):
     return tuple(slice(max(b.start - pad, 0), min(b.stop + pad, n)) for b, n in zip(box, shape))
 
 
-def part_volumes(field, grid: Grid, labels, count):
-    """Volume of each labelled part's own surface, (count,) world units.
+def component_volumes(field, grid: Grid, labels, count):
+    """Volume of each labelled component's own surface, (count,) world units.
 
-    Part k's volume is that of the surface marching cubes gives its field with every
-    other part turned inside out, cut to its box and one cell more (`enclosed_volume`):
-    the same measure as the whole in-between's, part by part.
+    Component k's volume is that of the surface marching cubes gives its field with every
+    other component turned inside out, cut to its box and one cell more (`enclosed_volume`):
+    the same measure as the whole in-between's, component by component.
     """
     out = np.zeros(count)
     for k, box in enumerate(ndimage.find_objects(labels, max_label=count)):
@@ -68,29 +62,29 @@ def part_volumes(field, grid: Grid, labels, count):
 
 
 class _Source:
-    """A keyframe's parts, their volumes and a sample of their material nodes, each node
-    weighing its part's volume over the part's sampled nodes."""
+    """A keyframe's components, their volumes and a sample of their material nodes, each
+    node weighing its component's volume over that component's sampled nodes."""
 
     def __init__(self, field, grid, paths):
-        labels, count = part_labels(field)
+        labels, count = component_labels(field)
         self.grid, self.paths, self.count = grid, paths, count
         nodes = np.flatnonzero(labels.reshape(-1))
         self.nodes = nodes[::max(1, -(-len(nodes) // _SAMPLED_NODES))]
-        self.part = labels.reshape(-1)[self.nodes] - 1
-        volume = part_volumes(field, grid, labels, count)
-        self.weight = (volume / np.bincount(self.part, minlength=count))[self.part]
+        self.component = labels.reshape(-1)[self.nodes] - 1
+        volume = component_volumes(field, grid, labels, count)
+        self.weight = (volume / np.bincount(self.component, minlength=count))[self.component]
 
     def partners(self, other):
-        """The part of ``other`` (the other keyframe) each sampled node's path ends in at
-        t = 1: the part of the nearest of ``other``'s sampled nodes."""
+        """The component of ``other`` (the other keyframe) each sampled node's path ends in
+        at t = 1: the component of the nearest of ``other``'s sampled nodes."""
         ends = self.paths.node_positions(1.0, self.nodes)
         _, nearest = cKDTree(self.grid.node_points(other.nodes)).query(ends, workers=-1)
-        return other.part[nearest]
+        return other.component[nearest]
 
     def arrivals(self, atom, atoms, labels, count, t):
         """Share of each atom's sampled nodes (on this side) that arrive in each of the
-        ``count`` parts ``labels`` marks when the paths are at time t: (atoms, count);
-        nodes arriving in no part are left out, so each row sums to 1 or is 0."""
+        ``count`` components ``labels`` marks when the paths are at time t: (atoms, count);
+        nodes arriving in no component are left out, so each row sums to 1 or is 0."""
         pos = self.paths.node_positions(t, self.nodes)
         idx = np.rint(self.grid.to_index(pos)).astype(np.int64)
         inside = np.all((idx >= 0) & (idx < np.asarray(self.grid.shape)), axis=1)
@@ -102,21 +96,22 @@ class _Source:
         return np.divide(arrived, total, out=np.zeros_like(arrived), where=total > 0)
 
 
-class Parts:
-    """Where the two keyframes' parts go: the volume each part of an in-between should have.
+class ComponentVolumes:
+    """Where the two keyframes' components go: the volume each component of an in-between
+    should have.
 
-    The material is cut into atoms, one per (part i of A, part j of B) that the maps
-    join. Atom ij is the share mu_ij of the material that A's part i and B's part j have
-    in common: of A's volume V_A on A's side, of V_B on B's. At time s it wants
-    mu_ij ((1 - s) V_A + s V_B), handed to the in-between's parts its material arrives
-    in, A's side along A's paths and B's along B's.
+    The material is cut into atoms, one per (component i of A, component j of B) that
+    the maps join. Atom ij is the share mu_ij of the material that A's component i and
+    B's component j have in common: of A's volume V_A on A's side, of V_B on B's. At
+    time s it wants mu_ij ((1 - s) V_A + s V_B), handed to the in-between's components
+    its material arrives in, A's side along A's paths and B's along B's.
 
-    The shares are fitted to both keyframes' own part volumes: each row i sums to
+    The shares are fitted to both keyframes' own component volumes: each row i sums to
     V_A,i / V_A and each column j to V_B,j / V_B (iterative proportional fitting, from
-    the two maps' own estimates of them). Where the atoms form a tree (merges, splits,
-    parts that stay themselves) these sums decide the shares alone, so a map that tears
-    a part, and stretches on the way, cannot misplace its volume: in a merge each ball
-    keeps its own volume whatever the torn backward map says.
+    the two maps' own estimates). Where the atoms form a tree (merges, splits,
+    components that stay themselves) these sums alone decide the shares, so a map that
+    tears a component, and stretches on the way, cannot misplace its volume: in a merge
+    each ball keeps its own volume whatever the torn backward map says.
 
     Parameters
     ----------
@@ -132,8 +127,8 @@ class Parts:
         self.a = _Source(phi_a, grid, paths_a)
         self.b = _Source(phi_b, grid, paths_b)
         self.atoms = self.a.count * self.b.count
-        self.atom_a = self.a.part * self.b.count + self.a.partners(self.b)
-        self.atom_b = self.b.partners(self.a) * self.b.count + self.b.part
+        self.atom_a = self.a.component * self.b.count + self.a.partners(self.b)
+        self.atom_b = self.b.partners(self.a) * self.b.count + self.b.component
         self.volumes = (self.a.weight.sum(), self.b.weight.sum())
         self.share = _fitted_shares(
             np.bincount(self.atom_a, self.a.weight, minlength=self.atoms) / self.volumes[0],
@@ -141,9 +136,9 @@ class Parts:
             (self.a.count, self.b.count))
 
     def targets(self, labels, count, s):
-        """V_p(s) of each of the ``count`` parts ``labels`` marks (the in-between's own
-        parts at time s, `part_labels`): (count,) world units; 0 for a part no material
-        arrives in."""
+        """V_p(s) of each of the ``count`` components ``labels`` marks (the in-between's
+        own at time s, `component_labels`): (count,) world units; 0 for a component no
+        material arrives in."""
         share_a = self.a.arrivals(self.atom_a, self.atoms, labels, count, s)
         share_b = self.b.arrivals(self.atom_b, self.atoms, labels, count, 1.0 - s)
         va, vb = self.volumes
@@ -151,11 +146,10 @@ class Parts:
 
 
 def _fitted_shares(from_a, from_b, counts, sweeps=200):
-    """Atom shares (atoms,) with row sums those of ``from_a`` (A's part fractions) and
+    """Atom shares (atoms,) with row sums those of ``from_a`` (A's component fractions) and
     column sums those of ``from_b`` (B's), on the atoms either map joins, starting from
-    their mean (iterative proportional fitting; exact in one sweep on a tree)."""
-    shape = counts
-    a, b = from_a.reshape(shape), from_b.reshape(shape)
+    their mean (iterative proportional fitting: on a tree of atoms, the only such shares)."""
+    a, b = from_a.reshape(counts), from_b.reshape(counts)
     rows, cols = a.sum(axis=1, keepdims=True), b.sum(axis=0, keepdims=True)
     mu = 0.5 * (a + b)
     for _ in range(sweeps):
