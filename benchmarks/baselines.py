@@ -46,7 +46,7 @@ from scipy.interpolate import RBFInterpolator
 
 from keyframe_implicit.core.base.sampling import sample
 
-__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided"]
+__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided", "one_iso"]
 
 
 @dataclass
@@ -226,5 +226,11 @@ def one_sided(phi_a, phi_b, grid, features_a, features_b, times):
     return project(phi_a, phi_b, grid, features_a, features_b, times, transport="one-sided")
 
 
-METHODS = {"project": project, "one-sided": one_sided, "blend": linear_blend, "morph": morph_flow,
-           "rbf": rbf_warp}
+def one_iso(phi_a, phi_b, grid, features_a, features_b, times):
+    """`project` with one iso-value per frame for the total volume, none per component
+    (``volume_per_component=False``): what each component's own iso-value improves on."""
+    return project(phi_a, phi_b, grid, features_a, features_b, times, volume_per_component=False)
+
+
+METHODS = {"project": project, "one-sided": one_sided, "one-iso": one_iso, "blend": linear_blend,
+           "morph": morph_flow, "rbf": rbf_warp}

@@ -42,8 +42,9 @@ if str(HERE) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-METHOD_ORDER = ("project", "one-sided", "blend", "morph", "rbf")
+METHOD_ORDER = ("project", "one-iso", "one-sided", "blend", "morph", "rbf")
 METHOD_LABEL = {"project": "this project", "one-sided": "this project, one-sided (thesis eq. 3.4)",
+                "one-iso": "this project, one iso-value per frame",
                 "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
                 "rbf": "plain RBF warp"}
 

@@ -176,15 +176,17 @@ def test_top_height_reads_the_zero_crossing_between_nodes(grid):
     assert np.isnan(metrics.top_height(np.ones(grid.shape), grid))
 
 
-def test_part_measure_fails_on_the_global_iso_value_form():
-    # the unequal merge at 32^3 with one iso-value per frame: the total stays on its line,
-    # but while the balls are apart the small one loses volume and the big one gains it
+@pytest.mark.parametrize("per_component", [True, False])
+def test_part_measure_on_the_unequal_merge(per_component):
+    # the unequal merge at 32^3: the total stays on its line either way; while the balls are
+    # apart, each keeps its volume within 2 % with its own iso-value, and with one iso-value
+    # per frame the small one loses volume and the big one gains it (the measure can fail)
     from keyframe_implicit.core import inbetween
 
     case = load("cases").make_case("unequal-merge", 32)
     (fa, fb), = case.features
     phi_a, phi_b = case.fields
-    ib = inbetween(phi_a, phi_b, case.grid, fa, fb, transport="two-sided", keep_volume=True)
+    ib = inbetween(phi_a, phi_b, case.grid, fa, fb, volume_per_component=per_component)
     times = np.linspace(0, 1, 9)
     frames = [ib.levelset(s) for s in times]
     total = [metrics.volume(f, case.grid) for f in frames]
@@ -193,5 +195,5 @@ def test_part_measure_fails_on_the_global_iso_value_form():
                                       ib.backward.trajectories)
     apart = {r["s"] for r in recs if 0 < r["s"] < 1}
     assert len(apart) >= 3  # the measure sees the balls apart before they touch
-    assert max(r["error"] for r in recs) > 0.02
-    assert max(r["own_error"] for r in recs) > 0.02
+    worst = max(r["own_error"] for r in recs)
+    assert (worst <= 0.02) if per_component else (worst > 0.02)
