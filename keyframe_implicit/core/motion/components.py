@@ -138,11 +138,18 @@ class ComponentVolumes:
     def targets(self, labels, count, s):
         """V_p(s) of each of the ``count`` components ``labels`` marks (the in-between's
         own at time s, `component_labels`): (count,) world units; 0 for a component no
-        material arrives in."""
-        share_a = self.a.arrivals(self.atom_a, self.atoms, labels, count, s)
-        share_b = self.b.arrivals(self.atom_b, self.atoms, labels, count, 1.0 - s)
+        atom arrives in.
+
+        Each atom goes whole to the component most of its material arrives in (A's
+        nodes weighing 1 - s, B's s): an atom is one piece of material at both ends, and
+        the few of its nodes that stray into a neighbour as two components come close
+        are not that neighbour's volume."""
+        arrived = ((1.0 - s) * self.a.arrivals(self.atom_a, self.atoms, labels, count, s)
+                   + s * self.b.arrivals(self.atom_b, self.atoms, labels, count, 1.0 - s))
         va, vb = self.volumes
-        return (1.0 - s) * va * self.share @ share_a + s * vb * self.share @ share_b
+        held = self.share * ((1.0 - s) * va + s * vb)
+        landed = arrived.max(axis=1) > 0
+        return np.bincount(arrived.argmax(axis=1)[landed], held[landed], minlength=count)
 
 
 def _fitted_shares(from_a, from_b, counts, sweeps=200):

@@ -104,16 +104,22 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     return float(c), float(err)
 
 
-def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **keywords):
-    """Shift each labelled component of ``field`` by its own iso-value, in place, so that its
-    volume is its target (`components.ComponentVolumes.targets`).
+def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, passes=2,
+                      **keywords):
+    """Shift each labelled component of ``field`` by its own iso-value, in place, so that
+    its volume is its target (`components.ComponentVolumes.targets`).
 
-    Every node within ``max_cells + 2`` cells of some component (the reach of `volume_offset`)
-    belongs to the nearest component (`skimage.segmentation.expand_labels`) and is shifted by
-    that component's iso-value c_p; nodes farther from every component are outside at any such
-    shift and keep their value. c changes only between two components, where the field is
-    outside by half their gap. A component with no target (no material arrives in it) keeps
-    c = 0.
+    Every node within ``max_cells + 2`` cells of some component (the reach of
+    `volume_offset`) belongs to the nearest component (`skimage.segmentation.
+    expand_labels`) and is shifted by that component's iso-value c_p; nodes farther from
+    every component are outside at any such shift and keep their value. c changes only
+    between two components, where the field is outside by half their gap. A component
+    with no target (no material arrives in it) keeps c = 0.
+
+    Each c_p is found on the component's box with the other components' inside set to
+    the plateau, as if the whole box moved by c_p. Across a gap of a cell or two, some of
+    the component's surface edges end on a node that moves with its neighbour instead,
+    so a second pass corrects what the first left.
 
     Parameters
     ----------
@@ -125,13 +131,16 @@ def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **ke
         Volume wanted of each component, world units.
     max_cells, **keywords
         As `volume_offset`, per component.
+    passes : int
+        Rounds of the per-component solves.
 
     Returns
     -------
     c : (P,) array
         Each component's iso-value, world units.
     error : (P,) array
-        Each component's relative volume error left (NaN for a component with no target).
+        Each component's relative volume error left after the last pass, as its box
+        measures it (NaN for a component with no target).
     """
     reach = int(np.ceil(max_cells)) + 2
     whole = ndimage.find_objects((labels > 0).astype(np.int8))[0]
@@ -140,18 +149,22 @@ def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, **ke
     near = expand_labels(labels[box], distance=reach)
     plateau = float(field.max())
     local = field[box]  # a view: shifting it shifts ``field``
+    inside = labels[box]
     c, err = np.zeros(len(targets)), np.full(len(targets), np.nan)
-    for k, component in enumerate(ndimage.find_objects(near, max_label=len(targets))):
-        if component is None or targets[k] <= 0:
-            continue
-        component = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
-                     for b, n in zip(component, near.shape))
-        others = labels[box][component]
-        own = np.where((others > 0) & (others != k + 1), plateau, local[component])
-        origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, component))
-        c[k], err[k] = volume_offset(own, sub_grid(grid, origin), targets[k],
-                                     max_cells=max_cells, **keywords)
-        local[near == k + 1] -= c[k]
+    parts = ndimage.find_objects(near, max_label=len(targets))
+    for _ in range(passes):
+        for k, part in enumerate(parts):
+            if part is None or targets[k] <= 0:
+                continue
+            part = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
+                         for b, n in zip(part, near.shape))
+            others = inside[part]
+            own = np.where((others > 0) & (others != k + 1), plateau, local[part])
+            origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, part))
+            step, err[k] = volume_offset(own, sub_grid(grid, origin), targets[k],
+                                         max_cells=max_cells, **keywords)
+            local[near == k + 1] -= step
+            c[k] += step
     return c, err
 
 
