@@ -46,7 +46,7 @@ from scipy.interpolate import RBFInterpolator
 
 from keyframe_implicit.core.base.sampling import sample
 
-__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided"]
+__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided", "one_iso"]
 
 
 @dataclass
@@ -57,12 +57,18 @@ class Run:
     seconds : dict stage -> wall seconds.
     mapped : ndarray grid.shape + (3,) or None, y(x) at every node where defined.
     info : dict of method-specific figures (iterations, residuals, ...).
+    mapped_back : ndarray grid.shape + (3,) or None, the map B -> A where the method has one.
+    paths : (forward, backward) or None, where the method moves material along paths:
+        callables (points (P, 3), t) -> positions, A's from A (t = 0) to B (t = 1) and B's
+        from B to A (None for a method without B's paths).
     """
 
     frames: list
     seconds: dict
     mapped: object = None
     info: dict = field(default_factory=dict)
+    mapped_back: object = None
+    paths: tuple = None
 
 
 def linear_blend(phi_a, phi_b, grid, features_a, features_b, times):
@@ -210,7 +216,9 @@ def project(phi_a, phi_b, grid, features_a, features_b, times, **options):
             for k2, v2 in v.items():
                 if isinstance(v2, (int, float, np.integer, np.floating)) and not isinstance(v2, bool):
                     info[f"{k}.{k2}"] = float(v2)
-    return Run(frames, {"map": t1 - t0, "frames": t2 - t1}, np.asarray(res.mapped, float), info)
+    backward = None if res.backward is None else res.backward.trajectories
+    return Run(frames, {"map": t1 - t0, "frames": t2 - t1}, np.asarray(res.mapped, float), info,
+               res.mapped_back, (res.trajectory, backward))
 
 
 def one_sided(phi_a, phi_b, grid, features_a, features_b, times):
@@ -218,5 +226,11 @@ def one_sided(phi_a, phi_b, grid, features_a, features_b, times):
     return project(phi_a, phi_b, grid, features_a, features_b, times, transport="one-sided")
 
 
-METHODS = {"project": project, "one-sided": one_sided, "blend": linear_blend, "morph": morph_flow,
-           "rbf": rbf_warp}
+def one_iso(phi_a, phi_b, grid, features_a, features_b, times):
+    """`project` with one iso-value per frame for the total volume, none per component
+    (``volume_per_component=False``): what each component's own iso-value improves on."""
+    return project(phi_a, phi_b, grid, features_a, features_b, times, volume_per_component=False)
+
+
+METHODS = {"project": project, "one-sided": one_sided, "one-iso": one_iso, "blend": linear_blend,
+           "morph": morph_flow, "rbf": rbf_warp}

@@ -11,6 +11,11 @@ and near the surface; it only underestimates depth far inside where two
 pieces overlap, which none of the metrics reads. The oblate spheroid is
 exact (closest point by a vectorised bisection on the Lagrange parameter).
 
+`CASE_NAMES` are the seven cases of the comparison table; `EXTRA_CASES` run by name: the
+unequal merge and split (two balls of radii 0.13 and 0.18 and one ball of their volume),
+and ``scan``, the Stanford bunny as scanned (open, 100k triangles, the copy the pymeshfix
+package ships) into a ball of its volume, sampled by `keyframe_implicit.core.mesh_to_sdf`.
+
 The rigid case also carries ``truth(points, s)``: the signed distance of the
 solid turned by ``s`` times the keyframe rotation about its centroid, with
 the centroid moved on the straight line (the ground truth of the rigid case).
@@ -18,6 +23,8 @@ the centroid moved on the straight line (the ground truth of the rigid case).
 
 from __future__ import annotations
 
+import importlib.util
+import pathlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,9 +33,14 @@ from keyframe_implicit.core.base.grid import Grid
 from keyframe_implicit.shapes import capsule_sdf as sd_capsule
 from keyframe_implicit.shapes import sphere_sdf as sd_sphere
 
-__all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "rotation"]
+__all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "EXTRA_CASES", "ALL_CASES", "rotation"]
 
+#: The seven-case table (what ``compare.py`` runs by default).
 CASE_NAMES = ("rigid", "merge", "split", "bend", "squash", "morph", "splash")
+#: Cases run by name only (``compare.py --cases``): the unequal merge and split, whose parts
+#: keep their own volume while apart, and a scanned mesh (needs 96^3 to resolve its ears).
+EXTRA_CASES = ("unequal-merge", "unequal-split", "scan")
+ALL_CASES = CASE_NAMES + EXTRA_CASES
 
 
 @dataclass
@@ -179,6 +191,49 @@ def _split(grid):
     return Case("split", grid, merge.fields[::-1], [(fb, fa)], None, [1, 2], merge.info)
 
 
+#: The unequal merge's radii and gap: the gap is a fixed world distance, 3 cells at 40^3.
+UNEQUAL_RADII = (0.13, 0.18)
+UNEQUAL_GAP = 3 * 2.0 / 39
+
+
+def _cap_volume(R, height):
+    """Volume of a cap of ``height`` cut from a ball of radius ``R``."""
+    return np.pi * height ** 2 * (3 * R - height) / 3
+
+
+def _unequal_merge(grid):
+    """Two balls of radii 0.13 and 0.18, 3 h (at 40^3) apart, merge into one ball of their
+    volume centred at their centroid. Each ball fills the cap of the merged ball of its own
+    volume, cut by a plane across x: its centre goes to its cap's centroid."""
+    from scipy.optimize import brentq
+
+    x = grid.points()
+    ra, rb = UNEQUAL_RADII
+    va, vb = 4 / 3 * np.pi * ra ** 3, 4 / 3 * np.pi * rb ** 3
+    dist = ra + rb + UNEQUAL_GAP
+    ca = np.array([-vb * dist / (va + vb), 0, 0])  # the pair's centroid at the origin
+    cb = ca + np.array([dist, 0, 0])
+    R = (ra ** 3 + rb ** 3) ** (1 / 3)
+    height = brentq(lambda t: _cap_volume(R, t) - va, 0.0, 2 * R)  # small ball's cap, from -R
+    # a cap's centroid lies 3 (2R - t)^2 / (4 (3R - t)) from the ball's centre
+    share_a = np.array([-3 * (2 * R - height) ** 2 / (4 * (3 * R - height)), 0, 0])
+    share_b = -va * share_a / vb
+    phi_a = np.minimum(sd_sphere(x, ca, ra), sd_sphere(x, cb, rb))
+    phi_b = sd_sphere(x, (0, 0, 0), R)
+    unit = np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]], dtype=float)
+    fa = np.vstack([ca + 0.5 * ra * unit, cb + 0.5 * rb * unit])
+    fb = np.vstack([share_a + 0.5 * ra * unit, share_b + 0.5 * rb * unit])
+    return Case("unequal-merge", grid, [phi_a, phi_b], [(fa, fb)], None, [2, 1],
+                {"gap": UNEQUAL_GAP})
+
+
+def _unequal_split(grid):
+    """The unequal merge played backwards."""
+    merge = _unequal_merge(grid)
+    fa, fb = merge.features[0]
+    return Case("unequal-split", grid, merge.fields[::-1], [(fb, fa)], None, [1, 2], merge.info)
+
+
 # star: a ball with six thin arms along the axes, into a ball of equal volume
 _STAR_CORE = 0.22
 _STAR_ARM = (0.62, 0.08)  # arm reach from the centre and radius
@@ -286,12 +341,56 @@ def _splash(grid):
     return Case("splash", grid, [k0, k1, k2, k3], segs, None, [2, 1, 1, 1])
 
 
+def _read_ply_triangles(path):
+    """Vertices (N, 3) and triangles (F, 3) of a binary little-endian PLY whose vertices
+    have x, y, z floats first and whose faces are all triangles (uchar count, int indices)."""
+    raw = pathlib.Path(path).read_bytes()
+    end = raw.index(b"end_header\n") + len(b"end_header\n")
+    header = raw[:end].decode("ascii").splitlines()
+    counts = {ln.split()[1]: int(ln.split()[2]) for ln in header if ln.startswith("element")}
+    props = [ln.split()[-1] for ln in header if ln.startswith("property float")]
+    vertex = np.dtype([(name, "<f4") for name in props])
+    vert = np.frombuffer(raw, vertex, counts["vertex"], end)
+    face = np.frombuffer(raw, np.dtype([("n", "u1"), ("i", "<i4", 3)]), counts["face"],
+                         end + vertex.itemsize * counts["vertex"])
+    if not np.all(face["n"] == 3):
+        raise ValueError(f"{path}: only triangle faces are read.")
+    return np.stack([vert["x"], vert["y"], vert["z"]], axis=-1).astype(float), face["i"]
+
+
+def scan_mesh():
+    """The Stanford bunny as scanned (50 000 vertices, open where the scanner saw nothing)
+    that the pymeshfix package ships, scaled to 1.1 across and centred in the box."""
+    spec = importlib.util.find_spec("pymeshfix")  # the file only: the package is not imported
+    if spec is None:
+        raise ImportError("the scan case reads the Stanford bunny scan the pymeshfix package "
+                          "ships: pip install pymeshfix")
+    v, f = _read_ply_triangles(pathlib.Path(spec.origin).parent / "examples" / "StanfordBunny.ply")
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return (v - 0.5 * (lo + hi)) * (1.1 / np.max(hi - lo)), f
+
+
+def _scan(grid):
+    """A scanned bunny becomes a ball of its volume centred at its centroid."""
+    from keyframe_implicit.core import mesh_to_sdf
+    from keyframe_implicit.core.surface.extract import enclosed_volume
+
+    x = grid.points()
+    phi_a = mesh_to_sdf(*scan_mesh(), grid)
+    inside = phi_a < 0
+    centre = x[inside].mean(axis=0)
+    R = (3 * enclosed_volume(phi_a, grid) / (4 * np.pi)) ** (1 / 3)
+    fa = centre + 0.1 * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    return Case("scan", grid, [phi_a, sd_sphere(x, centre, R)], [(fa, fa.copy())], None, [1, 1])
+
+
 _BUILDERS = {"rigid": _rigid, "merge": _merge, "split": _split, "bend": _bend, "squash": _squash,
-             "morph": _morph, "splash": _splash}
+             "morph": _morph, "splash": _splash, "unequal-merge": _unequal_merge,
+             "unequal-split": _unequal_split, "scan": _scan}
 
 
 def make_case(name: str, n: int) -> Case:
-    """Build case ``name`` (one of `CASE_NAMES`) on the ``n``^3 benchmark grid."""
+    """Build case ``name`` (one of `ALL_CASES`) on the ``n``^3 benchmark grid."""
     if name not in _BUILDERS:
-        raise ValueError(f"unknown case {name!r}; choose one of {', '.join(CASE_NAMES)}.")
+        raise ValueError(f"unknown case {name!r}; choose one of {', '.join(ALL_CASES)}.")
     return _BUILDERS[name](make_grid(n))

@@ -6,6 +6,10 @@ One command produces the table and plots::
     python benchmarks/compare.py --sizes 32,48,64,96  # choose grid sizes
     python benchmarks/compare.py --quick              # 32^3 smoke run
     python benchmarks/compare.py --methods blend,morph,rbf --merge   # add to the committed results
+    python benchmarks/compare.py --cases unequal-merge,unequal-split --methods project,one-sided
+    python benchmarks/compare.py --cases scan --sizes 96   # the scanned bunny (needs pymeshfix)
+
+The default cases are the seven of ``cases.CASE_NAMES``; ``cases.EXTRA_CASES`` run by name.
 
 Every (case, method, size) runs in its own subprocess, so its peak memory is
 that subprocess's ru_maxrss (includes the Python + numpy + scipy baseline,
@@ -38,8 +42,9 @@ if str(HERE) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-METHOD_ORDER = ("project", "one-sided", "blend", "morph", "rbf")
+METHOD_ORDER = ("project", "one-iso", "one-sided", "blend", "morph", "rbf")
 METHOD_LABEL = {"project": "this project", "one-sided": "this project, one-sided (thesis eq. 3.4)",
+                "one-iso": "this project, one iso-value per frame",
                 "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
                 "rbf": "plain RBF warp"}
 
@@ -64,9 +69,18 @@ def evaluate(case_name, method, n, n_frames=9):
     out = {"case": case_name, "method": method, "n": n, "h": h, "frames": n_frames,
            "import_rss_mb": import_rss, "active_voxels": metrics.active_voxels(case.fields[0], grid)}
     seconds, drifts, drift_s, spurious, comps, end_err, feat, infos, vols = {}, [], [], [], [], [], [], [], []
+    pieces, dets = [], {"forward": [], "backward": []}
     for k, (fa, fb) in enumerate(case.features):
         phi_a, phi_b = case.fields[k], case.fields[k + 1]
         run = run_fn(phi_a, phi_b, grid, fa, fb, times)
+        if run.paths is not None:
+            recs = metrics.part_volume_errors(run.frames, times, grid, phi_a, phi_b, *run.paths)
+            pieces += [dict(r, segment=k) for r in recs]
+            if case_name == "splash" and k == 0:
+                out.update(_droplet_and_pool(recs, run.frames, times, grid, phi_a))
+        for side, mapped, phi in (("forward", run.mapped, phi_a), ("backward", run.mapped_back, phi_b)):
+            if mapped is not None:
+                dets[side].append(metrics.det_f(mapped, grid, phi))
         for st, sec in run.seconds.items():
             seconds[st] = seconds.get(st, 0.0) + sec
         v = [metrics.volume(f, grid) for f in run.frames]
@@ -109,9 +123,37 @@ def evaluate(case_name, method, n, n_frames=9):
         allf = np.concatenate(feat)
         out["feature_error_mean_h"] = float(allf.mean())
         out["feature_error_max_h"] = float(allf.max())
+    if pieces:
+        worst = max(pieces, key=lambda r: r["error"])
+        out["part_volume_error"] = worst["error"]
+        out["part_volume_error_at_s"] = worst["s"]
+        out["part_volume_error_segment"] = worst["segment"]
+        out["part_volume_own_error"] = max(r["own_error"] for r in pieces)
+        out["part_volumes"] = pieces
+    for side, d in dets.items():
+        if d:  # over the material of every segment's map
+            out[f"det_f_{side}"] = metrics.det_f_summary(np.concatenate(d))
     out["info"] = infos
     out["peak_rss_mb"] = _rss_mb()
     return out
+
+
+def _droplet_and_pool(pieces, frames, times, grid, phi_a):
+    """The splash's first segment until the droplet touches the pool: the droplet's worst
+    part-volume error (the smaller piece, `metrics.part_volume_errors` records ``pieces``)
+    and the dent, max over those frames of the pool's top under the droplet (x = y = 0) in
+    A minus in the frame, in h."""
+    import metrics
+
+    start = {r["piece"]: r["reference"] for r in pieces if r["s"] == 0.0}
+    drop = [r for r in pieces if r["piece"] == min(start, key=start.get)]
+    worst = max(drop, key=lambda r: r["error"])
+    apart = {r["s"] for r in drop}
+    top = metrics.top_height(phi_a, grid)
+    dent = max(top - metrics.top_height(f, grid) for f, s in zip(frames, times) if s in apart)
+    return {"droplet_volume_error": worst["error"], "droplet_volume_error_at_s": worst["s"],
+            "droplet_volume_own_error": max(r["own_error"] for r in drop),
+            "dent_h": dent / grid.spacing}
 
 
 def _worker(args):
@@ -156,6 +198,10 @@ COLUMNS = [
     ("volume_drift", "vol drift %", "pct"), ("truth_mean_h", "truth mean h", ".2f"),
     ("truth_max_h", "truth max h", ".2f"), ("keyframe_end_error_h", "end err h", ".2f"),
     ("feature_error_max_h", "feat err max h", ".2g"), ("spurious_components", "spurious", "d"),
+    ("part_volume_error", "part vol err %", "pct"), ("part_volume_error_at_s", "at s", ".3g"),
+    ("part_volume_own_error", "own %", "pct"),
+    ("det_f_forward", "det F A->B p5/p50/p95 (max dev)", "det"),
+    ("det_f_backward", "det F B->A p5/p50/p95 (max dev)", "det"),
     ("total_seconds", "seconds", ".2f"), ("stages", "stages (s)", "s"), ("peak_rss_mb", "peak MB", ".0f"),
 ]
 
@@ -168,6 +214,9 @@ def _row(r):
             continue
         if key == "stages":
             row[key] = " ".join(f"{k} {v:.2f}" for k, v in r.get("seconds", {}).items())
+        elif spec == "det":
+            v = r.get(key)
+            row[key] = "n/a" if v is None else f"{v['p5']:.2f}/{v['p50']:.2f}/{v['p95']:.2f} ({v['max_dev']:.2f})"
         elif spec == "pct":
             v = r.get(key)
             row[key] = _fmt(None if v is None else 100 * v, ".2f")
@@ -181,11 +230,11 @@ def _row(r):
 
 
 def write_results(results, outdir):
-    from cases import CASE_NAMES
+    from cases import ALL_CASES, CASE_NAMES
     outdir = pathlib.Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     order = {m: i for i, m in enumerate(METHOD_ORDER)}
-    corder = {c: i for i, c in enumerate(CASE_NAMES)}
+    corder = {c: i for i, c in enumerate(ALL_CASES)}
     results = sorted(results, key=lambda r: (corder.get(r["case"], 99), r["n"], order.get(r["method"], 9)))
     (outdir / "results.json").write_text(json.dumps(results, indent=1, default=float) + "\n")
     rows = [_row(r) for r in results]
@@ -206,10 +255,26 @@ def write_results(results, outdir):
         "at the zero-set vertices at s = 0.5 (rigid case only), in h; end err = mean |keyframe SDF| at the "
         "zero set of s = 0 and s = 1 (worse of the two), in h; feat err = max |y(x'_i) - y'_i| in h "
         "(n/a where the method has no map); spurious = max over frames of pieces beyond the keyframes' count; "
+        "part vol err = max over frames and pieces apart of |V(part) - V_lin(piece)| / V_lin(piece), the "
+        "pieces followed along the maps' paths (metrics.part_volume_errors; n/a for methods without paths), "
+        "at s its frame; own = the same against the piece's share of its own keyframe on the total's straight "
+        "line (a reference the maps do not decide); det F = 5th/50th/95th percentile of det F at the material's cell centres of the map "
+        "A -> B and B -> A (max |det F - 1| in brackets; metrics.det_f); "
         "seconds = sum of the method's stages (metrics excluded); peak MB = ru_maxrss of the subprocess "
         "(Python + numpy + scipy alone take about " + _fmt(_import_rss(results), ".0f") + " MB).",
         "",
     ] + lines + [""]
+    splash = [r for r in results if "dent_h" in r]
+    if splash:
+        md += ["## Splash before contact", "",
+               "Droplet = max over the first segment's frames until it touches the pool of its part-volume "
+               "error; dent = max over those frames of the pool's top under the droplet (x = y = 0) in the "
+               "keyframe minus in the frame, in h (metrics.top_height).", "",
+               "| n | method | droplet vol err % | at s | own % | dent h |", "|---|---|---|---|---|---|"]
+        md += [f"| {r['n']} | {r['method']} | {100 * r['droplet_volume_error']:.2f} | "
+               f"{r['droplet_volume_error_at_s']:.3g} | {100 * r['droplet_volume_own_error']:.2f} | "
+               f"{r['dent_h']:.2f} |" for r in splash]
+        md.append("")
     floors = [r for r in results if "volume_drift_floor" in r and r["method"] == "blend"]
     if floors:
         md += ["Volume metric floor (drift of the exact rigid motion sampled on the grid): "
@@ -254,14 +319,17 @@ def cost_slopes(results, method="project", case=None):
             "points": len(rs)}
 
 
-_COLOURS = {"project": "C3", "one-sided": "C4", "blend": "C0", "morph": "C2", "rbf": "C1"}
+_COLOURS = {"project": "C3", "one-iso": "C5", "one-sided": "C4", "blend": "C0", "morph": "C2",
+            "rbf": "C1"}
 
 
 def _plots(results, outdir):
-    """quality.png and cost.png in ``outdir`` from the rows that ran."""
+    """quality.png and cost.png in ``outdir`` from the seven cases' rows that ran."""
     import matplotlib
+    from cases import CASE_NAMES
     matplotlib.use("Agg")
 
+    results = [r for r in results if r["case"] in CASE_NAMES]
     ok = [r for r in results if "error" not in r]
     if not ok:
         return
@@ -377,12 +445,12 @@ def main(argv=None):
         print(f"wrote {write_results(json.loads((pathlib.Path(args.out) / 'results.json').read_text()), args.out)}")
         return 0
     sizes = [32] if args.quick else [int(s) for s in args.sizes.split(",") if s.strip()]
-    from cases import CASE_NAMES
+    from cases import ALL_CASES, CASE_NAMES
     case_names = list(CASE_NAMES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = [c for c in case_names if c not in CASE_NAMES] + [m for m in methods if m not in METHOD_ORDER]
+    bad = [c for c in case_names if c not in ALL_CASES] + [m for m in methods if m not in METHOD_ORDER]
     if bad:
-        raise ValueError(f"unknown case/method {bad}; cases: {CASE_NAMES}, methods: {METHOD_ORDER}.")
+        raise ValueError(f"unknown case/method {bad}; cases: {ALL_CASES}, methods: {METHOD_ORDER}.")
     if any(n < 16 for n in sizes):
         raise ValueError(f"sizes {sizes}: use 16 or more nodes per axis.")
     results = []
@@ -399,7 +467,9 @@ def main(argv=None):
                 msg = r.get("error") or (f"drift {100 * r['volume_drift']:.2f}%  spurious {r['spurious_components']}"
                                          f"  end {r['keyframe_end_error_h']:.2f}h  {r['total_seconds']:.2f}s"
                                          f"  {r['peak_rss_mb']:.0f}MB")
-                print(f"{c:7s} {n:4d} {m:8s} {msg}", flush=True)
+                if "part_volume_error" in r:
+                    msg += f"  part {100 * r['part_volume_error']:.2f}% at s {r['part_volume_error_at_s']:.3g}"
+                print(f"{c:13s} {n:4d} {m:9s} {msg}", flush=True)
     md = write_results(results, outdir)
     sl = cost_slopes(results)
     if sl:

@@ -12,7 +12,8 @@ repeating its arithmetic (and benchmarks/bench_inbetween.py uses the rigid case 
   each returns (grid, phi_a, phi_b, mapped, info) with exact (or nearly exact) signed
   distance functions and a smooth map y(x) given in closed form, so the in-between stage
   can be checked without the solver;
-* volume map cases for `solve_map` (`sphere_to_ellipsoid`, `two_discs`): each returns
+* volume map cases for `solve_map` (`sphere_to_ellipsoid`, `two_discs`,
+  `unequal_balls`): each returns
   (grid, phi_a, phi_b, features_a, features_b); `nudged_spheres` and
   `capsule_and_balls` give a pair of fields on a given grid;
 * meshes for `animate`: `uv_sphere`, `sphere_features` and the keyframes of
@@ -236,6 +237,30 @@ def two_discs(n):
         fb += [[.5 + side * 0.015, .5], [.5 + side * R, .5], [.5 + side * 0.04, .5 + 0.96 * R],
                [.5 + side * 0.04, .5 - 0.96 * R]]
     return g, phi_a, phi_b, np.array(fa), np.array(fb)
+
+
+def unequal_balls(n, gap_cells=3.0):
+    """Two balls (r = 0.13, 0.18, ``gap_cells`` cells of a 40^3 unit-box grid apart) merged
+    into one ball of their volume, four features on each onto its share of the merged ball
+    (3D, n^3 nodes on [-1, 1]^3). Returns (grid, phi_a, phi_b, features_a, features_b)."""
+    g = make_grid(3, n, -1.0, 1.0)
+    P = g.points()
+    ra, rb = 0.13, 0.18
+    gap = gap_cells * 2.0 / 39
+    ca, cb = np.array([-(ra + gap / 2), 0, 0]), np.array([rb + gap / 2, 0, 0])
+    R = (ra ** 3 + rb ** 3) ** (1 / 3)
+    # the plane x = x0 cuts the merged ball in the two balls' volumes; each share's centroid
+    x = np.linspace(-R, R, 4001)
+    area = np.pi * (R ** 2 - x ** 2)
+    left = np.cumsum(area) / area.sum() <= ra ** 3 / R ** 3
+    share = [(x[m] * area[m]).sum() / area[m].sum() for m in (left, ~left)]
+    fa, fb = [], []
+    for c, r, x0 in ((ca, ra, share[0]), (cb, rb, share[1])):
+        off = 0.5 * r * np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]])
+        fa.append(c + off)
+        fb.append(np.array([x0, 0, 0]) + off)
+    phi_a = np.minimum(sd_sphere(P, ca, ra), sd_sphere(P, cb, rb))
+    return g, phi_a, sd_sphere(P, (0, 0, 0), R), np.vstack(fa), np.vstack(fb)
 
 
 # ---------------------------------------------------------------- meshes and keyframes for animate

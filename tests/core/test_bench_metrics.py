@@ -89,3 +89,111 @@ def test_feature_error_in_grid_spacings(grid):
     assert np.all(metrics.feature_error(mapped, grid, fa, fa + t) < 1e-9)
     err = metrics.feature_error(mapped, grid, fa, fa + t + np.array([grid.spacing, 0, 0]))
     assert np.allclose(err, 1.0)
+
+
+# -- volume held per part ------------------------------------------------------
+def _moving_apart(shift):
+    """Paths of two balls either side of x = 0, moving apart by ``shift`` each over t in
+    [0, 1] (A's paths), and B's paths back."""
+    def forward(p, t):
+        return p + t * shift * np.sign(p[:, :1]) * np.array([1.0, 0, 0])
+
+    def backward(p, t):
+        return p - t * shift * np.sign(p[:, :1]) * np.array([1.0, 0, 0])
+    return forward, backward
+
+
+def test_part_volume_errors_report_a_part_that_grows(grid):
+    # two balls move apart; the right one is 6 % larger in every in-between: the measure
+    # finds both parts apart on every frame, the growth on the right one only
+    times = np.linspace(0, 1, 9)
+    shift, (r1, r2) = 0.15, (0.25, 0.2)
+
+    def frame(s, grow=1.0):
+        return np.minimum(sphere_field(grid, (-0.35 - shift * s, 0, 0), r1),
+                          sphere_field(grid, (0.35 + shift * s, 0.01, 0), r2 * grow ** (1 / 3)))
+
+    frames = [frame(s, 1.06 if 0 < s < 1 else 1.0) for s in times]
+    recs = metrics.part_volume_errors(frames, times, grid, frames[0], frames[-1],
+                                      *_moving_apart(shift))
+    assert len(recs) == 2 * len(times)
+    left = [r["error"] for r in recs if r["piece"] == 1]
+    right = [r for r in recs if r["piece"] == 2 and 0 < r["s"] < 1]
+    assert max(left) < 0.01
+    assert all(0.05 < r["error"] < 0.07 and 0.05 < r["own_error"] < 0.07 for r in right)
+    exact = [r for r in recs if r["s"] in (0.0, 1.0)]
+    assert all(r["error"] < 1e-9 for r in exact)  # the keyframes are their own reference
+
+
+def test_material_pieces_share_a_merged_ball_by_where_the_backward_map_sends_it(grid):
+    # one ball whose material left of x = 0.1 goes to the left ball: that piece's B volume
+    # is the ball's volume left of the plane
+    R, cut = 0.4, 0.1
+    phi_a = np.minimum(sphere_field(grid, (-0.5, 0, 0), 0.25), sphere_field(grid, (0.5, 0, 0), 0.25))
+    phi_b = sphere_field(grid, (0, 0, 0), R)
+
+    def backward(p, t):
+        side = np.where(p[:, :1] < cut, -1.0, 1.0)
+        return p + t * 0.5 * side * np.array([1.0, 0, 0])
+
+    piece_a, piece_b, volumes, own = metrics.material_pieces(phi_a, phi_b, grid, None, backward)
+    assert own == 0 and set(np.unique(piece_b)) == {0, 1, 2}
+    height = R - cut  # the cap right of the plane
+    right = np.pi * height ** 2 * (3 * R - height) / 3
+    fraction = volumes[:, 1] / volumes[:, 1].sum()
+    assert fraction[1] == pytest.approx(right / (4 / 3 * np.pi * R ** 3), abs=0.01)
+    assert volumes[:, 0] == pytest.approx(metrics.part_volumes(phi_a, grid))
+
+
+def test_part_volumes_add_up_to_the_volume(grid):
+    phi = np.minimum(sphere_field(grid, (-0.5, 0, 0), 0.2), sphere_field(grid, (0.4, 0, 0), 0.3))
+    vols = metrics.part_volumes(phi, grid)
+    assert len(vols) == 2 and vols[0] < vols[1]
+    assert vols.sum() == pytest.approx(metrics.volume(phi, grid), rel=1e-6)
+
+
+def test_det_f_is_the_maps_volume_change_over_the_material(grid):
+    phi = sphere_field(grid, (0, 0, 0), 0.4)
+    x = grid.points()
+    dets = metrics.det_f(x * np.array([1.2, 1.0, 0.9]), grid, phi)
+    assert np.allclose(dets, 1.08)
+    # one det per material cell: the cells fill the ball
+    assert len(dets) * grid.spacing ** 3 == pytest.approx(4 / 3 * np.pi * 0.4 ** 3, rel=0.05)
+    stretched = np.where(x[..., :1] > 0, x * np.array([1.5, 1.0, 1.0]), x)  # half the ball
+    summary = metrics.det_f_summary(metrics.det_f(stretched, grid, phi))
+    assert summary["p5"] == pytest.approx(1.0) and summary["p95"] == pytest.approx(1.5)
+    assert summary["max_dev"] == pytest.approx(0.5) and 0.4 < summary["in_band"] < 0.6
+
+
+def test_top_height_reads_the_zero_crossing_between_nodes(grid):
+    from inbetween_cases import sd_box
+
+    h = grid.spacing
+    top = -0.4 + 0.3 * h
+    pool = sd_box(grid.points(), (0, 0, -0.6 + 0.15 * h), (0.7, 0.7, 0.2 + 0.15 * h))
+    drop = sphere_field(grid, (0, 0, 0.2), 0.15)  # above the pool: not its top
+    assert metrics.top_height(np.minimum(pool, drop), grid) == pytest.approx(top, abs=1e-9)
+    assert np.isnan(metrics.top_height(np.ones(grid.shape), grid))
+
+
+@pytest.mark.parametrize("per_component", [True, False])
+def test_part_measure_on_the_unequal_merge(per_component):
+    # the unequal merge at 32^3: the total stays on its line either way; while the balls are
+    # apart, each keeps its volume within 2 % with its own iso-value, and with one iso-value
+    # per frame the small one loses volume and the big one gains it (the measure can fail)
+    from keyframe_implicit.core import inbetween
+
+    case = load("cases").make_case("unequal-merge", 32)
+    (fa, fb), = case.features
+    phi_a, phi_b = case.fields
+    ib = inbetween(phi_a, phi_b, case.grid, fa, fb, volume_per_component=per_component)
+    times = np.linspace(0, 1, 9)
+    frames = [ib.levelset(s) for s in times]
+    total = [metrics.volume(f, case.grid) for f in frames]
+    assert metrics.volume_drift(total, times) < 0.005
+    recs = metrics.part_volume_errors(frames, times, case.grid, phi_a, phi_b, ib.trajectory,
+                                      ib.backward.trajectories)
+    apart = {r["s"] for r in recs if 0 < r["s"] < 1}
+    assert len(apart) >= 3  # the measure sees the balls apart before they touch
+    worst = max(r["own_error"] for r in recs)
+    assert (worst <= 0.02) if per_component else (worst > 0.02)

@@ -4,7 +4,10 @@
 ``transport``   a keyframe's field carried along its paths, by inverse lookup (eq. 3.2-3.3)
 ``levelset``    `Inbetween`: the two transports blended (eq. 3.4 read two-sided,
                 docs/method.md, section 8)
-``isovolume``   the per-frame iso-value that keeps the in-between's volume
+``isovolume``   the per-frame iso-values that keep the in-between's volume, component by
+                component
+``components``  the volume each component of an in-between should have
+                (docs/method.md, section 13)
 ``spline``      a chain's paths bent so the velocity flows through its keyframes
                 (docs/method.md, section 12)
 """

@@ -21,10 +21,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from scipy import ndimage
+from skimage.segmentation import expand_labels
+
 from ..base.grid import Grid
 from ..surface.extract import enclosed_volume
+from .components import sub_grid
 
-__all__ = ["volume_offset"]
+__all__ = ["volume_offset", "component_offsets"]
 
 _CHUNK = 1 << 18  # nodes per gradient chunk (bounds the index temporaries)
 
@@ -98,6 +102,70 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     else:
         err = (enclosed_volume(f, grid, level=c) - target) / target
     return float(c), float(err)
+
+
+def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, passes=2,
+                      **keywords):
+    """Shift each labelled component of ``field`` by its own iso-value, in place, so that
+    its volume is its target (`components.ComponentVolumes.targets`).
+
+    Every node within ``max_cells + 2`` cells of some component (the reach of
+    `volume_offset`) belongs to the nearest component (`skimage.segmentation.
+    expand_labels`) and is shifted by that component's iso-value c_p; nodes farther from
+    every component are outside at any such shift and keep their value. c changes only
+    between two components, where the field is outside by half their gap. A component
+    with no target (no material arrives in it) keeps c = 0.
+
+    Each c_p is found on the component's box with the other components' inside set to
+    the plateau, as if the whole box moved by c_p. Across a gap of a cell or two, some of
+    the component's surface edges end on a node that moves with its neighbour instead,
+    so a second pass corrects what the first left.
+
+    Parameters
+    ----------
+    field : ndarray, grid.shape
+        Modified in place.
+    labels : int ndarray, grid.shape
+        The components of ``field < 0`` (`components.component_labels`), 1..len(targets).
+    targets : (P,) array
+        Volume wanted of each component, world units.
+    max_cells, **keywords
+        As `volume_offset`, per component.
+    passes : int
+        Rounds of the per-component solves.
+
+    Returns
+    -------
+    c : (P,) array
+        Each component's iso-value, world units.
+    error : (P,) array
+        Each component's relative volume error left after the last pass, as its box
+        measures it (NaN for a component with no target).
+    """
+    reach = int(np.ceil(max_cells)) + 2
+    whole = ndimage.find_objects((labels > 0).astype(np.int8))[0]
+    box = tuple(slice(max(b.start - reach - 1, 0), min(b.stop + reach + 1, n))
+                for b, n in zip(whole, grid.shape))
+    near = expand_labels(labels[box], distance=reach)
+    plateau = float(field.max())
+    local = field[box]  # a view: shifting it shifts ``field``
+    inside = labels[box]
+    c, err = np.zeros(len(targets)), np.full(len(targets), np.nan)
+    parts = ndimage.find_objects(near, max_label=len(targets))
+    for _ in range(passes):
+        for k, part in enumerate(parts):
+            if part is None or targets[k] <= 0:
+                continue
+            part = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
+                         for b, n in zip(part, near.shape))
+            others = inside[part]
+            own = np.where((others > 0) & (others != k + 1), plateau, local[part])
+            origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, part))
+            step, err[k] = volume_offset(own, sub_grid(grid, origin), targets[k],
+                                         max_cells=max_cells, **keywords)
+            local[near == k + 1] -= step
+            c[k] += step
+    return c, err
 
 
 def _gradient_norm(f, grid, nodes):

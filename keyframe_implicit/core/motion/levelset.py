@@ -13,8 +13,8 @@ in the spirit of the warp-and-blend of Cohen-Or, Levin and Solomovici (1998):
 
 with x_A(t), x_B(t) the node paths of A and B (material a map tears fades on
 the way: `transport.Transport.carry`). In a chain the paths carry its
-`spline.Bend`, so the motion flows through the keyframes (docs/method.md, section 12). Both transported fields are truncated
-at one value w > 0, the smallest value either field has on the border of its
+`spline.Bend`, so the motion flows through the keyframes (docs/method.md,
+section 12). Both transported fields are truncated at one value w > 0, the smallest value either field has on the border of its
 region (a few cells around the material). Where a transport does not reach
 z, z lies beyond that border of the moved keyframe, so its value is w: "not
 reached" and "far outside" agree, the blend is continuous where one
@@ -55,8 +55,9 @@ from ..base.elements import inverse
 from ..base.grid import Grid
 from ..base.sampling import sample
 from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
-from .isovolume import volume_offset
+from .isovolume import component_offsets, volume_offset
 from .options import MotionOptions
+from .components import ComponentVolumes, component_labels
 from .spline import start_velocity
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
@@ -156,6 +157,7 @@ class Inbetween:
         self.options = MotionOptions() if options is None else options
         self.keep_volume = self.options.keep_volume and backward is not None
         self._end_volumes = None
+        self._parts = None
         self.map_result = map_result
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
@@ -308,15 +310,27 @@ class Inbetween:
         return field
 
     def _keep_volume(self, field, s):
-        """Shift by the iso-value that gives the volume (1 - s) V_A + s V_B (`isovolume`)."""
+        """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,
+        where the shifted in-between has several components, each component by its own iso-value
+        that gives it the volume of the material arriving in it (`components`,
+        `isovolume.component_offsets`)."""
         if self._end_volumes is None:
             self._end_volumes = (enclosed_volume(self.phi_a, self.grid),
                                  enclosed_volume(self.phi_b, self.grid))
         va, vb = self._end_volumes
         c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
+        field -= c  # the blend's own array
+        labels, count = component_labels(field) if self.options.volume_per_component else (None, 1)
+        if count > 1:
+            if self._parts is None:
+                self._parts = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
+                                    self.forward.trajectories, self.backward.trajectories)
+            own, errors = component_offsets(field, self.grid, labels,
+                                       self._parts.targets(labels, count, s))
+            c += own[np.argmax(np.abs(own))]
+            err = float(np.nanmax(np.abs(errors), initial=0.0))
         self.stats.setdefault("volume_offset_h", {})[s] = c / self.grid.spacing
         self.stats.setdefault("volume_error", {})[s] = err
-        field -= c  # the blend's own array
         return field
 
     def _one_sided_values(self, s):

@@ -31,6 +31,10 @@ class MotionOptions:
     keep_volume : bool
         Two-sided only: each in-between shifted by the iso-value that gives it the
         linearly interpolated volume of the keyframes (`isovolume`).
+    volume_per_component : bool
+        With ``keep_volume``: a frame of several parts shifts each part by its own
+        iso-value, for the volume of the material arriving in it (`components`; default), or
+        (False) the whole frame by one iso-value for the total.
     trajectory_method : {"global", "local"}
         The Poisson interpolation of the cells' rotations (default), or the thesis's
         per-node formula (`trajectory.Trajectories`).
@@ -52,6 +56,7 @@ class MotionOptions:
 
     transport: str = "two-sided"
     keep_volume: bool = True
+    volume_per_component: bool = True
     trajectory_method: str = "global"
     trajectory_margin_cells: float = 4.0
     trajectory_margin_weight: float = 0.1
