@@ -157,7 +157,7 @@ class Inbetween:
         self.options = MotionOptions() if options is None else options
         self.keep_volume = self.options.keep_volume and backward is not None
         self._end_volumes = None
-        self._parts = None
+        self._components = None  # `components.ComponentVolumes`, made when first needed
         self.map_result = map_result
         self.map_result_back = map_result_back
         self.outside_value = forward.truncation  # both transports share it (from_map)
@@ -311,8 +311,8 @@ class Inbetween:
 
     def _keep_volume(self, field, s):
         """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,
-        where the shifted in-between has several components, each component by its own iso-value
-        that gives it the volume of the material arriving in it (`components`,
+        where the shifted in-between has several components, each by its own iso-value,
+        for the volume of the material arriving in it (`components`,
         `isovolume.component_offsets`)."""
         if self._end_volumes is None:
             self._end_volumes = (enclosed_volume(self.phi_a, self.grid),
@@ -320,13 +320,15 @@ class Inbetween:
         va, vb = self._end_volumes
         c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
         field -= c  # the blend's own array
-        labels, count = component_labels(field) if self.options.volume_per_component else (None, 1)
+        labels, count = (component_labels(field) if self.options.volume_per_component
+                         else (None, 1))
         if count > 1:
-            if self._parts is None:
-                self._parts = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
-                                    self.forward.trajectories, self.backward.trajectories)
+            if self._components is None:
+                self._components = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
+                                                    self.forward.trajectories,
+                                                    self.backward.trajectories)
             own, errors = component_offsets(field, self.grid, labels,
-                                       self._parts.targets(labels, count, s))
+                                            self._components.targets(labels, count, s))
             c += own[np.argmax(np.abs(own))]
             err = float(np.nanmax(np.abs(errors), initial=0.0))
         self.stats.setdefault("volume_offset_h", {})[s] = c / self.grid.spacing
