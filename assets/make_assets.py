@@ -242,6 +242,7 @@ def build(name):
     setup_look(scene)
     frame_camera(scene, np.vstack([world_points(o) for o in objs]))
     show_first_keyframe(scene, objs)
+    frame_timelines()
     return scene
 
 
@@ -251,6 +252,20 @@ def show_first_keyframe(scene, objs):
     for obj in scene.objects:
         if obj in hidden or (obj.type == "EMPTY" and obj.parent in hidden):
             obj.hide_set(True)
+
+
+def frame_timelines():
+    """Frame every timeline and dope sheet of the file on the scene's frame range, as Home
+    does in the window: the factory layout shows frames 0-250."""
+    window = bpy.context.window_manager.windows[0]
+    for screen in bpy.data.screens:
+        for area in screen.areas:
+            if area.type != "DOPESHEET_EDITOR":
+                continue
+            region = next(r for r in area.regions if r.type == "WINDOW")
+            with bpy.context.temp_override(window=window, screen=screen, area=area,
+                                           region=region):
+                bpy.ops.action.view_all()
 
 
 def save(path):

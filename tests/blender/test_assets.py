@@ -185,3 +185,21 @@ def test_asset_opens_tidy_on_its_first_keyframe(name):
     assert all(e.visible_get() == (e.parent == objs[0]) for e in empties)
     size = max(objs[0].dimensions)
     assert all(e.empty_display_size <= 0.03 * max(e.parent.dimensions) for e in empties), size
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_asset_timeline_shows_the_scene_range(name):
+    """The file's timelines open framed on the scene's frames, not the factory 0-250."""
+    path = os.path.join(ASSETS, f"{name}.blend")
+    bpy.ops.wm.open_mainfile(filepath=path, load_ui=True)
+    scene = bpy.context.scene
+    views = []
+    for area in bpy.context.screen.areas:
+        if area.type == "DOPESHEET_EDITOR":
+            region = next(r for r in area.regions if r.type == "WINDOW")
+            views.append((region.view2d.region_to_view(0, 0)[0],
+                          region.view2d.region_to_view(region.width, 0)[0]))
+    assert views, "the file's layout has no timeline"
+    for first, last in views:
+        assert scene.frame_start - 2 <= first <= scene.frame_start
+        assert scene.frame_end <= last <= scene.frame_end + 2
