@@ -24,21 +24,21 @@ class KFI_UL_keyframes(bpy.types.UIList):
     interpolation (an icon, as on an F-curve key), compact."""
 
     bl_idname = "KFI_UL_keyframes"
-    NAME_SHARE = 0.72  # the frame number keeps the rest: room for five digits at 291 px
+    NAME_SHARE = 0.72  # the frame number keeps the rest beside the interpolation's icon
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
         """One keyframe: its object's name, its frame and its interpolation."""
         if self.layout_type == "GRID":
             layout.label(text=item.object.name if item.object else "?")
             return
-        split = layout.split(factor=self.NAME_SHARE, align=True)
+        row = layout.row(align=True)  # the icon beside the split: the frame keeps its share
+        split = row.split(factor=self.NAME_SHARE, align=True)
         if item.object is not None:  # the name, as Blender's lists show it: no clear button
             split.prop(item.object, "name", text="", emboss=False, icon="OUTLINER_OB_MESH")
         else:
             split.label(text="No object", icon="ERROR")
-        right = split.row(align=True)
-        right.prop(item, "frame", text="", emboss=False)
-        right.prop(item, "interpolation", text="", icon_only=True, emboss=False)
+        split.prop(item, "frame", text="", emboss=False)
+        row.prop(item, "interpolation", text="", icon_only=True, emboss=False)
 
 
 class _Sidebar:

@@ -129,9 +129,12 @@ def test_list_rows_show_names_first_and_compact_frames(scene, kfi):
 def test_list_names_fit_at_the_default_sidebar_width(scene):
     # 291 px sidebar: panel margins and the +/- column leave ~230 px for a row; the name field
     # (minus its icon and padding) must hold a name like merge_A; the old 3-column row did not
-    row = 291 - 2 * 10 - 40
+    row = 291 - 2 * 10 - 40 - panel.ICON_WIDTH  # the interpolation's icon at the row's end
     name_field = panel.KFI_UL_keyframes.NAME_SHARE * row - panel.ICON_WIDTH - 10
     assert panel.text_width("merge_A", 1.0) < name_field
+    # and the frame field holds a five-digit frame number
+    frame_field = (1.0 - panel.KFI_UL_keyframes.NAME_SHARE) * row - 10
+    assert panel.text_width("10000", 1.0) < frame_field
 
 
 # -- wrapping --------------------------------------------------------------------------
