@@ -93,25 +93,11 @@ def test_differing_materials_go_into_slots_and_the_report_says_so(scene, kfi):
 
 # -- the keyframe list -----------------------------------------------------------------
 
-def _list_rows(log):
-    """The entries drawn for each row of the keyframe list."""
-    rows, current = [], None
-    for entry in log:
-        if entry[0] == "list_row":
-            current = []
-            rows.append(current)
-        elif entry[0] == "template_list":
-            current = None
-        elif current is not None:
-            current.append(entry)
-    return rows
-
-
 def test_list_rows_show_names_first_and_compact_frames(scene, kfi):
-    from test_panel import draw_all
+    from test_panel import draw_all, list_rows
 
     kfi.build_spheres([("merge_A", (0, 0, 0), 1, 1), ("merge_B", (3, 0, 0), 1, 40)], pairs=False)
-    rows = _list_rows(draw_all(bpy.context))
+    rows = list_rows(draw_all(bpy.context))
     assert len(rows) == 2
     for row, (name, frame) in zip(rows, (("merge_A", "1"), ("merge_B", "40"))):
         drawn = [e for e in row if e[0] == "drawn"]

@@ -45,20 +45,11 @@ def test_an_eased_keyframe_is_where_the_baked_motion_slows_down(scene, kfi):
 
 
 def test_the_list_shows_each_keyframes_interpolation(scene, kfi):
-    from test_panel import draw_all
+    from test_panel import draw_all, list_rows
 
     kfi.build_spheres(THREE, pairs=False)
     scene.keyframe_implicit.keyframes[1].interpolation = "EASE"
-    log = draw_all(bpy.context)
-    rows, current = [], None
-    for entry in log:
-        if entry[0] == "list_row":
-            current = []
-            rows.append(current)
-        elif entry[0] == "template_list":
-            current = None
-        elif current is not None:
-            current.append(entry)
+    rows = list_rows(draw_all(bpy.context))
     shown = [[e[2] for e in row if e[0] == "drawn"][-1] for row in rows]
     assert shown == ["SMOOTH", "EASE", "SMOOTH"]
     assert all(("prop", "interpolation") in row for row in rows)

@@ -98,6 +98,20 @@ def draw_all(context):
     return log
 
 
+def list_rows(log):
+    """The entries drawn for each row of the keyframe list."""
+    rows, current = [], None
+    for entry in log:
+        if entry[0] == "list_row":
+            current = []
+            rows.append(current)
+        elif entry[0] == "template_list":
+            current = None
+        elif current is not None:
+            current.append(entry)
+    return rows
+
+
 def labels(log):
     return " ".join(e[1] for e in log if e[0] == "label")
 
