@@ -73,12 +73,13 @@ def save_png(pixels, path):
 
 
 def open_scene(path):
-    """Steps: open ``path`` with the default UI (like a new user), open the 3D view's
-    sidebar on the extension's tab, and frame the keyframe objects."""
+    """Steps: open ``path`` as File > Open does by default (with its own UI: its timeline
+    framed on its frames), open the 3D view's sidebar on the extension's tab, and frame
+    the keyframe objects."""
     assert ADDON in bpy.context.preferences.addons, "the extension is not enabled"
     win, _, _, _ = view3d()
     with bpy.context.temp_override(window=win):
-        bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
+        bpy.ops.wm.open_mainfile(filepath=path, load_ui=True)
     yield 1.0
     win, area, sidebar, main = view3d()
     area.spaces.active.show_region_ui = True

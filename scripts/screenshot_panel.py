@@ -2,7 +2,7 @@
 
     blender --python scripts/screenshot_panel.py -- SCENE.blend OUTDIR
 
-With the extension installed and enabled: open SCENE with the default UI, open the
+With the extension installed and enabled: open SCENE with its own UI, open the
 3D view's sidebar on the "Keyframe Implicit" tab at its default width, and write
 ``panel_<step>.png`` (the sidebar cut out of the X display's pixels, once it has stopped
 changing) for the steps before, baking (mid-bake), after, figures (the report's figures
