@@ -163,7 +163,8 @@ def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, pass
             origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, part))
             step, err[k] = volume_offset(own, sub_grid(grid, origin), targets[k],
                                          max_cells=max_cells, **keywords)
-            local[near == k + 1] -= step
+            mine = local[part]  # a view of the component's box: its nodes are all in it
+            mine[near[part] == k + 1] -= step
             c[k] += step
     return c, err
 
