@@ -58,8 +58,8 @@ def test_a_chain_gives_its_free_heap_back_between_segments_not_after_the_last(mo
     phi = l_shape(grid.points())
     monkeypatch.setattr(chain, "release_memory", lambda: released.append(len(done)))
     done = []
-    real = chain._Kept.add
-    monkeypatch.setattr(chain._Kept, "add", lambda self, *a: (done.append(1), real(self, *a)))
+    real = chain.Kept.add
+    monkeypatch.setattr(chain.Kept, "add", lambda self, *a: (done.append(1), real(self, *a)))
     animate_chain([phi] * 4, grid, None, [1, 3, 5, 7], maps=[grid.points()] * 3, surfaces=False)
     assert released == [1, 2]
 

@@ -414,10 +414,10 @@ def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
 def test_frame_split_halves_the_inbetweens_not_the_frames(first, ends, mine):
     """A keyframe's own frame adds no work of its own: frames 1..25 give this process s = 0
     and 12 in-betweens, the helper 11 and s = 1 (halving the frames gave it 12)."""
-    from keyframe_implicit.core.bake.chain import _FrameSplit, _Segment
+    from keyframe_implicit.core.bake.chain import FrameSplit, Segment
 
     frames = np.arange(first, ends[1] + 1)
-    split = _FrameSplit(object(), frames, _Segment(0, ends, None, None, None))
+    split = FrameSplit(object(), frames, Segment(0, ends, None, None, None))
     assert split.half == mine
 
     def inner(f):
@@ -445,11 +445,11 @@ def test_both_halves_of_a_split_carry_their_transports_one_after_the_other(monke
     monkeypatch.setattr(chain, "_frames", lambda inb, frames, *rest: seen.append(
         (inb.threads, frames.tolist())) or [None] * len(frames))
     frames = np.arange(1, 10)
-    segment = chain._Segment(0, (1, 9), None, None, None)
-    chain._FrameSplit(InTurn(), frames, segment).run(SimpleNamespace(threads=2), Reporter())
+    segment = chain.Segment(0, (1, 9), None, None, None)
+    chain.FrameSplit(InTurn(), frames, segment).run(SimpleNamespace(threads=2), Reporter())
     assert seen == [(1, [1, 2, 3, 4, 5]), (1, [6, 7, 8, 9])]
     seen.clear()
-    chain._FrameSplit(None, frames, segment).run(SimpleNamespace(threads=2), Reporter())
+    chain.FrameSplit(None, frames, segment).run(SimpleNamespace(threads=2), Reporter())
     assert seen == [(2, list(range(1, 10)))]
 
 

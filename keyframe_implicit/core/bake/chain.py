@@ -116,37 +116,25 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
     rep = Reporter(progress, cancel)
-    phis, frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
-    kinds = check_key_interpolation(key_interpolation, len(phis))
-    nk = len(phis)
     t0 = time.perf_counter()
-    if template is None:
-        verts, faces = initial_template(phis[0], grid)
-    else:
-        verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
-    outputs = SurfaceOptions(coverage=coverage, surfaces=surfaces and grid.dim == 3,
-                             levelsets=levelsets)
-    kept = _Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, outputs)
+    chain = Chain(phis, grid, features, frames, maps=maps, coverage=coverage,
+                  surfaces=surfaces, levelsets=levelsets, template=template,
+                  keyframe_meshes=keyframe_meshes, motion_grid=motion_grid,
+                  key_interpolation=key_interpolation, cancel=cancel, **options)
+    frames, nk = chain.frames, len(chain.frames)
+    verts, faces = chain.template
+    kept = Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, chain.outputs)
     own = helper is None and processes > 1
-    segments = _Inbetweens(phis, grid, features, maps, options, cancel, motion_grid,
-                           (frames, kinds))
     blas = one_blas_thread()
     try:
         if own:
             helper = Helper(HELPER_PRELOAD)
         for k in range(nk - 1):  # loop over segments (keyframe pairs)
-            seg = rep.sub(k / (nk - 1), (k + 1) / (nk - 1))
-            f0, f1 = frames[k], frames[k + 1]
-            local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
-            split = _FrameSplit(helper, local, _Segment(k, (f0, f1), (verts, faces),
-                                                        keyframe_meshes, outputs))
-            inb = segments.make(k, helper, split, seg)
-            t_seg = time.perf_counter()
-            kept.add(local - frames[0], split.run(inb, seg.sub(0.5, 1.0)))
+            local, records, stats = chain.segment(
+                k, verts, helper, rep.sub(k / (nk - 1), (k + 1) / (nk - 1)))
+            kept.add(local - frames[0], records)
             verts = kept.vertices[local[-1] - frames[0]]
-            kept.stats["segments"].append(dict(inb.stats,
-                                               template_seconds=time.perf_counter() - t_seg))
-            del inb
+            kept.stats["segments"].append(stats)
             if k < nk - 2:  # the next segment's arrays then do not stack on this one's
                 release_memory()
     finally:
@@ -155,10 +143,58 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
             kept.stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
         if own and helper is not None:
             helper.close()
-    kept.stats.update(seconds=time.perf_counter() - t0, vertices=int(len(verts)),
-                      faces=int(len(faces)))
-    return Animation(kept.frames, kept.vertices, faces, grid, kept.stats, kept.meshes,
-                     kept.velocities, kept.fields)
+    return kept.animation(chain, time.perf_counter() - t0)
+
+
+class Chain:
+    """A chain's inputs checked and ready to run one segment at a time (`segment`), in
+    timeline order (`animate_chain`) or each segment on its own, given the template it
+    starts from (`end_template` gives it; a render farm runs them so).
+
+    The parameters are `animate_chain`'s, ``processes`` and the progress apart.
+    """
+
+    def __init__(self, phis, grid, features, frames, *, maps=None, coverage=True,
+                 surfaces=True, levelsets=False, template=None, keyframe_meshes=None,
+                 motion_grid=None, key_interpolation=None, cancel=None, **options):
+        phis, self.frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
+        kinds = check_key_interpolation(key_interpolation, len(phis))
+        if template is None:
+            verts, faces = initial_template(phis[0], grid)
+        else:
+            verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
+        self.template = verts, faces
+        self.keyframe_meshes = keyframe_meshes
+        self.outputs = SurfaceOptions(coverage=coverage, surfaces=surfaces and grid.dim == 3,
+                                      levelsets=levelsets)
+        self.inbetweens = Inbetweens(phis, grid, features, maps, options, cancel, motion_grid,
+                                     (self.frames, kinds))
+
+    def _segment(self, k, start):
+        """`Segment` ``k`` starting from the template's vertices ``start``, and its frames."""
+        f0, f1 = self.frames[k], self.frames[k + 1]
+        local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
+        return Segment(k, (f0, f1), (start, self.template[1]), self.keyframe_meshes,
+                       self.outputs), local
+
+    def segment(self, k, start, helper, rep):
+        """Segment ``k``'s frames from the template's vertices ``start`` on its first frame:
+        (timeline frames, one record per frame (`_frames`), the segment's figures). The
+        first segment begins on the first keyframe's frame, every other one a frame after
+        its first keyframe (the previous segment's last frame)."""
+        segment, local = self._segment(k, start)
+        split = FrameSplit(helper, local, segment)
+        inb = self.inbetweens.make(k, helper, split, rep)
+        t0 = time.perf_counter()
+        records = split.run(inb, rep.sub(0.5, 1.0))
+        return local, records, dict(inb.stats, template_seconds=time.perf_counter() - t0)
+
+    def end_template(self, k, start):
+        """The template's vertices on segment ``k``'s last frame (s = 1) from ``start`` on
+        its first: the next segment's ``start``, without making its frames."""
+        segment, local = self._segment(k, start)
+        inb = self.inbetweens.make(k, None, FrameSplit(None, local, segment), Reporter())
+        return _template(inb, segment, _detail(inb, segment), 1.0)["vertices"]
 
 
 def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
@@ -188,7 +224,7 @@ def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
     return phis, frames
 
 
-class _Inbetweens:
+class Inbetweens:
     """Each segment's `levelset.Inbetween`, as `animate_chain` gets its maps: given
     (``maps``), solved with a helper a window of segments at a time
     (`maps.solve_maps_shared`), or solved in this process (`maps.pair_inbetweens`).
@@ -207,12 +243,12 @@ class _Inbetweens:
         self.solve_phis = solve_fields(phis, grid, motion_grid) if maps is None else None
         options = {k: v for k, v in options.items() if k != "parallel"}
         self.map_options, self.motion_options = stage_options(options)
-        self._solved = {}  # segment -> its maps, solved ahead in a window
+        self.solved = {}  # segment -> its maps, solved ahead in a window
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
 
     def make(self, k, helper, split, rep):
-        """Segment ``k``'s in-betweens; ``split`` (`_FrameSplit`) hears of them as soon as
+        """Segment ``k``'s in-betweens; ``split`` (`FrameSplit`) hears of them as soon as
         their recipe is known; progress to 0.5 of ``rep``."""
         from ..motion.levelset import Inbetween
         from .maps import from_solved, pair_inbetweens
@@ -223,15 +259,15 @@ class _Inbetweens:
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
                                       options=self.motion_options, motion_grid=self.motion_grid)
-        if helper is None:
+        if helper is None and k not in self.solved:
             return pair_inbetweens(a, b, self.grid, self.features[k], self.map_options,
                                    self.motion_options, progress=rep.sub(0.0, 0.5),
                                    cancel=cancel, on_maps=split.start,
                                    motion_grid=self.motion_grid)
-        if k not in self._solved:
+        if k not in self.solved:
             self._solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
                         rep.sub(0.0, 0.4))
-        res, back, seconds = self._solved.pop(k)
+        res, back, seconds = self.solved.pop(k)
         rep(0.4, "trajectories")
         inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
                           on_maps=split.start, cancel=cancel)
@@ -242,8 +278,11 @@ class _Inbetweens:
         """The maps of the segments in ``window``, into ``_solved``."""
         from .maps import on_solve_grid, solve_maps_shared
 
+        window = [k for k in window if k not in self.solved]  # given, or solved before
+        if not window:
+            return
         solve_grid = self.grid if self.motion_grid is None else self.motion_grid
-        self._solved.update(solve_maps_shared(
+        self.solved.update(solve_maps_shared(
             self.solve_phis, solve_grid, self.features, window, self.motion_options.two_sided,
             helper, rep, self.cancel, on_solve_grid(self.map_options, self.grid, solve_grid)))
 
@@ -254,7 +293,7 @@ class _Inbetweens:
         from .maps import from_solved
 
         if not self.bends:
-            self._bend_all(helper, rep.sub(0.0, 0.4))
+            self.bend_all(helper, rep.sub(0.0, 0.4))
         rep(0.4, "trajectories")
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
@@ -262,13 +301,13 @@ class _Inbetweens:
                                      mapped_back=self._back[k], bends=self.bends[k],
                                      options=self.motion_options, motion_grid=self.motion_grid)
         else:
-            res, back, seconds = self._solved.pop(k)
+            res, back, seconds = self.solved.pop(k)
             inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
                               on_maps=split.start, cancel=cancel, bends=self.bends[k])
         rep(0.5, "in-betweens ready")
         return inb
 
-    def _bend_all(self, helper, rep):
+    def bend_all(self, helper, rep):
         """Every segment's maps (solved or given), the velocities of the paths that meet at
         the keyframes (`spline.velocities_needed`, two at a time: one per core), and every
         segment's `Bend`s."""
@@ -279,7 +318,7 @@ class _Inbetweens:
                       cancel=self.cancel)
         if self.maps is None:
             self._solve(range(nseg), helper, rep.sub(0.0, 0.7))
-            solved = [self._solved[k] for k in range(nseg)]
+            solved = [self.solved[k] for k in range(nseg)]
             forward = [res.mapped for res, _, _ in solved]
             ends = [dict(material=res.material, components=res.components)
                     for res, _, _ in solved]
@@ -309,7 +348,7 @@ class _Inbetweens:
                                                 velocities)))
 
 
-class _Kept:
+class Kept:
     """What `animate_chain` keeps of every frame's record (`_frames`): the template's
     vertices, the per-frame figures in ``stats``, and as ``outputs`` (`SurfaceOptions`)
     asks the level sets, the frames' own meshes and their velocities."""
@@ -340,6 +379,13 @@ class _Kept:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
 
+    def animation(self, chain, seconds):
+        """The `animation.Animation` of the frames kept, ``chain`` (`Chain`) their source."""
+        verts, faces = self.vertices[-1], chain.template[1]
+        self.stats.update(seconds=seconds, vertices=int(len(verts)), faces=int(len(faces)))
+        return Animation(self.frames, self.vertices, faces, chain.inbetweens.grid, self.stats,
+                         self.meshes, self.velocities, self.fields)
+
 
 #: Segments whose maps are solved together when there is a helper
 #: (`maps.solve_maps_shared`). Each segment's maps are kept until its frames are made,
@@ -348,7 +394,7 @@ _MAP_WINDOW = 2
 
 
 @dataclass(frozen=True)
-class _Segment:
+class Segment:
     """What making segment ``k``'s frames needs besides its in-betweens: the keyframes'
     timeline frames ``ends``, the ``template`` (vertices, faces) on its first frame, every
     keyframe's own mesh (or None) and what to keep of each frame."""
@@ -360,7 +406,7 @@ class _Segment:
     outputs: SurfaceOptions
 
 
-class _FrameSplit:
+class FrameSplit:
     """One segment's frames (`_frames`), the later half in a ``helper`` process when there
     is one (and at least 4 frames) while this process does the first half.
 
@@ -407,28 +453,40 @@ def _half(inb, frames, segment, rep=None):
 
 
 def _frames(inb, frames, segment, rep=None):
-    """Each timeline frame of a `_Segment` as a dict: the template's ``vertices`` and
+    """Each timeline frame of a `Segment` as a dict: the template's ``vertices`` and
     ``max_abs_phi``; as its ``outputs`` ask, the ``levelset`` (float32), the ``uncovered``
     area and fraction, and the frame's own ``mesh`` with its ``velocity`` (world units per
     frame) and both outputs' quality (``shape_keys``, ``mesh_sequence``)."""
     rep = rep or Reporter()
-    (f0, f1), (verts, faces), k = segment.ends, segment.template, segment.k
-    kf_meshes = segment.keyframe_meshes
-    detail = None if kf_meshes is None else DetailTrack(inb, verts, kf_meshes[k + 1])
+    (f0, f1), k = segment.ends, segment.k
+    detail = _detail(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
         s = (f - f0) / float(f1 - f0)
-        if detail is None:
-            tr = track_template(inb, [s], template=(verts, faces), coverage=False)
-            rec = dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0])
-        else:
-            p, err = detail(s)
-            rec = dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0)
+        rec = _template(inb, segment, detail, s)
         rep.check()
         rec.update(_frame_outputs(inb, s, segment, rec["vertices"], rep))
         records.append(rec)
         rep((i + 1) / len(frames), f"frame {f} (keyframes {k + 1} \u2192 {k + 2}, frames {f0}-{f1})")
     return records
+
+
+def _detail(inb, segment):
+    """The `template.DetailTrack` of a segment that ends on a keyframe's own mesh, else None."""
+    meshes = segment.keyframe_meshes
+    if meshes is None:
+        return None
+    return DetailTrack(inb, segment.template[0], meshes[segment.k + 1])
+
+
+def _template(inb, segment, detail, s):
+    """The template at time ``s``: its ``vertices`` and ``max_abs_phi``, the largest |phi|
+    of their projection onto the level set."""
+    if detail is None:
+        tr = track_template(inb, [s], template=segment.template, coverage=False)
+        return dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0])
+    p, err = detail(s)
+    return dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0)
 
 
 def _frame_outputs(inb, s, segment, p, rep):

@@ -19,7 +19,7 @@ from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
 
-__all__ = ["Keyframe", "animate"]
+__all__ = ["Keyframe", "animate", "BakePlan", "plan_bake", "distance_fields", "finish_bake"]
 
 
 @dataclass
@@ -163,13 +163,63 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     Cancelled
         When ``cancel()`` returned True.
     """
-    from ..map import terms
     from .chain import HELPER_PRELOAD, animate_chain
     from ..base.parallel import Helper, one_blas_thread
-    from ..motion.spline import check_key_interpolation
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
+    plan = plan_bake(keyframes, features, resolution=resolution, weights=weights,
+                     padding_cells=padding_cells, max_bytes=max_bytes,
+                     feature_names=feature_names, template=template,
+                     motion_resolution=motion_resolution, progress=rep, **options)
+    blas, given = one_blas_thread(), helper
+    try:
+        if helper is None and plan.chain_options.get("processes", 1) > 1:
+            helper = Helper(HELPER_PRELOAD)
+        phis = distance_fields(plan, rep.sub(0.0, 0.15), cancel, helper)
+        plan.stats["sdf_seconds"] = time.perf_counter() - t0
+        chain = animate_chain(phis, plan.grid, plan.features, plan.frames, helper=helper,
+                              progress=rep.sub(0.15, 0.98), cancel=cancel, **plan.chain_options)
+    finally:
+        blas.restore_original_limits()
+        if helper is not None and helper is not given:
+            helper.close()
+    return finish_bake(plan, chain, t0, rep)
+
+
+@dataclass
+class BakePlan:
+    """What `animate` settles before any grid work (`plan_bake`): the checked keyframes
+    and feature pairs, each keyframe's surface (`checks.surface_vertices`: vertices,
+    triangles, loose vertices, points the grid must hold), the surface grid, the artist's
+    template (vertices, triangles, `attributes.MeshAttributes`; None: the grid's),
+    `chain.animate_chain`'s keyword arguments and the figures so far."""
+
+    keyframes: list
+    features: list
+    grid: object
+    surfaces: list
+    artist: tuple | None
+    chain_options: dict
+    stats: dict
+
+    @property
+    def frames(self):
+        """The keyframes' timeline frames."""
+        return [kf.frame for kf in self.keyframes]
+
+
+def plan_bake(keyframes, features, *, resolution=48, weights=None, padding_cells=4,
+              max_bytes=None, feature_names=None, template="keyframe", motion_resolution=None,
+              progress=None, **options):
+    """`animate`'s inputs checked and its grids chosen, before any grid work: a `BakePlan`.
+
+    The parameters are `animate`'s; ValueError (and `memory.MemoryLimitError`) on input
+    the user must fix.
+    """
+    from ..map import terms
+    from ..motion.spline import check_key_interpolation
+
     keyframes, features = check_inputs(keyframes, features, feature_names)
     check_motion_resolution(motion_resolution, resolution)
     check_key_interpolation(options.get("key_interpolation"), len(keyframes))
@@ -183,7 +233,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         phys = _physical_memory()
         max_bytes = int(0.75 * phys) if phys else None
 
-    rep(0.0, "Choosing the grid")
+    Reporter(progress)(0.0, "Choosing the grid")
     stats = {}
     surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
     grid, stats["motion_resolution"], opts["motion_grid"] = _bake_grid(
@@ -192,30 +242,33 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     stats.update(grid_shape=tuple(grid.shape), grid_spacing=grid.spacing)
     if opts["motion_grid"] is not None:
         stats["motion_grid_shape"] = tuple(opts["motion_grid"].shape)
+    artist = _artist_template(keyframes[0], surfaces[0], template)
+    if artist is not None:
+        opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
+    return BakePlan(keyframes, features, grid, surfaces, artist, opts, stats)
 
-    blas, given = one_blas_thread(), helper
-    try:
-        if helper is None and opts.get("processes", 1) > 1:
-            helper = Helper(HELPER_PRELOAD)
-        phis, stats["sdf"] = _distance_grids(keyframes, surfaces, grid, rep.sub(0.0, 0.15),
-                                             cancel, helper)
-        stats["sdf_seconds"] = time.perf_counter() - t0
-        artist = _artist_template(keyframes[0], surfaces[0], template)
-        if artist is not None:
-            opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
-        chain = animate_chain(phis, grid, features, [kf.frame for kf in keyframes],
-                              helper=helper, progress=rep.sub(0.15, 0.98), cancel=cancel, **opts)
-    finally:
-        blas.restore_original_limits()
-        if helper is not None and helper is not given:
-            helper.close()
-    check_result(chain, grid, keyframes)
+
+def distance_fields(plan, rep, cancel=None, helper=None):
+    """The keyframes' signed distance grids on ``plan.grid`` (`sdf.mesh_to_sdf`, shared with
+    a ``helper`` process when given); their figures go to ``plan.stats["sdf"]``."""
+    phis, plan.stats["sdf"] = _distance_grids(plan.keyframes, plan.surfaces, plan.grid, rep,
+                                              cancel, helper)
+    return phis
+
+
+def finish_bake(plan, chain, t0, rep):
+    """`animate`'s result from the chain's `Animation`: checked against the keyframes, its
+    figures and notes gathered, the output chosen, arrays in their final types; ``t0``
+    the `time.perf_counter` the bake began at."""
+    keyframes, artist = plan.keyframes, plan.artist
+    check_result(chain, plan.grid, keyframes)
+    stats = dict(plan.stats)
     stats.update(chain.stats)
-    stats["loose_vertices"] = [s[2] for s in surfaces]
+    stats["loose_vertices"] = [s[2] for s in plan.surfaces]
     stats["notes"] = notes(keyframes, stats["loose_vertices"], stats["sdf"])
     if "quality" in stats:
         rep(0.98, "Measuring the keyframe frames")
-        _choose_output(stats, keyframes, chain, grid.spacing, artist is not None)
+        _choose_output(stats, keyframes, chain, plan.grid.spacing, artist is not None)
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return dataclasses.replace(
@@ -224,7 +277,7 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
         faces=np.asarray(chain.faces, dtype=np.int64), stats=stats,
         attributes=None if artist is None else artist[2],
         keyframe_attributes={} if artist is None else
-        _keyframe_attributes(keyframes, surfaces, artist[2]))
+        _keyframe_attributes(keyframes, plan.surfaces, artist[2]))
 
 
 def _bake_grid(keyframes, surfaces, features, feature_names, resolution, motion_resolution,
