@@ -265,7 +265,7 @@ class Inbetweens:
                                    cancel=cancel, on_maps=split.start,
                                    motion_grid=self.motion_grid)
         if k not in self.solved:
-            self._solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
+            self.solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
                         rep.sub(0.0, 0.4))
         res, back, seconds = self.solved.pop(k)
         rep(0.4, "trajectories")
@@ -274,7 +274,7 @@ class Inbetweens:
         rep(0.5, "in-betweens ready")
         return inb
 
-    def _solve(self, window, helper, rep):
+    def solve(self, window, helper, rep):
         """The maps of the segments in ``window``, into ``_solved``."""
         from .maps import on_solve_grid, solve_maps_shared
 
@@ -317,7 +317,7 @@ class Inbetweens:
         common = dict(motion_grid=self.motion_grid, options=self.motion_options,
                       cancel=self.cancel)
         if self.maps is None:
-            self._solve(range(nseg), helper, rep.sub(0.0, 0.7))
+            self.solve(range(nseg), helper, rep.sub(0.0, 0.7))
             solved = [self.solved[k] for k in range(nseg)]
             forward = [res.mapped for res, _, _ in solved]
             ends = [dict(material=res.material, components=res.components)
