@@ -1,10 +1,12 @@
-"""Command line: ``python -m keyframe_implicit {bake,demo} ...`` (needs the bpy module).
+"""Command line: ``python -m keyframe_implicit {bake,farm,demo} ...`` (needs the bpy module).
 
 ``bake SCENE.blend --out OUT.blend [--resolution N]``
     Open SCENE.blend, bake its Keyframe Implicit setup (blocking, same code as
     the Bake button) and save the result to OUT.blend. Exit status 0 on
     success, 1 when the bake fails (the message says why and what to do),
     2 on bad arguments.
+``farm STAGE ...``
+    The bake's stages one at a time, for a render farm (`farm.cli`).
 ``demo ...``
     Forwarded to ``keyframe_implicit.demo.main(argv)``.
 
@@ -31,6 +33,7 @@ def _parser():
     b.add_argument("--out", required=True, help="where to save the baked .blend")
     b.add_argument("--resolution", type=int, default=0,
                    help="grid resolution for this run (default: the scene's setting)")
+    sub.add_parser("farm", help="run one stage of the bake, for a render farm", add_help=False)
     sub.add_parser("demo", help="run the demo (arguments are passed on)", add_help=False)
     return p
 
@@ -47,24 +50,9 @@ def bake_file(scene_path, out_path, resolution=0, log=print):
     out_dir = os.path.dirname(os.path.abspath(out_path))
     if not os.path.isdir(out_dir):
         raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
-    import bpy
-
-    from . import register
     from .blender import bake
 
-    register()
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(scene_path), load_ui=False)
-    scenes = [s for s in bpy.data.scenes if len(s.keyframe_implicit.keyframes)]
-    if not scenes:
-        raise ValueError(f"{scene_path!r} has no Keyframe Implicit setup: add keyframes in the "
-                         "sidebar (View3D > Sidebar > Keyframe Implicit) and save it.")
-    for scene in scenes:
-        window = bpy.context.window
-        if window is not None:
-            window.scene = scene
-        depsgraph = scene.view_layers[0].depsgraph if window is None else None
-        if depsgraph is not None:
-            depsgraph.update()
+    for scene, depsgraph in bake.open_file(scene_path):
         last = [-1]
 
         def report(job, fraction, message, scene=scene):
@@ -74,10 +62,22 @@ def bake_file(scene_path, out_path, resolution=0, log=print):
                 log(f"[{scene.name}] {pct:3d}% {message}")
 
         obj = bake.bake_scene(scene, resolution, depsgraph, on_progress=report)
-        n = len(obj.data.shape_keys.key_blocks) - 1
-        log(f"[{scene.name}] baked '{obj.name}': {n} frames, {len(obj.data.vertices)} vertices")
-    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(out_path), copy=True)
+        first, last = obj["kfi_frames"]
+        log(f"[{scene.name}] baked '{obj.name}': frames {first}-{last}, "
+            f"{len(obj.data.vertices)} vertices")
+    bake.save_copy(out_path)
     log(f"saved {out_path}")
+
+
+def failure_line(what, exc):
+    """The line a command prints when ``what`` failed with ``exc``: the text alone for the
+    failures that say what happened and what to do in their own words, else with the
+    exception's type."""
+    from .core.base.progress import Cancelled
+    from .worker import WorkerError
+
+    told = isinstance(exc, (ValueError, Cancelled, WorkerError))
+    return f"error: {what} failed: {'' if told else f'{type(exc).__name__}: '}{exc}"
 
 
 def main(argv=None):
@@ -87,6 +87,10 @@ def main(argv=None):
         from . import demo  # written separately; imported only when asked for
 
         return demo.main(argv[1:])
+    if argv and argv[0] == "farm":
+        from .farm import cli
+
+        return cli.main(argv[1:])
     args = _parser().parse_args(argv)
     try:
         bake_file(args.scene, args.out, args.resolution)
@@ -95,13 +99,7 @@ def main(argv=None):
               file=sys.stderr)
         return 1
     except Exception as exc:  # noqa: BLE001 - every failure becomes a message and exit 1
-        from .core.base.progress import Cancelled
-        from .worker import WorkerError
-
-        # these say what happened and what to do in their own words
-        told = isinstance(exc, (ValueError, Cancelled, WorkerError))
-        kind = "" if told else f"{type(exc).__name__}: "
-        print(f"error: bake failed: {kind}{exc}", file=sys.stderr)
+        print(failure_line("bake", exc), file=sys.stderr)
         return 1
     return 0
 

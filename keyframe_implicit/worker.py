@@ -89,7 +89,7 @@ def receive(stream, sender_root):
     return _Unpickler(stream, sender_root).load()
 
 
-def _python_path():
+def python_path():
     """The worker's PYTHONPATH: the folder holding this package, then the folders numpy,
     scipy, scikit-image and threadpoolctl come from unless they are this Python's own
     site-packages (which the worker has anyway), then the parent's PYTHONPATH."""
@@ -104,7 +104,8 @@ def _python_path():
         where = os.path.dirname(os.path.abspath(inside[0]))
         if where not in own and where not in dirs:
             dirs.append(where)
-    return os.pathsep.join(dirs + [p for p in [os.environ.get("PYTHONPATH")] if p])
+    given = os.environ.get("PYTHONPATH", "").split(os.pathsep)
+    return os.pathsep.join(dirs + [p for p in given if p and p not in dirs])
 
 
 class Worker:
@@ -125,7 +126,7 @@ class Worker:
         self.process = subprocess.Popen(
             [sys.executable, "-P", "-m", f"{WORKER_ROOT}.worker"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, creationflags=_BELOW_NORMAL,
-            env=dict(os.environ, PYTHONPATH=_python_path()))
+            env=dict(os.environ, PYTHONPATH=python_path()))
 
     def cancel(self):
         """End the bake now (from any thread): the process is killed, `result` raises

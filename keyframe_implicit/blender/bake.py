@@ -102,7 +102,7 @@ class BakeJob:
         if self.on_progress is not None:
             self.on_progress(self, float(fraction), str(message))
 
-    def _arguments(self):
+    def arguments(self):
         """`core.animate`'s keyword arguments for this bake."""
         inp = self.inputs
         return dict(keyframes=inp.keyframes, features=inp.features, resolution=inp.resolution,
@@ -115,7 +115,7 @@ class BakeJob:
         with self._lock:
             if self._cancel.is_set():
                 raise Cancelled("cancelled before start")
-            self._worker = Worker(dict(self._arguments(), output_mode=self.inputs.output_mode))
+            self._worker = Worker(dict(self.arguments(), output_mode=self.inputs.output_mode))
         return self._worker.result(self._progress)
 
     def run(self):
@@ -270,3 +270,34 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None
     if notes is not None:
         notes.extend(job.notes)
     return obj
+
+
+def open_file(scene_path):
+    """Open the .blend ``scene_path`` (without its UI) and yield (scene, depsgraph) of each
+    of its scenes with keyframes, the scene made the window's when there is a window.
+    ValueError when none has keyframes."""
+    import bpy
+
+    from .. import register
+
+    register()
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(scene_path), load_ui=False)
+    scenes = [s for s in bpy.data.scenes if len(s.keyframe_implicit.keyframes)]
+    if not scenes:
+        raise ValueError(f"{scene_path!r} has no Keyframe Implicit setup: add keyframes in the "
+                         "sidebar (View3D > Sidebar > Keyframe Implicit) and save it.")
+    for scene in scenes:
+        window = bpy.context.window
+        if window is not None:
+            window.scene = scene
+        depsgraph = scene.view_layers[0].depsgraph if window is None else None
+        if depsgraph is not None:
+            depsgraph.update()
+        yield scene, depsgraph
+
+
+def save_copy(out_path):
+    """Save the open file's state to ``out_path`` as a copy (the open file keeps its path)."""
+    import bpy
+
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(out_path), copy=True)

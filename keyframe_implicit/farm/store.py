@@ -112,6 +112,7 @@ def save(path, obj):
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, tree=np.array(text), **{f"a{i}": a for i, a in enumerate(arrays)})
+        os.chmod(tmp, 0o644)  # as a plain file would be: other farm users read it
         os.replace(tmp, path)
     except BaseException:
         os.unlink(tmp)

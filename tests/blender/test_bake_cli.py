@@ -19,7 +19,7 @@ def test_cli_bakes_a_saved_scene(scene, kfi, tmp_path):
     lines = []
     cli.bake_file(str(src), str(out), kfi.RES, log=lines.append)
     assert out.is_file()
-    assert any("baked 'KFI Animation': 4 frames" in line for line in lines)
+    assert any("baked 'KFI Animation': frames 1-4" in line for line in lines)
     bpy.ops.wm.open_mainfile(filepath=str(out))
     result = bpy.context.scene.keyframe_implicit.output_object
     assert result is not None and len(result.data.shape_keys.key_blocks) == 5

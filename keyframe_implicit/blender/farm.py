@@ -1,0 +1,77 @@
+"""The farm job's two Blender stages and the panel's Export Farm Job.
+
+``prepare`` reads a scene exactly as the Bake button does (`bake.collect`, the worker's
+arguments) into a job directory; ``assemble`` writes the job's result into the scene
+exactly as a local bake does (`bake.BakeJob.apply`). The stages between them need no
+Blender (`farm.stages`). Assemble reads the scene again and refuses a job prepared from
+another scene, or from this one before it changed.
+"""
+
+import os
+
+from ..farm import stages, store
+from ..farm.template import write_template
+from . import bake
+
+__all__ = ["prepare_scene", "assemble_scene", "job_dir_of", "export_job"]
+
+
+def _inputs_of(inputs):
+    """What ``prepare`` keeps of a `scene_io.BakeInput`, and its fingerprint."""
+    kept = {"arguments": bake.BakeJob(inputs).arguments(), "output_mode": inputs.output_mode}
+    return kept, store.fingerprint(kept)
+
+
+def prepare_scene(scene, depsgraph, job_dir, scene_path, resolution=0, segments=None,
+                  progress=None):
+    """Write ``scene``'s bake into ``job_dir`` (`farm.stages.prepare`); the scene is only read.
+
+    ``segments``: the number of segments the job was written for (its template's task
+    ranges); ValueError when the scene has another.
+    """
+    inputs = bake.collect(scene, depsgraph, resolution)
+    n = len(inputs.keyframes) - 1
+    if segments is not None and n != segments:
+        raise ValueError(f"The scene '{scene.name}' has {n} segments but the job was written "
+                         f"for {segments}: write the job again ('farm template', or Export "
+                         f"Farm Job in the panel).")
+    kept, _ = _inputs_of(inputs)
+    source = {"scene": os.path.abspath(scene_path), "scene_name": scene.name}
+    return stages.prepare(kept["arguments"], kept["output_mode"], job_dir, source, progress)
+
+
+def assemble_scene(scene, depsgraph, job_dir, progress=None):
+    """Write the job's result into ``scene`` as a local bake would; returns the output object.
+
+    Raises `store.JobError` when the job was prepared from another scene or the scene has
+    changed since, or when frames are missing.
+    """
+    manifest = store.read_manifest(job_dir)
+    inputs = bake.collect(scene, depsgraph, manifest["resolution"])
+    if _inputs_of(inputs)[1] != manifest["fingerprint"]:
+        raise store.JobError(
+            f"{job_dir!r} was prepared from '{manifest.get('scene_name')}' in "
+            f"{manifest.get('scene')!r}, not from this scene as it is now ('{scene.name}'): "
+            "assemble into the scene the job was prepared from, or prepare the job again.")
+    job = bake.BakeJob(inputs)
+    job.result = stages.assemble(job_dir, progress)
+    job.state = bake.DONE
+    job.seconds = job.result.stats.get("total_seconds", 0.0)
+    return job.apply(scene)
+
+
+def job_dir_of(blend_path):
+    """The job directory Export Farm Job writes beside a saved .blend: NAME_farm."""
+    folder, name = os.path.split(os.path.abspath(blend_path))
+    return os.path.join(folder, os.path.splitext(name)[0] + "_farm")
+
+
+def export_job(scene, depsgraph, blend_path, blender_path):
+    """Check ``scene``'s bake and write its job template beside ``blend_path``, each Blender
+    stage run by ``blender_path``; returns the job directory. ValueError when the bake
+    could not start."""
+    inputs = bake.collect(scene, depsgraph)
+    job_dir = job_dir_of(blend_path)
+    write_template(job_dir, blend_path, len(inputs.keyframes) - 1, inputs.resolution,
+                   blender=blender_path)
+    return job_dir

@@ -1,0 +1,12 @@
+"""The bake on a render farm: its stages as separate tasks over a job directory.
+
+``stages``    the bake taken apart where its work is independent: prepare, a pair's maps,
+              the paths, a segment's frames, assemble (bpy-free)
+``store``     the job directory's files: plain arrays and a JSON tree, a manifest
+``template``  the Open Job Description job template that runs the stages in order
+``cli``       ``python -m keyframe_implicit farm STAGE ...``
+``flamenco``  the same job as a Flamenco job type (JavaScript)
+
+The Blender side of prepare and assemble, and the panel's Export Farm Job, are in
+``blender.farm``.
+"""

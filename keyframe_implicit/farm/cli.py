@@ -1,0 +1,150 @@
+"""``python -m keyframe_implicit farm STAGE ...``: the bake's stages one at a time.
+
+    prepare SCENE.blend DIR [--resolution N]   read the scene as Bake does (needs bpy)
+    maps DIR --pair I                          keyframes I -> I+1: their two maps
+    paths DIR                                  every segment's bends and starting template
+    segment DIR --segment I                    keyframes I -> I+1: their frames
+    assemble DIR --out OUT.blend [--scene S]   write the result as a local bake (needs bpy)
+    template DIR                               DIR/template.yaml, an Open Job Description job
+
+``--blender PATH`` runs prepare or assemble inside that Blender (``blender -b``) instead
+of importing the bpy module. Exit status 0 on success, 1 when the stage fails (the
+message says why and what to do), 2 on bad arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+
+__all__ = ["main"]
+
+
+def _parser():
+    p = argparse.ArgumentParser(prog="python -m keyframe_implicit farm",
+                                description="The bake's stages, for a render farm.")
+    sub = p.add_subparsers(dest="stage", required=True)
+    s = sub.add_parser("prepare", help="read a .blend's bake into a job directory")
+    s.add_argument("scene")
+    s.add_argument("dir")
+    s.add_argument("--resolution", type=int, default=0,
+                   help="grid resolution (default: the scene's setting)")
+    s.add_argument("--segments", type=int, default=None,
+                   help="refuse a scene with another number of segments")
+    s.add_argument("--blender", default="", help="run inside this Blender executable")
+    s = sub.add_parser("maps", help="solve one keyframe pair's maps")
+    s.add_argument("dir")
+    s.add_argument("--pair", type=int, required=True, help="pair I: keyframes I -> I+1")
+    s = sub.add_parser("paths", help="every segment's bends and starting template")
+    s.add_argument("dir")
+    s = sub.add_parser("segment", help="one segment's frames")
+    s.add_argument("dir")
+    s.add_argument("--segment", type=int, required=True, help="keyframes I -> I+1")
+    s = sub.add_parser("assemble", help="write the result into the scene and save it")
+    s.add_argument("dir")
+    s.add_argument("--out", required=True, help="where to save the baked .blend")
+    s.add_argument("--scene", default=None, help="the .blend (default: the one prepared)")
+    s.add_argument("--blender", default="", help="run inside this Blender executable")
+    s = sub.add_parser("template", help="write DIR/template.yaml (Open Job Description)")
+    s.add_argument("dir")
+    return p
+
+
+def _log(prefix):
+    last = [-1]
+
+    def report(fraction, message):
+        pct = int(100 * fraction)
+        if pct >= last[0] + 10 or pct == 100:
+            last[0] = pct
+            print(f"[{prefix}] {pct:3d}% {message}", flush=True)
+
+    return report
+
+
+def _in_blender(blender, argv):
+    """Run this command line, ``argv``, inside ``blender -b``; its exit status."""
+    expr = (f"import sys; from {__package__.rsplit('.', 1)[0]}.__main__ import main; "
+            "sys.exit(main(sys.argv[sys.argv.index('--') + 1:]))")
+    argv = [a for a in argv if not a.startswith("--blender")]
+    return subprocess.call([blender, "-b", "--factory-startup", "--python-use-system-env",
+                            "--python-expr", expr, "--", "farm", *argv])
+
+
+def _prepare(args):
+    from ..blender import bake
+    from ..blender.farm import prepare_scene
+
+    for scene, depsgraph in bake.open_file(args.scene):
+        manifest = prepare_scene(scene, depsgraph, args.dir, args.scene, args.resolution,
+                                 args.segments, _log("prepare"))
+        print(f"prepared '{manifest['scene_name']}': {manifest['keyframes']} keyframes, "
+              f"frames {manifest['frames'][0]}-{manifest['frames'][-1]}, in {args.dir}")
+        return
+
+
+def _assemble(args):
+    from ..blender import bake
+    from ..blender.farm import assemble_scene
+    from . import store
+
+    manifest = store.read_manifest(args.dir)
+    out_dir = os.path.dirname(os.path.abspath(args.out))
+    if not os.path.isdir(out_dir):
+        raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
+    scene_path = args.scene or manifest["scene"]
+    for scene, depsgraph in bake.open_file(scene_path):
+        if scene.name == manifest["scene_name"]:
+            obj = assemble_scene(scene, depsgraph, args.dir, _log("assemble"))
+            bake.save_copy(args.out)
+            print(f"assembled '{obj.name}' into {args.out}")
+            return
+    raise store.JobError(f"{scene_path!r} has no scene '{manifest['scene_name']}' with a "
+                         "Keyframe Implicit setup: give the .blend the job was prepared from.")
+
+
+def _template(args):
+    from . import store
+    from .template import write_template
+
+    m = store.read_manifest(args.dir)
+    path = write_template(args.dir, m["scene"], m["segments"], m["resolution"])
+    print(f"wrote {path}: run it with 'openjd run {path}'")
+
+
+def _run(args):
+    from . import stages
+
+    if args.stage == "prepare":
+        _prepare(args)
+    elif args.stage == "maps":
+        stages.solve_pair(args.dir, args.pair, _log(f"maps {args.pair}"))
+    elif args.stage == "paths":
+        stages.bend_paths(args.dir, _log("paths"))
+    elif args.stage == "segment":
+        stages.make_segment(args.dir, args.segment, _log(f"segment {args.segment}"))
+    elif args.stage == "assemble":
+        _assemble(args)
+    else:
+        _template(args)
+
+
+def main(argv):
+    """Run one stage (module docstring); returns the exit status."""
+    args = _parser().parse_args(argv)
+    if getattr(args, "blender", ""):
+        return _in_blender(args.blender, argv)
+    try:
+        _run(args)
+    except ImportError as exc:
+        print(f"error: {exc}: prepare and assemble need the bpy module (pip install bpy) or "
+              "--blender PATH.", file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: BLE001 - every failure becomes a message and exit 1
+        from ..__main__ import failure_line
+
+        print(failure_line(f"farm {args.stage}", exc), file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,129 @@
+"""The bake as an Open Job Description job template (``jobtemplate-2023-09``).
+
+Steps, each a command of this package's farm command line (`farm.cli`):
+
+    Prepare -> Maps (a task per keyframe pair) -> Paths -> Segments (a task per segment)
+    -> Assemble
+
+Paths is one short task between the two parallel steps: a segment's paths bend with its
+neighbours' maps (docs/method.md, section 12), and a segment starts from the template
+where the one before it ended. Job parameters: the .blend, the job directory, the output
+.blend, the resolution, the Python that runs the stages and its PYTHONPATH, and optionally
+a Blender executable for the two stages that read and write the .blend (empty: the Python
+imports the bpy module). ``openjd run DIR/template.yaml`` runs the whole job with the
+defaults written here; ``deadline bundle submit DIR`` sends it to AWS Deadline Cloud. The
+job directory is self-contained: it holds a copy of the .blend (Open Job Description
+resolves a path's default inside the template's folder).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+
+__all__ = ["job_template", "write_template", "to_yaml", "TEMPLATE"]
+
+TEMPLATE = "template.yaml"
+_PACKAGE = __package__.rsplit(".", 1)[0].rsplit(".", 1)[-1]  # as `python -m` names it
+
+
+def _stage(*args):
+    """The onRun action of a step that runs ``farm`` with ``args``."""
+    return {"actions": {"onRun": {"command": "{{Param.Python}}",
+                                  "args": ["-m", _PACKAGE, "farm", *args]}}}
+
+
+def _tasks(name, count):
+    return {"taskParameterDefinitions": [{"name": name, "type": "INT",
+                                          "range": f"1-{count}"}]}
+
+
+def job_template(job_dir, blend_path, segments, resolution, python=None, python_path=None,
+                 blender=""):
+    """The job template as a dict (see the module docstring)."""
+    from ..worker import python_path as worker_path
+
+    job_dir = os.path.abspath(job_dir)
+    params = [
+        # a PATH's default lies in the template's folder, the job directory
+        dict(name="BlendFile", type="PATH", objectType="FILE", dataFlow="IN",
+             default=os.path.basename(blend_path),
+             description="The scene to bake (a copy of the scene the job was written for)."),
+        dict(name="JobDir", type="PATH", objectType="DIRECTORY", dataFlow="OUT",
+             default=".", description="Where the stages keep their files."),
+        dict(name="OutputFile", type="PATH", objectType="FILE", dataFlow="OUT",
+             default="baked.blend", description="The baked .blend."),
+        dict(name="Resolution", type="INT", default=int(resolution), minValue=4,
+             maxValue=1024, description="Grid cells along the keyframes' longest side."),
+        dict(name="Python", type="STRING", default=python or sys.executable,
+             description="The Python that runs the stages (with the bpy module, unless "
+                         "Blender is set)."),
+        dict(name="PythonPath", type="STRING", default=python_path or worker_path(),
+             description="PYTHONPATH of the stages: the folder holding the add-on, and its "
+                         "numpy, scipy and scikit-image."),
+        dict(name="Blender", type="STRING", default=blender or "", minLength=0,
+             description="A Blender executable for Prepare and Assemble (empty: Python "
+                         "imports bpy)."),
+    ]
+    pair, segment = "{{Task.Param.Pair}}", "{{Task.Param.Segment}}"
+    steps = [
+        dict(name="Prepare", script=_stage(
+            "prepare", "{{Param.BlendFile}}", "{{Param.JobDir}}", "--resolution",
+            "{{Param.Resolution}}", "--segments", str(int(segments)),
+            "--blender={{Param.Blender}}")),
+        dict(name="Maps", dependencies=[{"dependsOn": "Prepare"}],
+             parameterSpace=_tasks("Pair", segments),
+             script=_stage("maps", "{{Param.JobDir}}", "--pair", pair)),
+        dict(name="Paths", dependencies=[{"dependsOn": "Maps"}],
+             script=_stage("paths", "{{Param.JobDir}}")),
+        dict(name="Segments", dependencies=[{"dependsOn": "Paths"}],
+             parameterSpace=_tasks("Segment", segments),
+             script=_stage("segment", "{{Param.JobDir}}", "--segment", segment)),
+        dict(name="Assemble", dependencies=[{"dependsOn": "Segments"}],
+             script=_stage("assemble", "{{Param.JobDir}}", "--out", "{{Param.OutputFile}}",
+                           "--scene", "{{Param.BlendFile}}", "--blender={{Param.Blender}}")),
+    ]
+    return {
+        "specificationVersion": "jobtemplate-2023-09",
+        "name": "Keyframe Implicit bake",
+        "parameterDefinitions": params,
+        "jobEnvironments": [{"name": "KeyframeImplicit",
+                             "variables": {"PYTHONPATH": "{{Param.PythonPath}}"}}],
+        "steps": steps,
+    }
+
+
+def to_yaml(value, indent=0):
+    """``value`` (dicts, lists, strings, numbers) as block YAML; strings double-quoted."""
+    pad = " " * indent
+    if isinstance(value, dict):
+        lines = []
+        for key, item in value.items():
+            if isinstance(item, (dict, list)) and item:
+                lines.append(f"{pad}{key}:\n{to_yaml(item, indent + 2)}")
+            else:
+                lines.append(f"{pad}{key}: {json.dumps(item)}")
+        return "\n".join(lines)
+    if isinstance(value, list):
+        lines = []
+        for item in value:
+            body = to_yaml(item, indent + 2) if isinstance(item, (dict, list)) else (
+                " " * (indent + 2) + json.dumps(item))
+            lines.append(f"{pad}- {body[indent + 2:]}")
+        return "\n".join(lines)
+    return pad + json.dumps(value)
+
+
+def write_template(job_dir, blend_path, segments, resolution, **kwargs):
+    """Write DIR/template.yaml (`job_template`'s keywords); returns its path."""
+    os.makedirs(job_dir, exist_ok=True)
+    copy = os.path.join(job_dir, os.path.basename(blend_path))
+    if not os.path.exists(copy) or not os.path.samefile(blend_path, copy):
+        shutil.copyfile(blend_path, copy)  # the job's input: a farm sends the bundle whole
+    path = os.path.join(job_dir, TEMPLATE)
+    with open(path, "w") as f:
+        f.write(to_yaml(job_template(job_dir, blend_path, segments, resolution, **kwargs))
+                + "\n")
+    return path
