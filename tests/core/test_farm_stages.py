@@ -1,0 +1,135 @@
+"""The bake's stages run one by one over a job directory (`keyframe_implicit.farm`): the
+assembled result is the local bake's, a rerun writes the same frames, and what a stage
+cannot use is refused with the command that makes it."""
+
+import json
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from benchmark_modules import load
+from keyframe_implicit.core import Grid, animate
+from keyframe_implicit.core.motion.spline import Bend
+from keyframe_implicit.core.surface.attributes import MeshAttributes
+from keyframe_implicit.farm import stages, store
+
+bench = load("bench_smooth")
+RESOLUTION = 20
+SOURCE = {"scene": "arc.blend", "scene_name": "arc"}
+
+
+def _arguments(resolution=RESOLUTION):
+    kfs, feats = bench.ball_arc((1, 5, 9))  # three keyframes: the paths bend at the middle
+    return dict(keyframes=kfs, features=feats, resolution=resolution)
+
+
+def _run_all(job_dir, arguments):
+    stages.prepare(arguments, "AUTO", job_dir, SOURCE)
+    for i in (1, 2):
+        stages.solve_pair(job_dir, i)
+    stages.bend_paths(job_dir)
+    for i in (1, 2):
+        stages.make_segment(job_dir, i)
+
+
+@pytest.fixture(scope="module")
+def job(tmp_path_factory):
+    job_dir = str(tmp_path_factory.mktemp("job"))
+    _run_all(job_dir, _arguments())
+    return job_dir
+
+
+@pytest.fixture
+def job_copy(job, tmp_path):
+    return shutil.copytree(job, tmp_path / "job")
+
+
+def test_the_assembled_bake_is_the_local_bake_on_every_frame(job):
+    local = animate(**_arguments(), processes=2)
+    farm = stages.assemble(job)
+    np.testing.assert_array_equal(farm.frames, local.frames)
+    np.testing.assert_allclose(farm.vertices, local.vertices, rtol=0, atol=1e-6)
+    assert len(farm.surfaces) == len(local.surfaces) == 9
+    for (fv, ff), (lv, lf), f_vel, l_vel in zip(farm.surfaces, local.surfaces,
+                                                farm.velocities, local.velocities):
+        np.testing.assert_array_equal(ff, lf)
+        np.testing.assert_allclose(fv, lv, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(f_vel, l_vel, rtol=0, atol=1e-6)
+    assert farm.stats["output"] == local.stats["output"]
+    kind = farm.stats["output"]
+    np.testing.assert_allclose(farm.output_mesh(kind).positions,
+                               local.output_mesh(kind).positions, rtol=0, atol=1e-6)
+
+
+def test_the_paths_bend_through_the_middle_keyframe(job):
+    paths = store.load(stages.JobFiles(job).paths)
+    assert set(paths["bends"]) == {0, 1}
+    bends = paths["bends"]  # per segment, the forward and the backward transport's
+    assert all(isinstance(b, Bend) for pair in bends.values() for b in pair)
+    assert np.abs(bends[0][0].end).max() > 0 and np.abs(bends[1][0].start).max() > 0
+    assert len(paths["starts"]) == 2
+
+
+def test_rerunning_a_segment_writes_the_same_frames(job_copy):
+    path = stages.JobFiles(job_copy).segment(2)
+    before = store.load(path)
+    stages.make_segment(str(job_copy), 2)
+    after = store.load(path)
+    assert store.fingerprint(after["records"]) == store.fingerprint(before["records"])
+    np.testing.assert_array_equal(after["frames"], before["frames"])
+
+
+def test_assemble_names_the_missing_segment_and_its_command(job_copy):
+    os.remove(stages.JobFiles(job_copy).segment(2))
+    with pytest.raises(store.JobError, match=r"lacks the frames of segment 2 of 2: run "
+                                             r"'farm segment .* --segment 2'"):
+        stages.assemble(str(job_copy))
+
+
+def test_files_made_for_other_inputs_are_refused(job_copy):
+    stages.prepare(_arguments(RESOLUTION + 2), "AUTO", str(job_copy), SOURCE)
+    with pytest.raises(store.JobError, match=r"pair_1.npz' was made for other inputs .* run "
+                                             r"'farm maps .* --pair 1' again"):
+        stages.bend_paths(str(job_copy))
+
+
+def test_a_directory_of_another_version_or_none_is_refused(job_copy, tmp_path):
+    manifest = job_copy / "manifest.json"
+    data = json.loads(manifest.read_text())
+    manifest.write_text(json.dumps(dict(data, version="0.0.1")))
+    with pytest.raises(store.JobError, match=r"prepared by Keyframe Implicit 0.0.1"):
+        stages.solve_pair(str(job_copy), 1)
+    with pytest.raises(store.JobError, match=r"not a prepared job directory .*'farm prepare"):
+        stages.solve_pair(str(tmp_path), 1)
+
+
+def test_a_pair_out_of_range_is_refused(job):
+    with pytest.raises(store.JobError, match=r"--pair must be from 1 to 2 .* got 3"):
+        stages.solve_pair(job, 3)
+
+
+def test_bad_input_is_refused_before_any_file_is_written(tmp_path):
+    arguments = _arguments()
+    arguments["features"] = arguments["features"][:1]
+    with pytest.raises(ValueError, match="feature"):
+        stages.prepare(arguments, "AUTO", str(tmp_path), SOURCE)
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_store_keeps_classes_keys_and_types_and_holds_no_pickle(tmp_path):
+    grid = Grid((0.0, 1.0, 2.0), 0.5, (3, 4, 5))
+    attrs = MeshAttributes.from_triangles([[0, 1, 2]])
+    value = {0: (np.float32(1.5), [True, None, "x"]), "g": grid, "a": attrs,
+             "b": Bend(np.ones((2, 3)), np.zeros((2, 3)))}
+    store.save(tmp_path / "v.npz", value)
+    back = store.load(tmp_path / "v.npz")
+    assert back[0] == (1.5, [True, None, "x"]) and back["g"] == grid
+    np.testing.assert_array_equal(back["a"].loop_vertices, attrs.loop_vertices)
+    np.testing.assert_array_equal(back["b"].start, np.ones((2, 3)))
+    with np.load(tmp_path / "v.npz", allow_pickle=False) as z:
+        assert all(z[k].dtype != object for k in z.files)
+    with pytest.raises(TypeError, match="cannot hold a builtins.set"):
+        store.save(tmp_path / "w.npz", {1, 2})
+    assert not (tmp_path / "w.npz").exists()
