@@ -1,5 +1,6 @@
 """Operators (thin: the logic lives in features, bake, output, validate)."""
 
+import os
 import time
 
 import bpy
@@ -277,6 +278,7 @@ class KFI_MT_menu(bpy.types.Menu):
         layout.operator("keyframe_implicit.remove_feature_pair")
         layout.separator()
         layout.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
+        layout.operator("keyframe_implicit.export_farm_job", icon="NETWORK_DRIVE")
 
 
 def menu_func(self, context):
@@ -479,6 +481,40 @@ class KFI_OT_bake(bpy.types.Operator):
         self._finish(context)
 
 
+class KFI_OT_export_farm_job(bpy.types.Operator):
+    """Write this bake as a render-farm job beside the saved .blend: an Open Job Description template (openjd run, AWS Deadline Cloud) whose tasks are the bake's stages"""
+
+    bl_idname = "keyframe_implicit.export_farm_job"
+    bl_label = "Export Farm Job"
+    bl_options = set()  # writes files only: no undo step, the scene is unchanged
+
+    @classmethod
+    def poll(cls, context):
+        """Only a setup the Bake button accepts, in a saved file: the job is written beside
+        it and bakes a copy of it."""
+        if not bpy.data.filepath:
+            cls.poll_message_set("Save the .blend first: the job is written beside it.")
+            return False
+        return KFI_OT_bake.poll(context)
+
+    def execute(self, context):
+        from . import farm
+
+        try:
+            job_dir = farm.export_job(context.scene, context.evaluated_depsgraph_get(),
+                                      bpy.data.filepath, bpy.app.binary_path)
+        except (ValueError, OSError) as exc:
+            self.report({"ERROR"}, _failed("Export Farm Job failed", str(exc)))
+            return {"CANCELLED"}
+        if bpy.data.is_dirty:
+            self.report({"WARNING"}, "The file has changes that are not saved: the job bakes the "
+                                     "file as it was saved. Save and export again to include them.")
+        self.report({"INFO"}, f"Farm job written to {job_dir}. Run it here with 'openjd run "
+                              f"{os.path.join(job_dir, 'template.yaml')}', or send it to AWS "
+                              f"Deadline Cloud with 'deadline bundle submit {job_dir}'.")
+        return {"FINISHED"}
+
+
 classes = (
     KFI_OT_add_keyframe,
     KFI_OT_remove_keyframe,
@@ -488,5 +524,6 @@ classes = (
     KFI_OT_remove_feature_pair,
     KFI_OT_select_pair,
     KFI_OT_bake,
+    KFI_OT_export_farm_job,
     KFI_MT_menu,
 )

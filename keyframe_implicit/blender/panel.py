@@ -95,6 +95,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         row = layout.row()
         row.scale_y = 1.4
         row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")  # poll says why not
+        layout.operator("keyframe_implicit.export_farm_job", icon="NETWORK_DRIVE")
         out = settings.output_object
         if out is not None:
             col = layout.column(align=True)

@@ -98,8 +98,8 @@ def solve_pair(job_dir, pair, progress=None):
     """Solve pair ``pair``'s maps (keyframes ``pair`` -> ``pair + 1``), both ways."""
     files, job, plan, chain = _open(job_dir)
     k = _index(pair, len(plan.keyframes) - 1, "pair")
-    with _one_blas_thread():
-        chain.inbetweens.solve([k], None, Reporter(progress))
+    with _task_helper() as helper, _one_blas_thread():  # one map here, one there
+        chain.inbetweens.solve([k], helper, Reporter(progress))
     store.save(files.pair(pair), {"job": job, "maps": chain.inbetweens.solved[k]})
 
 

@@ -133,3 +133,17 @@ def test_the_store_keeps_classes_keys_and_types_and_holds_no_pickle(tmp_path):
     with pytest.raises(TypeError, match="cannot hold a builtins.set"):
         store.save(tmp_path / "w.npz", {1, 2})
     assert not (tmp_path / "w.npz").exists()
+
+
+def test_blender_stages_run_inside_the_blender_given(monkeypatch):
+    from keyframe_implicit.farm import cli
+
+    calls = []
+    monkeypatch.setattr(cli.subprocess, "call", lambda argv: calls.append(argv) or 0)
+    assert cli.main(["prepare", "s.blend", "job", "--resolution", "40",
+                     "--blender=/opt/blender/blender"]) == 0
+    (argv,) = calls
+    assert argv[:4] == ["/opt/blender/blender", "-b", "--factory-startup",
+                        "--python-use-system-env"]
+    assert argv[argv.index("--"):] == ["--", "farm", "prepare", "s.blend", "job",
+                                       "--resolution", "40"]
