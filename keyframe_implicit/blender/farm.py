@@ -66,12 +66,13 @@ def job_dir_of(blend_path):
     return os.path.join(folder, os.path.splitext(name)[0] + "_farm")
 
 
-def export_job(scene, depsgraph, blend_path, blender_path):
-    """Check ``scene``'s bake and write its job template beside ``blend_path``, each Blender
-    stage run by ``blender_path``; returns the job directory. ValueError when the bake
-    could not start."""
-    inputs = bake.collect(scene, depsgraph)
-    job_dir = job_dir_of(blend_path)
+def export_job(scene, depsgraph, blend_path, blender_path="", job_dir=None, resolution=0):
+    """Check ``scene``'s bake (`bake.collect`) and write its job template into ``job_dir``
+    (default: `job_dir_of` ``blend_path``), Prepare and Assemble run by ``blender_path``
+    ("": a Python with the bpy module); returns the job directory. ValueError when the
+    bake could not start."""
+    inputs = bake.collect(scene, depsgraph, resolution)
+    job_dir = job_dir or job_dir_of(blend_path)
     write_template(job_dir, blend_path, len(inputs.keyframes) - 1, inputs.resolution,
                    blender=blender_path)
     return job_dir

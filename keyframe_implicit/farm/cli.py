@@ -5,7 +5,7 @@
     paths DIR                                  every segment's bends and starting template
     segment DIR --segment I                    keyframes I -> I+1: their frames
     assemble DIR --out OUT.blend [--scene S]   write the result as a local bake (needs bpy)
-    template DIR                               DIR/template.yaml, an Open Job Description job
+    template DIR [--scene S.blend]             DIR/template.yaml, an Open Job Description job
 
 ``--blender PATH`` runs prepare or assemble inside that Blender (``blender -b``) instead
 of importing the bpy module. Exit status 0 on success, 1 when the stage fails (the
@@ -49,6 +49,10 @@ def _parser():
     s.add_argument("--blender", default="", help="run inside this Blender executable")
     s = sub.add_parser("template", help="write DIR/template.yaml (Open Job Description)")
     s.add_argument("dir")
+    s.add_argument("--scene", default=None,
+                   help="the .blend to write it for (default: the one prepared in DIR)")
+    s.add_argument("--resolution", type=int, default=0,
+                   help="with --scene: grid resolution (default: the scene's setting)")
     return p
 
 
@@ -107,10 +111,20 @@ def _assemble(args):
 
 def _template(args):
     from . import store
-    from .template import write_template
+    from .template import TEMPLATE, write_template
 
-    m = store.read_manifest(args.dir)
-    path = write_template(args.dir, m["scene"], m["segments"], m["resolution"])
+    if args.scene:  # read the scene (as Bake checks it), nothing baked yet
+        from ..blender import bake
+        from ..blender.farm import export_job
+
+        for scene, depsgraph in bake.open_file(args.scene):
+            export_job(scene, depsgraph, args.scene, job_dir=args.dir,
+                       resolution=args.resolution)
+            break
+    else:
+        m = store.read_manifest(args.dir)
+        write_template(args.dir, m["scene"], m["segments"], m["resolution"])
+    path = os.path.join(args.dir, TEMPLATE)
     print(f"wrote {path}: run it with 'openjd run {path}'")
 
 

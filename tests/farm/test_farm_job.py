@@ -39,10 +39,9 @@ def job(tmp_path_factory):
     """The splash's job directory after ``openjd run`` of its template, and the run's log."""
     work = tmp_path_factory.mktemp("farm")
     job_dir = work / "job"
-    for args in (["prepare", SPLASH, job_dir, "--resolution", RESOLUTION],
-                 ["template", job_dir]):
-        done = _command("farm", *args, cwd=work)
-        assert done.returncode == 0, done.stderr
+    done = _command("farm", "template", job_dir, "--scene", SPLASH, "--resolution", RESOLUTION,
+                    cwd=work)
+    assert done.returncode == 0, done.stderr
     run = _openjd("run", job_dir / "template.yaml", cwd=work)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     return job_dir, run.stdout
@@ -103,6 +102,9 @@ def test_the_template_is_valid_and_has_a_task_per_pair_and_segment(job):
         template=yaml.safe_load((job_dir / "template.yaml").read_text()))
     assert [s.name for s in template.steps] == STEPS
     made = create_job(job_template=template, job_parameter_values={})
+    written = (job_dir / "template.yaml").read_text()
+    done = _command("farm", "template", job_dir, cwd=job_dir)  # again, from the job's manifest
+    assert done.returncode == 0 and (job_dir / "template.yaml").read_text() == written
     tasks = {s.name: s.parameterSpace for s in made.steps}
     assert list(tasks["Maps"].taskParameterDefinitions["Pair"].range) == [1, 2, 3]
     assert list(tasks["Segments"].taskParameterDefinitions["Segment"].range) == [1, 2, 3]
