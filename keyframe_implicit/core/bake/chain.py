@@ -232,6 +232,10 @@ class Inbetweens:
     When the paths bend through the keyframes (``timing``: the keyframes' frames and
     `spline.KEY_INTERPOLATIONS`), every map is solved first, then every segment's `Bend`s
     made from its neighbours' paths (`spline.chain_bends`), then the segments one by one.
+
+    ``solved`` ({segment: (map A -> B, map B -> A, seconds)}) and ``bends`` ({segment:
+    its `Bend`s}) may be filled beforehand with what was solved elsewhere (a farm's
+    earlier tasks): a segment found there is not solved again.
     """
 
     def __init__(self, phis, grid, features, maps, options, cancel, motion_grid=None,
