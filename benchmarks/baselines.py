@@ -61,6 +61,8 @@ class Run:
     paths : (forward, backward) or None, where the method moves material along paths:
         callables (points (P, 3), t) -> positions, A's from A (t = 0) to B (t = 1) and B's
         from B to A (None for a method without B's paths).
+    cracks : (forward, backward) or None, the cells where each map tears (bool over the
+        grid's cells, or None where it does not).
     """
 
     frames: list
@@ -69,6 +71,7 @@ class Run:
     info: dict = field(default_factory=dict)
     mapped_back: object = None
     paths: tuple = None
+    cracks: tuple = None
 
 
 def linear_blend(phi_a, phi_b, grid, features_a, features_b, times):
@@ -217,8 +220,10 @@ def project(phi_a, phi_b, grid, features_a, features_b, times, **options):
                 if isinstance(v2, (int, float, np.integer, np.floating)) and not isinstance(v2, bool):
                     info[f"{k}.{k2}"] = float(v2)
     backward = None if res.backward is None else res.backward.trajectories
+    cracks = tuple(None if m is None or m.tear is None else m.tear.crack
+                   for m in (res.map_result, res.map_result_back))
     return Run(frames, {"map": t1 - t0, "frames": t2 - t1}, np.asarray(res.mapped, float), info,
-               res.mapped_back, (res.trajectory, backward))
+               res.mapped_back, (res.trajectory, backward), cracks)
 
 
 def one_sided(phi_a, phi_b, grid, features_a, features_b, times):

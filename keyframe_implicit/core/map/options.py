@@ -72,6 +72,11 @@ class MapOptions:
     min_det : float
         No step takes det F of the material below this (0.2), or below its current
         minimum where the start is lower.
+    tear : bool
+        Where the map spreads a component of A over several components of B (one
+        ball into two), cut it into one piece per component and solve the finest
+        level again with the pieces apart (`tear`); False: one continuous map, which
+        stretches across the gap.
     """
 
     weights: dict = field(default_factory=_default_weights)
@@ -92,6 +97,7 @@ class MapOptions:
     initial: np.ndarray | None = None
     reuse_hessian: bool = True
     min_det: float = 0.2
+    tear: bool = True
 
     @classmethod
     def from_keywords(cls, **keywords):
