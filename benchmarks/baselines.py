@@ -46,7 +46,8 @@ from scipy.interpolate import RBFInterpolator
 
 from keyframe_implicit.core.base.sampling import sample
 
-__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided", "one_iso"]
+__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided", "one_iso",
+           "torn"]
 
 
 @dataclass
@@ -237,5 +238,11 @@ def one_iso(phi_a, phi_b, grid, features_a, features_b, times):
     return project(phi_a, phi_b, grid, features_a, features_b, times, volume_per_component=False)
 
 
-METHODS = {"project": project, "one-sided": one_sided, "one-iso": one_iso, "blend": linear_blend,
-           "morph": morph_flow, "rbf": rbf_warp}
+def torn(phi_a, phi_b, grid, features_a, features_b, times):
+    """`project` with maps that tear where they spread a component over several (``tear=True``,
+    `map.tear`): a merge's backward map and a split's forward map in pieces."""
+    return project(phi_a, phi_b, grid, features_a, features_b, times, tear=True)
+
+
+METHODS = {"project": project, "one-sided": one_sided, "one-iso": one_iso, "torn": torn,
+           "blend": linear_blend, "morph": morph_flow, "rbf": rbf_warp}

@@ -42,9 +42,10 @@ if str(HERE) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-METHOD_ORDER = ("project", "one-iso", "one-sided", "blend", "morph", "rbf")
+METHOD_ORDER = ("project", "one-iso", "torn", "one-sided", "blend", "morph", "rbf")
 METHOD_LABEL = {"project": "this project", "one-sided": "this project, one-sided (thesis eq. 3.4)",
                 "one-iso": "this project, one iso-value per frame",
+                "torn": "this project, maps that tear (tear=True)",
                 "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
                 "rbf": "plain RBF warp"}
 

@@ -89,15 +89,14 @@ def correction(system, y, y_start_full, base, passes):
     return extend(corr, known.reshape(g.shape), passes)
 
 
-def start_map(system, base, corr_prev, options, whole=False):
+def start_map(system, base, corr_prev, options):
     """Start of one level: its base map plus as much of the coarser level's correction,
     prolonged onto this level (``corr_prev``, this level's shape; None: none), as keeps
     the material's det F at ``min_det`` (or at the base's own minimum, if lower).
 
     The correction comes from coarser cells and is extended past their region, so at
     the finer level's material boundary it can fold cells the coarse level never saw;
-    it is halved until it does not, unless ``whole``. Returns the start on every node and
-    on the active ones.
+    it is halved until it does not. Returns the start on every node and on the active ones.
     """
     d, chunk = system.d, int(options.chunk_elements)
 
@@ -105,8 +104,6 @@ def start_map(system, base, corr_prev, options, whole=False):
         full = base if scale == 0 else base + scale * corr_prev
         return full, system.cons.enforce(full.reshape(-1, d)[system.active])
 
-    if whole and corr_prev is not None:
-        return start(1.0)
     full, y = start(0.0)
     if corr_prev is None:
         return full.copy(), y

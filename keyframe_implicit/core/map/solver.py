@@ -328,7 +328,7 @@ def _level(pa, pb, g, xa, yb, options, base, corr, tear, rep, timing, pool, refi
     system = constrained_system(pa, pb, g, xa, yb, options, base,
                                 None if tear is None else tear.crack)
     if refine:
-        start, y = start_map(system, base, corr, options, whole=tear is not None)
+        start, y = start_map(system, base, corr, options)
     else:
         start = base + corr
         y = system.cons.enforce(start.reshape(-1, g.dim)[system.active])

@@ -43,14 +43,13 @@ class Tear:
         The cells with corners in two pieces of one torn component.
     target : (n,) int
         The component of B (1-based labels of ``phi_b < 0``) each piece maps onto.
+    stats : dict
+        ``pieces``, and ``crack_material``: the share of A's material cells in the crack.
     """
 
-    def __init__(self, piece, crack, target):
+    def __init__(self, piece, crack, target, crack_material):
         self.piece, self.crack, self.target = piece, crack, np.asarray(target)
-
-    @property
-    def stats(self):
-        return {"pieces": int(len(self.target)), "crack_cells": int(self.crack.sum())}
+        self.stats = {"pieces": int(len(self.target)), "crack_material": float(crack_material)}
 
 
 def find_tear(phi_a, phi_b, grid, mapped):
@@ -87,7 +86,9 @@ def find_tear(phi_a, phi_b, grid, mapped):
     if not targets:
         return None
     piece = _spread(piece.reshape(grid.shape), material)
-    return Tear(piece, _crack(piece), targets)
+    crack = _crack(piece)
+    cells = sum(elements.corner_views(phi_a)) < 0  # material cells: Phi < 0 at the centre
+    return Tear(piece, crack, targets, np.mean(crack[cells]))
 
 
 def _balanced(dist, weight, share, h):
