@@ -326,8 +326,8 @@ def cost_slopes(results, method="project", case=None):
             "points": len(rs)}
 
 
-_COLOURS = {"project": "C3", "one-iso": "C5", "one-sided": "C4", "blend": "C0", "morph": "C2",
-            "rbf": "C1"}
+_COLOURS = {"project": "C3", "one-iso": "C5", "torn": "C6", "one-sided": "C4", "blend": "C0",
+            "morph": "C2", "rbf": "C1"}
 
 
 def _plots(results, outdir):
