@@ -32,6 +32,9 @@ Algorithm (docs/method.md, section 4)
   transports of the in-betweens assume maps that do not fold.
 * Stop when an accepted step lowers the energy by less than ``tolerance`` or after
   ``max_iterations`` per level.
+* With ``tear`` (off by default): where a level's map spreads a component of A over
+  several of B, that level is solved again with the component cut into pieces, and
+  every finer level tears where its start does (`tear`, docs/method.md, section 4).
 
 Weights, feature patches and the integration region (docs/method.md, section 2)
 -------------------------------------------------------------------------------
