@@ -46,7 +46,8 @@ from scipy.interpolate import RBFInterpolator
 
 from keyframe_implicit.core.base.sampling import sample
 
-__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided", "one_iso"]
+__all__ = ["Run", "METHODS", "linear_blend", "morph_flow", "rbf_warp", "project", "one_sided", "one_iso",
+           "torn"]
 
 
 @dataclass
@@ -61,6 +62,8 @@ class Run:
     paths : (forward, backward) or None, where the method moves material along paths:
         callables (points (P, 3), t) -> positions, A's from A (t = 0) to B (t = 1) and B's
         from B to A (None for a method without B's paths).
+    cracks : (forward, backward) or None, the cells where each map tears (bool over the
+        grid's cells, or None where it does not).
     """
 
     frames: list
@@ -69,6 +72,7 @@ class Run:
     info: dict = field(default_factory=dict)
     mapped_back: object = None
     paths: tuple = None
+    cracks: tuple = None
 
 
 def linear_blend(phi_a, phi_b, grid, features_a, features_b, times):
@@ -217,8 +221,10 @@ def project(phi_a, phi_b, grid, features_a, features_b, times, **options):
                 if isinstance(v2, (int, float, np.integer, np.floating)) and not isinstance(v2, bool):
                     info[f"{k}.{k2}"] = float(v2)
     backward = None if res.backward is None else res.backward.trajectories
+    cracks = tuple(None if m is None or m.tear is None else m.tear.crack
+                   for m in (res.map_result, res.map_result_back))
     return Run(frames, {"map": t1 - t0, "frames": t2 - t1}, np.asarray(res.mapped, float), info,
-               res.mapped_back, (res.trajectory, backward))
+               res.mapped_back, (res.trajectory, backward), cracks)
 
 
 def one_sided(phi_a, phi_b, grid, features_a, features_b, times):
@@ -232,5 +238,11 @@ def one_iso(phi_a, phi_b, grid, features_a, features_b, times):
     return project(phi_a, phi_b, grid, features_a, features_b, times, volume_per_component=False)
 
 
-METHODS = {"project": project, "one-sided": one_sided, "one-iso": one_iso, "blend": linear_blend,
-           "morph": morph_flow, "rbf": rbf_warp}
+def torn(phi_a, phi_b, grid, features_a, features_b, times):
+    """`project` with maps that tear where they spread a component over several (``tear=True``,
+    `map.tear`): a merge's backward map and a split's forward map in pieces."""
+    return project(phi_a, phi_b, grid, features_a, features_b, times, tear=True)
+
+
+METHODS = {"project": project, "one-sided": one_sided, "one-iso": one_iso, "torn": torn,
+           "blend": linear_blend, "morph": morph_flow, "rbf": rbf_warp}

@@ -42,9 +42,10 @@ if str(HERE) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-METHOD_ORDER = ("project", "one-iso", "one-sided", "blend", "morph", "rbf")
+METHOD_ORDER = ("project", "one-iso", "torn", "one-sided", "blend", "morph", "rbf")
 METHOD_LABEL = {"project": "this project", "one-sided": "this project, one-sided (thesis eq. 3.4)",
                 "one-iso": "this project, one iso-value per frame",
+                "torn": "this project, maps that tear (tear=True)",
                 "blend": "linear SDF blend", "morph": "morph flow (OpenVDB-style)",
                 "rbf": "plain RBF warp"}
 
@@ -78,9 +79,11 @@ def evaluate(case_name, method, n, n_frames=9):
             pieces += [dict(r, segment=k) for r in recs]
             if case_name == "splash" and k == 0:
                 out.update(_droplet_and_pool(recs, run.frames, times, grid, phi_a))
-        for side, mapped, phi in (("forward", run.mapped, phi_a), ("backward", run.mapped_back, phi_b)):
+        cracks = run.cracks or (None, None)
+        for side, mapped, phi, crack in (("forward", run.mapped, phi_a, cracks[0]),
+                                         ("backward", run.mapped_back, phi_b, cracks[1])):
             if mapped is not None:
-                dets[side].append(metrics.det_f(mapped, grid, phi))
+                dets[side].append(metrics.det_f(mapped, grid, phi, crack))
         for st, sec in run.seconds.items():
             seconds[st] = seconds.get(st, 0.0) + sec
         v = [metrics.volume(f, grid) for f in run.frames]
@@ -132,7 +135,7 @@ def evaluate(case_name, method, n, n_frames=9):
         out["part_volumes"] = pieces
     for side, d in dets.items():
         if d:  # over the material of every segment's map
-            out[f"det_f_{side}"] = metrics.det_f_summary(np.concatenate(d))
+            out[f"det_f_{side}"] = metrics.det_f_summary(*(np.concatenate(a) for a in zip(*d)))
     out["info"] = infos
     out["peak_rss_mb"] = _rss_mb()
     return out
@@ -216,7 +219,10 @@ def _row(r):
             row[key] = " ".join(f"{k} {v:.2f}" for k, v in r.get("seconds", {}).items())
         elif spec == "det":
             v = r.get(key)
-            row[key] = "n/a" if v is None else f"{v['p5']:.2f}/{v['p50']:.2f}/{v['p95']:.2f} ({v['max_dev']:.2f})"
+            row[key] = "n/a" if v is None else (
+                f"{v['p5']:.2f}/{v['p50']:.2f}/{v['p95']:.2f} ({v['max_dev']:.2f}), "
+                f"{100 * v['in_band']:.0f} % in band" + (f", crack {100 * v['crack']:.0f} %"
+                                                         if v.get("crack") else ""))
         elif spec == "pct":
             v = r.get(key)
             row[key] = _fmt(None if v is None else 100 * v, ".2f")
@@ -259,7 +265,8 @@ def write_results(results, outdir):
         "pieces followed along the maps' paths (metrics.part_volume_errors; n/a for methods without paths), "
         "at s its frame; own = the same against the piece's share of its own keyframe on the total's straight "
         "line (a reference the maps do not decide); det F = 5th/50th/95th percentile of det F at the material's cell centres of the map "
-        "A -> B and B -> A (max |det F - 1| in brackets; metrics.det_f); "
+        "A -> B and B -> A (max |det F - 1| in brackets; in band = share in [0.8, 1.25]; over the material "
+        "off the crack of a torn map, crack = the crack's share of the material; metrics.det_f); "
         "seconds = sum of the method's stages (metrics excluded); peak MB = ru_maxrss of the subprocess "
         "(Python + numpy + scipy alone take about " + _fmt(_import_rss(results), ".0f") + " MB).",
         "",
@@ -319,8 +326,8 @@ def cost_slopes(results, method="project", case=None):
             "points": len(rs)}
 
 
-_COLOURS = {"project": "C3", "one-iso": "C5", "one-sided": "C4", "blend": "C0", "morph": "C2",
-            "rbf": "C1"}
+_COLOURS = {"project": "C3", "one-iso": "C5", "torn": "C6", "one-sided": "C4", "blend": "C0",
+            "morph": "C2", "rbf": "C1"}
 
 
 def _plots(results, outdir):

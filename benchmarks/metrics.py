@@ -21,7 +21,8 @@ set grids at times ``s`` (negative inside), keyframe A at s = 0 and B at s = 1.
   the straight line between its volumes in the two keyframes; pieces are followed along the
   maps' paths (`material_pieces`, `land`).
 - `det_f`, `det_f_summary`: det F of a map at the centre of every cell of the keyframe's
-  material (the volume term's own element Jacobian), and its percentiles.
+  material (the volume term's own element Jacobian), and its percentiles off the crack of a
+  torn map, with the crack's share of the material.
 - `top_height`: height of the top of the lowest inside run along a vertical line (the
   splash's pool under the droplet).
 """
@@ -285,30 +286,38 @@ def part_volume_errors(frames, times, grid, phi_a, phi_b, forward, backward=None
 
 
 # -- the maps' volume change ---------------------------------------------------
-def det_f(mapped, grid, phi):
+def det_f(mapped, grid, phi, crack=None):
     """det F of the node map ``mapped`` (grid.shape + (d,)) at the centre of every cell of
-    the material of ``phi`` (Phi < 0 at the cell's centre), (E,).
+    the material of ``phi`` (Phi < 0 at the cell's centre), (E,), and whether each of
+    those cells lies in the map's ``crack`` (bool over the cells, where the map tears,
+    `map.tear`; None: nowhere), (E,).
 
     The solver's volume term reads det F there (eq. 2.6's first term, `elements`'s
     one-point rule); the cells are equal, so the array is the distribution over the
-    material.
+    material. A crack cell's corners lie on two pieces mapped apart: its det F measures
+    the gap it spans, not a deformation of material.
     """
     d = grid.dim
     centre = sum(elements.corner_views(np.asarray(phi, dtype=float))) / 2 ** d < 0
     Y = np.stack([v[centre] for v in elements.corner_views(np.asarray(mapped, float), d)], axis=1)
     G = elements.quadrature(d, grid.spacing, "centre").G
-    return elements.determinant(elements.deformation_gradient(Y, G))[:, 0]
+    torn = np.zeros(len(Y), bool) if crack is None else np.asarray(crack)[centre]
+    return elements.determinant(elements.deformation_gradient(Y, G))[:, 0], torn
 
 
-def det_f_summary(dets, band=(0.8, 1.25)):
-    """5th, 50th and 95th percentiles of det F, max |det F - 1|, and the fraction of the
-    material with det F in ``band``, as a dict (``p5``, ``p50``, ``p95``, ``max_dev``,
-    ``in_band``)."""
+def det_f_summary(dets, torn=None, band=(0.8, 1.25)):
+    """Over the material off the crack (``torn`` False): 5th, 50th and 95th percentiles of
+    det F, max |det F - 1| and the fraction with det F in ``band``; and ``crack``, the
+    fraction of the material in the crack, as a dict (``p5``, ``p50``, ``p95``,
+    ``max_dev``, ``in_band``, ``crack``)."""
     dets = np.asarray(dets, dtype=float)
-    p5, p50, p95 = np.percentile(dets, [5, 50, 95])
+    torn = np.zeros(len(dets), bool) if torn is None else np.asarray(torn, bool)
+    kept = dets[~torn]
+    p5, p50, p95 = np.percentile(kept, [5, 50, 95])
     return {"p5": float(p5), "p50": float(p50), "p95": float(p95),
-            "max_dev": float(np.max(np.abs(dets - 1))),
-            "in_band": float(np.mean((dets >= band[0]) & (dets <= band[1])))}
+            "max_dev": float(np.max(np.abs(kept - 1))),
+            "in_band": float(np.mean((kept >= band[0]) & (kept <= band[1]))),
+            "crack": float(np.mean(torn))}
 
 
 def top_height(phi, grid, x=0.0, y=0.0):

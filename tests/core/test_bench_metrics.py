@@ -155,14 +155,32 @@ def test_part_volumes_add_up_to_the_volume(grid):
 def test_det_f_is_the_maps_volume_change_over_the_material(grid):
     phi = sphere_field(grid, (0, 0, 0), 0.4)
     x = grid.points()
-    dets = metrics.det_f(x * np.array([1.2, 1.0, 0.9]), grid, phi)
-    assert np.allclose(dets, 1.08)
+    dets, torn = metrics.det_f(x * np.array([1.2, 1.0, 0.9]), grid, phi)
+    assert np.allclose(dets, 1.08) and not torn.any()
     # one det per material cell: the cells fill the ball
     assert len(dets) * grid.spacing ** 3 == pytest.approx(4 / 3 * np.pi * 0.4 ** 3, rel=0.05)
     stretched = np.where(x[..., :1] > 0, x * np.array([1.5, 1.0, 1.0]), x)  # half the ball
-    summary = metrics.det_f_summary(metrics.det_f(stretched, grid, phi))
+    summary = metrics.det_f_summary(*metrics.det_f(stretched, grid, phi))
     assert summary["p5"] == pytest.approx(1.0) and summary["p95"] == pytest.approx(1.5)
     assert summary["max_dev"] == pytest.approx(0.5) and 0.4 < summary["in_band"] < 0.6
+    assert summary["crack"] == 0.0
+
+
+def test_det_f_leaves_a_torn_maps_crack_out_and_counts_it(grid):
+    phi = sphere_field(grid, (0, 0, 0), 0.4)
+    x = grid.points()
+    # the ball's halves pulled apart by 0.3: one layer of cells spans the gap
+    torn_map = np.where(x[..., :1] > 0, x + np.array([0.3, 0.0, 0.0]), x)
+    crack = np.zeros(tuple(n - 1 for n in grid.shape), bool)
+    mid = int(np.searchsorted(grid.axes()[0], 0.0, side="right")) - 1
+    crack[mid] = True  # the cells between x <= 0 and x > 0
+    dets, torn = metrics.det_f(torn_map, grid, phi, crack)
+    assert np.all(dets[torn] > 2.0) and np.allclose(dets[~torn], 1.0)
+    summary = metrics.det_f_summary(dets, torn)
+    assert summary["in_band"] == 1.0 and summary["max_dev"] == pytest.approx(0.0, abs=1e-12)
+    assert summary["crack"] == pytest.approx(torn.mean()) and 0.0 < summary["crack"] < 0.2
+    # without the crack the stretched layer counts as material
+    assert metrics.det_f_summary(dets)["in_band"] < 1.0
 
 
 def test_top_height_reads_the_zero_crossing_between_nodes(grid):

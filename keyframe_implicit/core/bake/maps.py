@@ -128,7 +128,9 @@ def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=
         st["map_back"] = back.stats
     inputs = dict(mapped_back=None if back is None else back.mapped, material=res.material,
                   components=res.components, options=motion_options,
-                  motion_grid=None if res.grid == grid else res.grid, bends=bends)
+                  motion_grid=None if res.grid == grid else res.grid, bends=bends,
+                  cracks=tuple(None if m is None or m.tear is None else m.tear.crack
+                               for m in (res, back)))
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,

@@ -90,8 +90,9 @@ def correction(system, y, y_start_full, base, passes):
 
 
 def start_map(system, base, corr_prev, options):
-    """Start of one level: its base map plus as much of the coarser level's correction as
-    keeps the material's det F at ``min_det`` (or at the base's own minimum, if lower).
+    """Start of one level: its base map plus as much of the coarser level's correction,
+    prolonged onto this level (``corr_prev``, this level's shape; None: none), as keeps
+    the material's det F at ``min_det`` (or at the base's own minimum, if lower).
 
     The correction comes from coarser cells and is extended past their region, so at
     the finer level's material boundary it can fold cells the coarse level never saw;
@@ -100,7 +101,7 @@ def start_map(system, base, corr_prev, options):
     d, chunk = system.d, int(options.chunk_elements)
 
     def start(scale):
-        full = base if scale == 0 else base + scale * prolong(corr_prev, system.grid.shape)
+        full = base if scale == 0 else base + scale * corr_prev
         return full, system.cons.enforce(full.reshape(-1, d)[system.active])
 
     full, y = start(0.0)

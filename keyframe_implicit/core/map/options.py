@@ -72,6 +72,12 @@ class MapOptions:
     min_det : float
         No step takes det F of the material below this (0.2), or below its current
         minimum where the start is lower.
+    tear : bool
+        Where the map spreads a component of A over several components of B (one
+        ball into two), cut it into one piece per component, each solved as a body of
+        its own (`tear`). Off by default: the pieces keep det F near 1, but the crack
+        they leave shows as a groove at a merge's neck (benchmarks/README.md, "Maps
+        that tear"). False: one continuous map, which stretches across the gap.
     """
 
     weights: dict = field(default_factory=_default_weights)
@@ -92,6 +98,7 @@ class MapOptions:
     initial: np.ndarray | None = None
     reuse_hessian: bool = True
     min_det: float = 0.2
+    tear: bool = False
 
     @classmethod
     def from_keywords(cls, **keywords):

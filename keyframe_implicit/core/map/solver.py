@@ -32,6 +32,9 @@ Algorithm (docs/method.md, section 4)
   transports of the in-betweens assume maps that do not fold.
 * Stop when an accepted step lowers the energy by less than ``tolerance`` or after
   ``max_iterations`` per level.
+* With ``tear`` (off by default): where a level's map spreads a component of A over
+  several of B, that level is solved again with the component cut into pieces, and
+  every finer level tears where its start does (`tear`, docs/method.md, section 4).
 
 Weights, feature patches and the integration region (docs/method.md, section 2)
 -------------------------------------------------------------------------------
@@ -62,9 +65,10 @@ from ..base.parallel import cores
 from ..base.progress import Reporter
 from .coarse import CoarseSpace
 from .options import MapOptions, weight_options
-from .hierarchy import coarse_to_fine, correction, fields_on, start_map
+from .hierarchy import coarse_to_fine, correction, fields_on, prolong, start_map
 from .rbf import initial_map
 from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
+from .tear import Tear, find_tear, prolong_pieces
 from . import terms
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
@@ -92,6 +96,9 @@ class MapResult:
     region : bool array (grid.shape), the solved nodes of the finest level.
     material : bool array (grid.shape), phi_a < 0.
     components : int array (grid.shape), labels of A's material components.
+    tear : `tear.Tear` or None
+        The pieces of A's torn components and the crack between them, where the map
+        spreads a component of A over several of B (`tear.find_tear`).
     """
 
     mapped: np.ndarray
@@ -100,6 +107,7 @@ class MapResult:
     region: np.ndarray
     material: np.ndarray
     components: np.ndarray = field(default=None)
+    tear: Tear | None = field(default=None)
 
 
 # ----------------------------------------------------------------------------
@@ -313,6 +321,32 @@ def _line_search(system, y, dy, E, slope, floor, weights, chunk, min_det, check,
     return None
 
 
+def _level(pa, pb, g, xa, yb, options, base, corr, tear, rep, timing, pool, refine=True):
+    """One level of the hierarchy solved: its system (without the cells of the ``tear``'s
+    crack, if any), the solution on its active nodes, its correction of ``base`` on every
+    node, det F figures, term energies and the level's stats. It starts from ``corr`` on
+    this level's grid: a coarser level's correction prolonged (``refine``, as far as
+    `start_map` allows), or this level's own, to be solved again."""
+    t0 = time.perf_counter()
+    system = constrained_system(pa, pb, g, xa, yb, options, base,
+                                None if tear is None else tear.crack)
+    if refine:
+        start, y = start_map(system, base, corr, options)
+    else:
+        start = base + corr
+        y = system.cons.enforce(start.reshape(-1, g.dim)[system.active])
+    timing["setup"] += time.perf_counter() - t0
+    y, history, iters, cg_total, dets, energies = _solve_level(system, y, options, rep, timing,
+                                                               pool)
+    t0 = time.perf_counter()
+    corr = correction(system, y, start, base, int(options.extension_passes))
+    timing["extension"] += time.perf_counter() - t0
+    stats = dict(shape=g.shape, active_nodes=system.n, unknowns=system.cons.size,
+                 iterations=iters, cg_iterations=cg_total, history=history,
+                 torn=tear is not None)
+    return system, y, corr, dets, energies, stats
+
+
 # ----------------------------------------------------------------------------
 # public entry point
 # ----------------------------------------------------------------------------
@@ -376,7 +410,7 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progr
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (grid.dim * i) for i in range(nlev)])
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
-    corr = None
+    corr, tear = None, None
     level_stats = []
     with _second_thread() as pool:
         for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
@@ -385,23 +419,31 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progr
                             else fields_on(phi_a, phi_b, disp0, grid, g))
             if not np.any(pa < 0):
                 continue  # material too thin for this coarse level
-            system = constrained_system(pa, pb, g, xa, yb, options, base)
-            y_start_full, y = start_map(system, base, corr, options)
+            step = None if corr is None else prolong(corr, g.shape)
+            if tear is not None:  # a coarser level tore: this one tears where its start does
+                coarse, tear = tear, find_tear(pa, pb, g, base + step)
+                if tear is not None:  # and each piece starts from its own coarse piece
+                    step = prolong_pieces(corr, coarse, tear, int(options.extension_passes))
             timing["setup"] += time.perf_counter() - t0
-            y, history, iters, cg_total, dets, energies = _solve_level(
-                system, y, options, rep.sub(edges[li], edges[li + 1]), timing, pool)
-            t0 = time.perf_counter()
-            corr = correction(system, y, y_start_full, base, int(options.extension_passes))
-            timing["extension"] += time.perf_counter() - t0
-            level_stats.append(dict(shape=g.shape, active_nodes=system.n, unknowns=system.cons.size,
-                                    iterations=iters, cg_iterations=cg_total, history=history))
+            part = rep.sub(edges[li], edges[li + 1])
+            system, y, corr, dets, energies, st = _level(pa, pb, g, xa, yb, options, base, step,
+                                                         tear, part, timing, pool)
+            level_stats.append(st)
+            if tear is None and options.tear:
+                tear = find_tear(pa, pb, g, base + corr)
+                if tear is not None:  # this level once more, each piece a body of its own
+                    system, y, corr, dets, energies, st = _level(
+                        pa, pb, g, xa, yb, options, base, corr, tear, part, timing, pool,
+                        refine=False)
+                    level_stats.append(st)
     rep(1.0, "Volume map done")
     stats = _map_stats(system, y, dets, energies, weights, level_stats, init)
     stats["seconds"] = dict(timing, total=time.perf_counter() - t_start)
+    stats["tear"] = None if tear is None else tear.stats
     region = np.zeros(grid.size, dtype=bool)
     region[system.active] = True
     return MapResult(mapped=y0 + corr, stats=stats, grid=grid, region=region.reshape(grid.shape),
-                     material=phi_a < 0, components=init.components)
+                     material=phi_a < 0, components=init.components, tear=tear)
 
 
 def _with_keywords(options, keywords):

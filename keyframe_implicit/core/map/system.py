@@ -32,10 +32,11 @@ HESSIAN_DTYPE = np.float32
 #: (`MapSystem._element_halves`, `MapSystem.product`).
 _SPLIT_FROM = 4096
 
-def _solved_cells(phi_a, grid, xa, margin_cells, margin_weight):
+def _solved_cells(phi_a, grid, xa, margin_cells, margin_weight, crack=None):
     """The cells the map is solved on: A's material (Phi < 0 at the cell's centre, weight
     1), its margin of ``margin_cells`` cells (weight ``margin_weight``) and every feature
-    point's cell. Returns (material, weight, solved), each of the cells' shape."""
+    point's cell, but the cells of a ``crack`` (bool, the cells' shape: the map tears
+    there, `tear.find_tear`). Returns (material, weight, solved), each of the cells' shape."""
     h, cs = grid.spacing, elements.corners(grid.dim)
     centre = np.zeros(tuple(n - 1 for n in grid.shape))  # Phi at each cell's centre
     for v in elements.corner_views(phi_a):
@@ -44,6 +45,8 @@ def _solved_cells(phi_a, grid, xa, margin_cells, margin_weight):
     mat = centre < 0
     margin = ((~mat) & (centre < margin_cells * h) if (margin_weight > 0 and margin_cells > 0)
               else np.zeros_like(mat))
+    if crack is not None:
+        mat, margin = mat & ~crack, margin & ~crack
     weight = np.where(mat, 1.0, np.where(margin, margin_weight, 0.0))
     forced = np.zeros(centre.shape, dtype=bool)
     if len(xa):
@@ -85,14 +88,14 @@ class MapSystem:
     cells `elem`), the elements' quadrature, the node stencil and the feature constraints."""
 
     def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, margin_cells, margin_weight, radius,
-                 patch_rigidity=1.0):
+                 patch_rigidity=1.0, crack=None):
         d = grid.dim
         self.grid, self.d = grid, d
         self.phi_b = phi_b
         h = grid.spacing
         self.eps = 1.5 * h  # eq. 2.7
         cs = elements.corners(d)
-        mat, weight, act_cell = _solved_cells(phi_a, grid, xa, margin_cells, margin_weight)
+        mat, weight, act_cell = _solved_cells(phi_a, grid, xa, margin_cells, margin_weight, crack)
         cells = np.argwhere(act_cell)  # (E, d)
         self.cell_weight = weight[act_cell]
         self.cell_material = mat[act_cell]
@@ -277,8 +280,9 @@ class MapSystem:
         return apply
 
 
-def constrained_system(pa, pb, g, xa, yb, options, base):
-    """The `MapSystem` of grid ``g`` with feature patches no larger than the start allows.
+def constrained_system(pa, pb, g, xa, yb, options, base, crack=None):
+    """The `MapSystem` of grid ``g`` with feature patches no larger than the start allows
+    (without the cells of a ``crack``, `tear.find_tear`).
 
     A patch moves its nodes by one affine map. Where the features ask for a kink at a
     feature point (stretched 4x on one side, squeezed on the other, as a body torn in
@@ -293,7 +297,7 @@ def constrained_system(pa, pb, g, xa, yb, options, base):
     floor = None  # the start's own det F floor: the region and its cells do not depend on rad
     while True:
         system = MapSystem(pa, pb, g, xa, yb, options.margin_cells, margin_weight, rad,
-                          options.patch_rigidity)
+                          options.patch_rigidity, crack)
         if rad == 0.0 or system.cons.n_patch == 0:
             return system
         raw = base.reshape(-1, d)[system.active]

@@ -177,8 +177,8 @@ class Inbetween:
     # ------------------------------------------------------------------
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
-                 components=None, motion_grid=None, bends=None, options=None, stats=None,
-                 map_result=None, map_result_back=None, cancel=None, **keywords):
+                 components=None, motion_grid=None, bends=None, cracks=None, options=None,
+                 stats=None, map_result=None, map_result_back=None, cancel=None, **keywords):
         """In-betweens from given maps.
 
         Parameters
@@ -203,6 +203,10 @@ class Inbetween:
             The Hermite corrections of the forward paths (on A's nodes) and the backward
             ones (on B's), on the maps' grid, that carry the velocity through the
             keyframes of a chain (`spline.chain_bends`); None: the straight timing.
+        cracks : (bool ndarray or None, bool ndarray or None), optional
+            The cells of the maps' grid where the forward and the backward map tear
+            (`map.tear.Tear.crack`): the transport along that map leaves them out, so the
+            pieces part with empty space between them.
         options : `options.MotionOptions`, optional
             All settings at once (the bake passes them so); keywords override them.
         stats, map_result, map_result_back : optional
@@ -232,13 +236,14 @@ class Inbetween:
         if material is None:
             material = paths.on_motion(phi_a) < 0
         forward, backward = _transports(phi_a, phi_b, paths, mapped, mapped_back, material,
-                                        components, options, cancel, bends or (None, None))
+                                        components, options, cancel, bends or (None, None),
+                                        cracks or (None, None))
         st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
         out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
                   map_result=map_result, map_result_back=map_result_back)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, material=material, components=components,
-            motion_grid=motion_grid, bends=bends, options=options))
+            motion_grid=motion_grid, bends=bends, cracks=cracks, options=options))
         return out
 
     @property
@@ -460,6 +465,17 @@ class _Paths:
                                                          self.grid, self.motion_grid))
         return Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
 
+    def cells(self, crack):
+        """A bool over the maps' grid's cells (None: None) on the surface grid's cells:
+        a surface cell is in it when its centre lies in one of its cells."""
+        if crack is None or self.motion_grid is None:
+            return crack
+        lower = np.stack(np.meshgrid(*(np.arange(n - 1) for n in self.grid.shape),
+                                     indexing="ij"), axis=-1)
+        at = self.motion_grid.to_index(self.grid.to_world(lower + 0.5))
+        cell = np.clip(np.floor(at).astype(np.int64), 0, np.asarray(crack.shape) - 1)
+        return crack[tuple(np.moveaxis(cell, -1, 0))]
+
     def back_map(self, forward):
         """The map B -> A as the inverse of ``forward``'s, on the maps' grid."""
         inverse = invert_map(self.grid, forward)
@@ -470,26 +486,26 @@ class _Paths:
 
 
 def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel,
-                bends):
+                bends, cracks=(None, None)):
     """The forward transport of A's field along the map A -> B, and (two-sided) the backward
     one of B's field along B -> A (`invert_map` of the forward one when not given), both
     truncated at one value so that the far field is one value; their paths bent by
-    ``bends`` (forward, backward)."""
+    ``bends`` (forward, backward), the cells of each map's crack left out (``cracks``)."""
     lookup = dict(options.lookup_keywords(), cancel=cancel)
 
-    def carried(field, y, mat, comps=None, bend=None):
+    def carried(field, y, mat, comps=None, bend=None, crack=None):
         return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps, bend),
-                         **lookup)
+                         torn=paths.cells(crack), **lookup)
 
     backward = None
     if options.two_sided and mapped_back is not None:
         with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
             back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0,
-                               None, bends[1])
-            forward = carried(phi_a, mapped, material, components, bends[0])
+                               None, bends[1], cracks[1])
+            forward = carried(phi_a, mapped, material, components, bends[0], cracks[0])
             backward = back.result()
     else:
-        forward = carried(phi_a, mapped, material, components, bends[0])
+        forward = carried(phi_a, mapped, material, components, bends[0], cracks[0])
         if options.two_sided:
             backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0,
                                None, bends[1])

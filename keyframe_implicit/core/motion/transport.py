@@ -334,6 +334,9 @@ class Transport:
     cancel : callable() -> bool, optional
         Polled between chunks of the inverse lookup; `progress.Cancelled` is
         raised once it returns True.
+    torn : bool ndarray over the grid's cells, optional
+        The cells where the map tears (`map.tear`): their corners lie on two pieces
+        that part, so they carry nothing; the pieces part with empty space between.
 
     Attributes
     ----------
@@ -343,7 +346,7 @@ class Transport:
     """
 
     def __init__(self, field, trajectories, *, interpolation="cubic", newton_steps=6,
-                 truncation=None, cancel=None):
+                 truncation=None, cancel=None, torn=None):
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
         grid = trajectories.grid
@@ -358,6 +361,8 @@ class Transport:
         self._cells, self._corner_nodes, self._cnodes_local, border = _region_cells(
             grid, trajectories.region_nodes())
         self.border_value = float(self.field.reshape(-1)[border].min()) if border.size else np.inf
+        self._torn = (np.zeros(len(self._cells), bool) if torn is None
+                      else np.asarray(torn)[np.unravel_index(self._cells, grid.shape)])
         self.truncation = self.border_value if truncation is None else float(truncation)
         self._corner_mapped = None  # the map at the corner nodes (`_mapped_at`)
 
@@ -416,7 +421,8 @@ class Transport:
             vals = self.read(self.field, source, self._coef)
             if other is not None and t > 0:
                 y = self._mapped_at(cell, local)
-                vals = (1.0 - t) * vals + t * np.maximum(vals, other.value_at(y))
+                fade = np.where(self._torn[cell], min(2.0 * t, 1.0), t)
+                vals = (1.0 - fade) * vals + fade * np.maximum(vals, other.value_at(y))
         out = np.full(self.grid.size, np.inf)
         np.minimum.at(out, target, np.minimum(vals, self.truncation))
         out[np.isinf(out)] = np.nan
