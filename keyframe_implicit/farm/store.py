@@ -39,6 +39,7 @@ def _classes():
     from ..core.bake.pipeline import BakePlan, Keyframe
     from ..core.base.grid import Grid
     from ..core.map.solver import MapResult
+    from ..core.map.tear import Tear
     from ..core.motion.spline import Bend
     from ..core.surface.attributes import MeshAttributes
 
@@ -48,6 +49,8 @@ def _classes():
     table = {cls.__name__: (cls, fields)
              for cls in (BakePlan, Keyframe, Grid, MapResult, MeshAttributes)}
     table["Bend"] = (Bend, lambda b: {"start": b.start, "end": b.end})
+    table["Tear"] = (Tear, lambda t: {"piece": t.piece, "crack": t.crack, "target": t.target,
+                                      "crack_material": t.stats["crack_material"]})
     return table
 
 

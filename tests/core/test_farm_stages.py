@@ -11,6 +11,7 @@ import pytest
 
 from benchmark_modules import load
 from keyframe_implicit.core import Grid, animate
+from keyframe_implicit.core.map.tear import Tear
 from keyframe_implicit.core.motion.spline import Bend
 from keyframe_implicit.core.surface.attributes import MeshAttributes
 from keyframe_implicit.farm import stages, store
@@ -121,13 +122,15 @@ def test_bad_input_is_refused_before_any_file_is_written(tmp_path):
 def test_the_store_keeps_classes_keys_and_types_and_holds_no_pickle(tmp_path):
     grid = Grid((0.0, 1.0, 2.0), 0.5, (3, 4, 5))
     attrs = MeshAttributes.from_triangles([[0, 1, 2]])
+    tear = Tear(np.arange(6).reshape(2, 3), np.ones((1, 2), bool), [2, 1], 0.25)
     value = {0: (np.float32(1.5), [True, None, "x"]), "g": grid, "a": attrs,
-             "b": Bend(np.ones((2, 3)), np.zeros((2, 3)))}
+             "b": Bend(np.ones((2, 3)), np.zeros((2, 3))), "t": tear}
     store.save(tmp_path / "v.npz", value)
     back = store.load(tmp_path / "v.npz")
     assert back[0] == (1.5, [True, None, "x"]) and back["g"] == grid
     np.testing.assert_array_equal(back["a"].loop_vertices, attrs.loop_vertices)
     np.testing.assert_array_equal(back["b"].start, np.ones((2, 3)))
+    assert back["t"].stats == tear.stats and back["t"].target.tolist() == [2, 1]
     with np.load(tmp_path / "v.npz", allow_pickle=False) as z:
         assert all(z[k].dtype != object for k in z.files)
     with pytest.raises(TypeError, match="cannot hold a builtins.set"):

@@ -138,7 +138,7 @@ class Inbetween:
     threads : int
         2 (default): the two transports carry each level set in two threads, for a
         process with two cores to itself; 1: one after the other, for a process that
-        shares the machine with another doing the same (`chain._FrameSplit`), where a
+        shares the machine with another doing the same (`chain.FrameSplit`), where a
         second thread only competes with it.
     stats : dict
         Figures of the maps (when solved here), the trajectories and the
