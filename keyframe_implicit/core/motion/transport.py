@@ -408,9 +408,10 @@ class Transport:
         the tear from its start. Paths bent through a chain's keyframes leave
         a keyframe without spreading its material (their velocity there has no
         divergence, `spline.incompressible`), so their tear opens from rest and
-        w = t^2 fades it from rest too: a fade at full rate would take volume
-        the paths do not spread, which the iso-value would give back by moving
-        the whole surface (docs/method.md, section 12). ``values(u)`` (u source
+        w = t^2 (3 - 2 t) fades it from rest too, at both ends, and as far as t
+        half-way: a fade at full rate would take volume the paths do not
+        spread, which the iso-value would give back by moving the whole surface
+        (docs/method.md, section 12). ``values(u)`` (u source
         points in index coordinates) replaces both. Values are truncated at
         ``truncation``; overlaps keep the smallest.
         """
@@ -422,7 +423,7 @@ class Transport:
             vals = self.read(self.field, source, self._coef)
             if other is not None and t > 0:
                 y = self._mapped_at(cell, local)
-                fade = t if self.trajectories.bend is None else t * t
+                fade = t if self.trajectories.bend is None else t * t * (3.0 - 2.0 * t)
                 vals = (1.0 - fade) * vals + fade * np.maximum(vals, other.value_at(y))
         out = np.full(self.grid.size, np.inf)
         np.minimum.at(out, target, np.minimum(vals, self.truncation))
