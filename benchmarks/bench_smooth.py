@@ -12,11 +12,14 @@ Blender), with every keyframe "linear" (each segment on its own: today's timing)
 Paths, every frame, keyframe frames included: the ball's centre is the material centroid
 of the baked mesh (the volume centroid of the closed mesh); the droplet's centre is the
 mean of the template vertices on the droplet; a feature point is the template vertex
-nearest it on the first frame. Per inner keyframe and path:
+nearest it on the first frame, when it has one of its own (not the droplet's centre,
+whose nearest vertex is one of many at its distance). Per inner keyframe and path:
 
 - turn: the angle (degrees) between the displacements of the frame before and the frame
   after the keyframe, against the largest such angle at any other frame of its two
-  segments;
+  segments, and the turn there of the curve the keyframes ask for (a cubic Hermite
+  curve through the path's own keyframe positions with the bake's tangents: large where
+  the keyframes themselves turn the point round);
 - speed ratio: the larger of the two displacements over the smaller, across the keyframe,
   against the largest between other consecutive frames of its two segments;
 - the arc's own turn a frame: a circle through the ball's three positions, run at a
@@ -90,6 +93,43 @@ def nearest_vertices(vertices, points):
     return d.argmin(axis=0)
 
 
+def has_own_vertex(vertices, points, margin=0.01):
+    """Whether each point's nearest vertex is its own ((V, 3), (P, 3) -> (P,) bool): the
+    next nearest lies at least ``margin`` (a fraction) farther. A point deep inside a round
+    part, such as the droplet's centre, has many vertices at almost its distance (ten within
+    0.1 %), and which of them is "nearest" is a matter of rounding: its path would be
+    that of an arbitrary point of the surface."""
+    d = np.sort(np.linalg.norm(vertices[:, None, :] - np.asarray(points)[None], axis=-1),
+                axis=0)
+    return d[1] > (1.0 + margin) * d[0]
+
+
+def keyframe_curve(path, frames, key_frames):
+    """The curve the keyframes ask of a path: a cubic Hermite curve through the path's own
+    positions at the keyframes, with the tangents `spline` gives the paths (each side's
+    chord weighted by its own segment's frames; natural first and last keyframes),
+    sampled on ``frames``. Where its turn at a keyframe is large, the keyframes
+    themselves ask for the turn (a point that rises, then sinks)."""
+    frames = np.asarray(frames)
+    at = [int(np.flatnonzero(frames == f)[0]) for f in key_frames]
+    p = np.asarray(path, dtype=float)[at]
+    gaps = np.diff(np.asarray(key_frames, dtype=float))
+    chords = np.diff(p, axis=0) / gaps[:, None]
+    v = np.empty_like(p)
+    v[1:-1] = ((gaps[:-1, None] * chords[:-1] + gaps[1:, None] * chords[1:])
+               / (gaps[:-1] + gaps[1:])[:, None])
+    if len(p) > 2:  # natural ends: no second derivative there
+        v[0], v[-1] = 1.5 * chords[0] - 0.5 * v[1], 1.5 * chords[-1] - 0.5 * v[-2]
+    else:
+        v[0] = v[-1] = chords[0]
+    k = np.clip(np.searchsorted(key_frames, frames, side="right") - 1, 0, len(p) - 2)
+    n = gaps[k][:, None]
+    s = (frames - np.asarray(key_frames)[k])[:, None] / n
+    h00, h10 = 2 * s ** 3 - 3 * s ** 2 + 1, s ** 3 - 2 * s ** 2 + s
+    h01, h11 = -2 * s ** 3 + 3 * s ** 2, s ** 3 - s ** 2
+    return h00 * p[k] + h10 * n * v[k] + h01 * p[k + 1] + h11 * n * v[k + 1]
+
+
 def turns_and_speeds(path):
     """Per frame, the turn (degrees) between the displacement before and after it
     (frames 1 .. n - 2) and every displacement's length (n - 1)."""
@@ -100,11 +140,13 @@ def turns_and_speeds(path):
 
 
 def across_keyframes(path, frames, key_frames):
-    """Per inner keyframe: dict of its ``turn`` and ``speed_ratio`` across it, and the
+    """Per inner keyframe: dict of its ``turn`` and ``speed_ratio`` across it, the
     largest of each elsewhere in its two segments (``turn_elsewhere``,
-    ``speed_ratio_elsewhere``)."""
+    ``speed_ratio_elsewhere``), and the turn there of the curve its keyframe positions
+    ask for (``turn_asked``, `keyframe_curve`)."""
     frames = np.asarray(frames)
     turn, speed = turns_and_speeds(path)
+    asked = turns_and_speeds(keyframe_curve(path, frames, key_frames))[0]
     ratio = np.maximum(speed[1:], speed[:-1]) / np.maximum(np.minimum(speed[1:], speed[:-1]),
                                                           1e-300)
     out = []
@@ -114,6 +156,7 @@ def across_keyframes(path, frames, key_frames):
         hi = int(np.flatnonzero(frames == key_frames[k + 1])[0])
         others = [j - 1 for j in range(lo + 1, hi) if j != i]
         out.append(dict(turn=float(turn[i - 1]), turn_elsewhere=float(turn[others].max()),
+                        turn_asked=float(asked[i - 1]),
                         speed_ratio=float(ratio[i - 1]),
                         speed_ratio_elsewhere=float(ratio[others].max())))
     return out
@@ -161,7 +204,8 @@ def paths(anim, features, droplet=None, names=None):
     with ``droplet`` (a centre and radius on the first keyframe) the mean of the template
     vertices within it ("droplet"), and each feature point of the first segment within
     that region (all when None) by its nearest template vertex, under its name in
-    ``names`` (default "feature j")."""
+    ``names`` (default "feature j"); a point with no vertex of its own (`has_own_vertex`)
+    is left out: the droplet's centre is the "droplet" path."""
     verts = np.asarray(anim.vertices, dtype=float)
     points = np.asarray(features[0][0], dtype=float)
     names = np.array(names or [f"feature {j}" for j in range(len(points))])
@@ -174,7 +218,8 @@ def paths(anim, features, droplet=None, names=None):
         out["droplet"] = verts[:, on].mean(axis=1)
         near = np.linalg.norm(points - centre, axis=1) <= radius
         points, names = points[near], names[near]
-    for name, idx in zip(names, nearest_vertices(verts[0], points)):
+    own = has_own_vertex(verts[0], points)
+    for name, idx in zip(names[own], nearest_vertices(verts[0], points[own])):
         out[str(name)] = verts[:, idx]
     return out
 
@@ -255,7 +300,8 @@ def volume_and_pieces(anim, key_frames):
 
 
 def _row(label, figures):
-    cells = [f"{f['turn']:.1f} / {f['turn_elsewhere']:.1f}" for f in figures]
+    cells = [f"{f['turn']:.1f} / {f['turn_elsewhere']:.1f} ({f['turn_asked']:.1f})"
+             for f in figures]
     cells += [f"{f['speed_ratio']:.2f} / {f['speed_ratio_elsewhere']:.2f}" for f in figures]
     return f"| {label} | " + " | ".join(cells) + " |"
 
@@ -272,7 +318,8 @@ def main():
     keys = [kf.frame for kf in kfs]
     print(f"ball on an arc, {n} cells; the arc through the three positions turns "
           f"{arc_turn_per_frame():.1f} degrees a frame")
-    print("| timing, path | turn at the top / elsewhere (deg) | speed ratio at the top / "
+    print("| timing, path | turn at the top / elsewhere (keyframes' curve) (deg) | speed ratio "
+          "at the top / "
           "elsewhere |\n|---|---|---|")
     seconds = {"linear": [], "smooth": []}
     trails = {}
@@ -312,7 +359,7 @@ def splash_figures(n, trails):
     keys = [kf.frame for kf in kfs]
     drop = (np.asarray(feats[0][0][4]), 0.5)  # the droplet: its centre feature, radius 0.35
     print(f"\nsplash, {n} cells, keyframes {keys}: per inner keyframe turn at / elsewhere "
-          "(deg), then speed ratio at / elsewhere")
+          "(the keyframes' own curve's) (deg), then speed ratio at / elsewhere")
     print("| timing, path | " + " | ".join(f"turn {f}" for f in keys[1:-1]) + " | "
           + " | ".join(f"speed {f}" for f in keys[1:-1]) + " |")
     print("|---" * (1 + 2 * (len(keys) - 2)) + "|")

@@ -156,3 +156,29 @@ def test_values_read_in_the_cells_the_lookup_found_are_a_multilinear_sample(d):
         at_corner = np.repeat((bits - 0.5)[:, None], 4, axis=1)
         got = sampling.multilinear_in_cells(moved, corner_index, np.arange(4), at_corner)
         np.testing.assert_allclose(got, moved[corner_index[:4, c]], atol=1e-12)
+
+
+def test_torn_material_fades_from_rest_on_bent_paths():
+    # a disk mapped onto itself by the identity, against a smaller one: its outer ring is
+    # torn (it lands in the other's empty space) and fades, at rate t on straight-timed
+    # paths and from rest, t^2 (3 - 2t), on bent ones (here a bend of zero: same paths)
+    from keyframe_implicit.core.motion.spline import Bend
+    from keyframe_implicit.core.motion.trajectory import Trajectories
+
+    grid = Grid(origin=(-1.0, -1.0), spacing=2.0 / 32, shape=(33, 33))
+    x = grid.points()
+    r = np.linalg.norm(x, axis=-1)
+    phi_a, phi_b = r - 0.6, r - 0.4
+
+    other = transport.Transport(phi_b, Trajectories(grid, x.copy(), phi_b < 0))
+    ring = (r > 0.45) & (r < 0.55)  # inside A, outside B: torn
+    f, g = phi_a[ring], phi_b[ring]
+    for bent, fade in ((False, lambda t: t), (True, lambda t: t * t * (3 - 2 * t))):
+        paths = Trajectories(grid, x.copy(), phi_a < 0)
+        if bent:
+            paths.bend = Bend(np.zeros((grid.size, 2)), np.zeros((grid.size, 2)))
+        forward = transport.Transport(phi_a, paths)
+        for t in (0.2, 0.5, 0.8):
+            w = fade(t)
+            carried = forward.carry(t, other=other).reshape(grid.shape)[ring]
+            assert np.allclose(carried, (1 - w) * f + w * g, atol=1e-6), (bent, t)

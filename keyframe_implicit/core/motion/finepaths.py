@@ -82,6 +82,11 @@ class FinePaths:
         self._weights = {}
         self._mapped = None
 
+    @property
+    def bend(self):
+        """The `spline.Bend` of the motion grid's paths, or None: these paths follow it."""
+        return self.coarse.bend
+
     def region_nodes(self):
         """Flat bool mask of the region's surface nodes: the material and its margin."""
         return self._region

@@ -403,15 +403,24 @@ class Transport:
         Each source point x carries its own keyframe's value f(x); with
         ``other`` (the other keyframe's `Transport`) it carries
 
-            v_t(x) = (1 - t) f(x) + t max(f(x), g(y(x))),
+            v_t(x) = (1 - w) f(x) + w max(f(x), g(y(x))),
 
         g the other keyframe's field and y this transport's map: where the
         map takes material into the other keyframe's empty space (a tear:
         a merge seen backwards, or a split), that material fades out on the
         way, while the other keyframe never adds depth to this one's empty
-        space. ``values(u)`` (u source points in index coordinates) replaces
-        both. Values are truncated at ``truncation``; overlaps keep the
-        smallest.
+        space. The fade's weight w is t, as fast as straight-timed paths open
+        the tear from its start. Paths bent through a chain's keyframes leave
+        a keyframe without spreading its material (their velocity there has no
+        divergence, `spline.incompressible`), so their tear opens from rest and
+        w = t^2 (3 - 2 t) fades it from rest too, at both ends, and as far as t
+        half-way: a fade at full rate would take volume the paths do not
+        spread, which the iso-value would give back by moving the whole surface
+        (docs/method.md, section 12). In the crack of a map that tears
+        (``torn``) the weight is min(2 t, 1): that material is gone by
+        half-way. ``values(u)`` (u source points in index coordinates)
+        replaces both. Values are truncated at
+        ``truncation``; overlaps keep the smallest.
         """
         target, cell, local = self._sources_in_cells(t)
         source = _index_coordinates(self.grid, self._cells, cell, local)
@@ -421,7 +430,8 @@ class Transport:
             vals = self.read(self.field, source, self._coef)
             if other is not None and t > 0:
                 y = self._mapped_at(cell, local)
-                fade = np.where(self._torn[cell], min(2.0 * t, 1.0), t)
+                fade = t if self.trajectories.bend is None else t * t * (3.0 - 2.0 * t)
+                fade = np.where(self._torn[cell], min(2.0 * t, 1.0), fade)
                 vals = (1.0 - fade) * vals + fade * np.maximum(vals, other.value_at(y))
         out = np.full(self.grid.size, np.inf)
         np.minimum.at(out, target, np.minimum(vals, self.truncation))
