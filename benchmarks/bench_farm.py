@@ -124,6 +124,7 @@ def main(argv=None):
           f"{statistics.median(ratios):.2f} | "
           + " | ".join(f"{statistics.median(s.get(n, 0.0) for s in steps):.1f}" for n in STEPS)
           + f" | {max(diffs):.1e} |")
+    print("ratio of each run, in order: " + ", ".join(f"{r:.2f}" for r in ratios))
 
 
 if __name__ == "__main__":
