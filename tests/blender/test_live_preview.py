@@ -170,3 +170,56 @@ def test_a_refused_setup_and_a_crash_become_messages(live):
     assert preview.active() and state.message == ""
     preview.tick()
     _until(lambda: state.mesh is not None)
+
+
+#: Draws an octahedron with `overlay` into a 64 x 64 offscreen buffer, identity matrices
+#: (the octahedron's middle covers the middle of the buffer), and prints the alpha of the
+#: middle pixel and of a corner.
+DRAW = """
+import bpy  # noqa: F401  (loads the gpu module)
+import gpu
+import numpy as np
+from mathutils import Matrix
+from keyframe_implicit.blender import overlay
+
+gpu.init()
+v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float32) * 0.5
+t = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5],
+              [0, 3, 5]], np.int32)
+drawn = overlay.batch(v, t)
+off = gpu.types.GPUOffScreen(64, 64)
+with off.bind():
+    fb = gpu.state.active_framebuffer_get()
+    fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+    with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+        gpu.matrix.load_matrix(Matrix.Identity(4))
+        gpu.matrix.load_projection_matrix(Matrix.Identity(4))
+        overlay.draw(drawn)
+    px = np.array(fb.read_color(0, 0, 64, 64, 4, 0, "FLOAT").to_list()).reshape(64, 64, 4)
+print("ALPHA", px[32, 32, 3], px[1, 1, 3])
+"""
+
+
+def test_overlay_draws_the_mesh_where_a_gpu_context_exists():
+    import os
+    import subprocess
+    import sys
+
+    import gpu
+    import numpy as np
+
+    v = np.eye(3, dtype=np.float32)
+    t = np.array([[0, 1, 2]], np.int32)
+    if not hasattr(gpu, "init"):  # this Blender cannot make a GPU context in background mode
+        assert not overlay.available() and overlay.batch(v, t) is None
+        return
+    assert not overlay.available()  # not before gpu.init: the bake tests' process stays as it is
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-c", DRAW], capture_output=True, text=True,
+                         timeout=120, env=dict(os.environ, PYTHONPATH=root))
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("ALPHA")]
+    assert line, out.stdout + out.stderr
+    middle, corner = map(float, line[0].split()[1:])
+    # the middle is covered by a front and a back face, each blended at COLOR's opacity
+    a = overlay.COLOR[3]
+    assert middle == pytest.approx(a + a * (1 - a), abs=0.02) and corner == 0.0
