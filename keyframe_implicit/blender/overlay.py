@@ -12,8 +12,9 @@ import numpy as np
 
 __all__ = ["available", "batch", "draw", "COLOR"]
 
-#: The preview's colour (linear RGB) and opacity.
-COLOR = (0.25, 0.6, 1.0, 0.55)
+#: The preview's colour (linear RGB: an orange apart from Blender's default greys and the
+#: selection's) and opacity.
+COLOR = (1.0, 0.45, 0.1, 0.55)
 #: Direction the light comes from (world space, normalised below).
 _LIGHT = np.array([0.3, -0.5, 0.8])
 

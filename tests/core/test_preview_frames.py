@@ -85,3 +85,19 @@ def test_cancelled_solve_leaves_nothing_solved_and_bad_input_is_refused():
         preview.frame(1)
     with pytest.raises(ValueError, match="strictly increasing"):
         preview.solve([keyframes[0], keyframes[0]], feats[:1])
+
+
+def test_feature_points_closer_than_a_cell_raise_the_preview_resolution():
+    keyframes, feats = _chain()
+    feats[0][0][1] = feats[0][0][0] + (0.0, 0.025, 0.0)  # under one cell of the 32-cell grid
+    with pytest.raises(ValueError, match="less than one grid cell"):
+        animate(keyframes, feats, resolution=PREVIEW_RESOLUTION)
+    preview = Preview()
+    figures = preview.solve(keyframes, feats, resolution=64)
+    assert PREVIEW_RESOLUTION < figures["resolution"] < 64
+    anim = animate(keyframes, feats, resolution=figures["resolution"],
+                   motion_resolution=figures["motion_resolution"])
+    assert anim.stats["grid_shape"] == figures["grid_shape"]
+    _same_mesh(preview.frame(2), anim.surfaces[2], anim.grid.spacing)
+    with pytest.raises(ValueError, match="less than one grid cell"):  # the bake's refusal
+        preview.solve(keyframes, feats, resolution=PREVIEW_RESOLUTION)

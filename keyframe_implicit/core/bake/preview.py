@@ -27,7 +27,8 @@ from ..base.progress import Reporter
 
 __all__ = ["Preview", "PREVIEW_RESOLUTION", "PREVIEW_MOTION_RESOLUTION"]
 
-#: Cells along the longest side of the preview's surface grid (no finer than the bake's).
+#: Cells along the longest side of the preview's surface grid (no finer than the bake's; finer
+#: where two feature points would share a cell).
 PREVIEW_RESOLUTION = 32
 #: Cells of its motion grid, where the feature points allow it (else the bake's own rule).
 PREVIEW_MOTION_RESOLUTION = 16
@@ -62,7 +63,7 @@ class Preview:
         """Solve every segment's maps and in-betweens at the preview's resolutions.
 
         Parameters are `pipeline.animate`'s; ``resolution`` is the bake's own, the preview's
-        surface grid being no finer (`PREVIEW_RESOLUTION`).
+        surface grid being no finer (`_grids`).
 
         Raises ValueError on input the user must fix (the bake's own refusals), `Cancelled`
         when ``cancel()`` returns True. On either the previous solve is gone.
@@ -81,9 +82,8 @@ class Preview:
         weight_options = {t.name: t.weight_option for t in terms.TERMS}
         options = {weight_options[k]: float(v) for k, v in (weights or {}).items()}
         surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
-        res = min(int(resolution), PREVIEW_RESOLUTION)
-        grid, motion, motion_grid = self._grids(keyframes, surfaces, features, feature_names,
-                                                res, padding_cells)
+        res, grid, motion, motion_grid = self._grids(keyframes, surfaces, features,
+                                                     feature_names, resolution, padding_cells)
         rep(0.05, "Distance grids")
         phis, kept = self._distance_grids(keyframes, surfaces, grid, rep.sub(0.05, 0.2), cancel)
         artist = pipeline._artist_template(keyframes[0], surfaces[0], "keyframe")
@@ -105,20 +105,26 @@ class Preview:
         return self.figures
 
     @staticmethod
-    def _grids(keyframes, surfaces, features, feature_names, res, padding_cells):
-        """The bake's grids at surface resolution ``res`` (`pipeline._bake_grid`), the
-        motion grid at `PREVIEW_MOTION_RESOLUTION` unless two feature points would share
-        one of its cells (then the bake's automatic choice)."""
+    def _grids(keyframes, surfaces, features, feature_names, resolution, padding_cells):
+        """(surface resolution, then `pipeline._bake_grid`'s grid, motion resolution and
+        motion grid) of the preview: `PREVIEW_RESOLUTION` cells and a motion grid of
+        `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one where two feature points
+        would share a motion cell; raised by a quarter at a time, up to the bake's
+        ``resolution``, where two would share a surface cell (the bake's own refusal when
+        even that does not hold them apart)."""
         from . import pipeline
 
-        def grids(motion):
-            return pipeline._bake_grid(keyframes, surfaces, features, feature_names, res,
-                                       motion, padding_cells, None)
-
-        try:
-            return grids(min(res, PREVIEW_MOTION_RESOLUTION))
-        except ValueError:
-            return grids(None)  # the surface grid's own refusals are raised here
+        res = min(int(resolution), PREVIEW_RESOLUTION)
+        while True:
+            for motion in (min(res, PREVIEW_MOTION_RESOLUTION), None):
+                try:
+                    return (res,) + pipeline._bake_grid(keyframes, surfaces, features,
+                                                        feature_names, res, motion,
+                                                        padding_cells, None)
+                except ValueError:
+                    if res >= resolution and motion is None:
+                        raise
+            res = min(int(resolution), int(np.ceil(1.25 * res)))
 
     def _distance_grids(self, keyframes, surfaces, grid, rep, cancel):
         """Every keyframe's distance grid (`pipeline._distance_grid`), those of an unchanged
