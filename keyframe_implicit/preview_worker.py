@@ -3,7 +3,10 @@ preview is on.
 
 Launched as the bake's worker is (`worker.Worker`: the same Python, ``-P -m``, the same
 ``PYTHONPATH``, never bpy, pickles on its standard streams), for the same reasons: the
-core's numpy calls hold the GIL, and a crash must not take Blender with it. It stays
+core's numpy calls hold the GIL, and a crash must not take Blender with it; and at the
+same lower priority, so that Blender's main loop and drawing go first (at Blender's own
+priority it was not measurably faster beside a busy window: benchmarks/README.md, "Live
+preview"). It stays
 alive between requests and keeps the solved in-betweens, so a frame change costs only that
 frame's transport, level set and marching cubes.
 

@@ -175,7 +175,7 @@ def scene_steps(path, shots):
         yield 0.3
     grab(f"preview_{name}_scrubbed", shots)
     yield 1.0
-    longest = pv.state.longest
+    longest, longest_in, cpu = pv.state.longest, pv.state.longest_in, pv.state.longest_cpu
     gap = rec.longest_gap(t_on)
     settings.live_preview = False
     rec.stop()
@@ -201,7 +201,8 @@ def scene_steps(path, shots):
           f"{np.median([d['asked'] for d in scrubs]):.3f} s, asked -> answered "
           f"{np.median([d['answered'] for d in scrubs]):.3f} s, answered -> drawn "
           f"{np.median([d['drawn'] for d in scrubs]):.3f} s")
-    print(f"  main loop: longest call of the preview's code {longest * 1000:.1f} ms; longest gap "
+    print(f"  main loop: longest call of the preview's code {longest * 1000:.1f} ms ({longest_in}), "
+          f"at most {cpu * 1000:.1f} ms of processor time in one call; longest gap "
           f"between the main loop's turns (Blender's drawing included) {gap * 1000:.0f} ms",
           flush=True)
 

@@ -40,9 +40,9 @@ def vertex_colors(vertices, triangles):
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     face = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
-    normals = np.zeros_like(v)
-    for corner in range(3):
-        np.add.at(normals, t[:, corner], face)
+    corners = t.ravel()
+    normals = np.stack([np.bincount(corners, np.repeat(face[:, k], 3), minlength=len(v))
+                        for k in range(3)], axis=1)
     length = np.linalg.norm(normals, axis=1, keepdims=True)
     normals /= np.where(length > 0, length, 1.0)
     light = _LIGHT / np.linalg.norm(_LIGHT)

@@ -64,6 +64,11 @@ class State:
         When each answered frame became the preview, and its frame.
     longest : float
         The longest single call of the preview's own code on the main loop, in seconds.
+    longest_in : str
+        What that call did (the function's name and the last step it began).
+    longest_cpu : float
+        The most processor time one such call used (`time.thread_time`): ``longest`` also
+        counts the time the system gave the processor to other programs meanwhile.
     """
 
     def __init__(self):
@@ -74,6 +79,9 @@ class State:
         self.message = ""
         self.solves, self.frames, self.shown = [], [], []
         self.longest = 0.0
+        self.longest_in = ""
+        self.longest_cpu = 0.0
+        self.step = ""
 
 
 state = State()
@@ -88,14 +96,18 @@ def _timed(fn):
     """``fn`` with its time on the main loop counted in `State.longest`; whatever it
     raises becomes `State.message` (nothing reaches Blender's handlers)."""
     def timed(*args):
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         try:
             return fn(*args)
         except Exception as exc:  # shown in the panel; the preview must not break Blender
             state.message = f"Live preview: {type(exc).__name__}: {exc}"
             return None
         finally:
-            state.longest = max(state.longest, time.perf_counter() - t0)
+            took = time.perf_counter() - t0
+            state.longest_cpu = max(state.longest_cpu, time.thread_time() - cpu0)
+            if took > state.longest:
+                state.longest, state.longest_in = took, f"{fn.__name__}: {state.step}"
+            state.step = ""
 
     timed.__name__, timed.__doc__ = fn.__name__, fn.__doc__
     return timed
@@ -198,6 +210,7 @@ _reading = False  # the preview itself reads the scene (frame changes of `scene_
 def _send_solve(scene):
     """Read the scene (`scene_io.read`), check it and send the solve, or say what is wrong."""
     global _reading
+    state.step = "reading the scene"
     _reading = True
     try:
         inputs = scene_io.read(scene, bpy.context.evaluated_depsgraph_get())
@@ -210,6 +223,7 @@ def _send_solve(scene):
         _redraw()
         return
     state.message = ""
+    state.step = "sending the solve"
     arguments = dict(keyframes=inputs.keyframes, features=inputs.features,
                      resolution=inputs.resolution, weights=inputs.weights,
                      feature_names=inputs.feature_names or None,
@@ -235,6 +249,7 @@ def _take(answer):
     elif kind == "frame":
         frame, vertices, triangles = answer[2:]
         state.mesh = (frame, vertices, triangles)
+        state.step = f"the overlay of {len(triangles)} triangles"
         state.drawn = overlay.batch(vertices, triangles)
         state.shown.append((time.perf_counter(), frame))
         _redraw()
