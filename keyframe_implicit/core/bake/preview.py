@@ -9,7 +9,8 @@ bake at the preview's resolutions has the same mesh on that frame (docs/method.m
 section 11 for the two grids).
 
 Kept between solves: the keyframes' distance grids, while the grid and the keyframe's mesh
-are unchanged (a feature Empty moved inside the box re-solves the maps only). The maps
+are unchanged. The grid holds the feature points and their rigid sweeps (`gridfit`), so a
+feature point moved often moves the grid too, and the grids are made again then. The maps
 are solved afresh each time: the solver starts from its own initial map (the RBF of the
 feature points, eq. 2.14-2.20) and takes no other, and starting it elsewhere would change
 its answer, which must stay the bake's.
