@@ -13,6 +13,8 @@ Module map (operators and panels are thin; logic lives in plain functions):
 ``materials``  shader nodes on Blender 4.x (``use_nodes``) and 5.0+ (always on)
 ``ops``        operators ``keyframe_implicit.*``
 ``panel``      View3D sidebar "Keyframe Implicit"
+``preview``    live preview: the current frame's in-between from a worker process
+``overlay``    the preview drawn with the ``gpu`` module
 =============  ================================================================
 """
 
@@ -52,6 +54,10 @@ def register():
     bpy.app.handlers.persistent(_forget_surfaces)  # kept across file loads
     for name in _HANDLERS:
         getattr(bpy.app.handlers, name).append(_forget_surfaces)
+    from . import preview
+
+    for name, handler in preview.HANDLERS:
+        getattr(bpy.app.handlers, name).append(handler)
 
 
 def unregister():
@@ -67,6 +73,13 @@ def unregister():
         if _forget_surfaces in handlers:
             handlers.remove(_forget_surfaces)
     _forget_surfaces()
+    from . import preview
+
+    preview.stop()
+    for name, handler in preview.HANDLERS:
+        handlers = getattr(bpy.app.handlers, name)
+        if handler in handlers:
+            handlers.remove(handler)
     for job in list(ops.running):
         job.cancel()
     bpy.types.VIEW3D_MT_object.remove(ops.menu_func)

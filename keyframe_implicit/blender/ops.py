@@ -7,7 +7,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, features, result_view, validate
+from . import bake, features, preview, result_view, validate
 
 _OPTS = {"REGISTER", "UNDO"}
 # Redo-panel ("Adjust Last Operation") hygiene: a property the panel fills in itself is not
@@ -343,6 +343,7 @@ class KFI_OT_bake(bpy.types.Operator):
 
     def execute(self, context):
         """Blocking bake (scripts, ``blender -b``, no window): `bake.bake_scene`."""
+        preview.turn_off(context.scene)
         notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
@@ -363,6 +364,7 @@ class KFI_OT_bake(bpy.types.Operator):
         background while the modal handler polls (ESC cancels)."""
         if context.window is None:
             return self.execute(context)
+        preview.turn_off(context.scene)
         try:
             inputs = bake.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
         except ValueError as exc:

@@ -92,6 +92,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             fraction, message = running[0].status()
             _wrapped(layout, context, f"Baking {100 * fraction:.0f}%: {message}", "SORTTIME")
             layout.label(text="ESC in the 3D view cancels.", icon="BLANK1")
+        _live_preview(layout, context, settings)
         row = layout.row()
         row.scale_y = 1.4
         row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")  # poll says why not
@@ -174,6 +175,24 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         col.prop(settings, "rigidity_weight")
         col.prop(settings, "levelset_weight")
         self.layout.prop(settings, "motion_resolution")
+
+
+def _live_preview(layout, context, settings):
+    """The Live Preview toggle; while it is on, its grids or why it shows nothing."""
+    from . import preview
+
+    layout.prop(settings, "live_preview", icon="HIDE_OFF" if settings.live_preview else "HIDE_ON")
+    if not settings.live_preview:
+        return
+    state = preview.state
+    if state.message:
+        _wrapped(layout, context, state.message, "ERROR")
+    elif state.figures:
+        f = state.figures
+        _wrapped(layout, context, f"Preview grid {f['resolution']} cells, motion "
+                 f"{f['motion_resolution']}: solved in {f['seconds']:.1f} s", "INFO")
+    elif preview.active():
+        layout.label(text="Preview: solving\u2026", icon="SORTTIME")
 
 
 #: Problems listed before the rest fold away: Bake and the first problems stay in view at

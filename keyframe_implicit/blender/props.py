@@ -5,7 +5,7 @@ resolution, the objective weights of thesis eq. 2.6 (see
 ``keyframe_implicit/core/map/terms.py``; the panel calls them Volume, Rigidity and
 Shape Match), the output options, a pointer to the baked output object, so that
 baking again replaces that object and only it, and whether the keyframes are
-shown over it (`result_view`).
+shown over it (`result_view`), and whether the live preview runs (`preview`).
 """
 
 import bpy
@@ -24,6 +24,15 @@ from ..core.map.solver import DEFAULT_WEIGHTS
 
 def _is_mesh(_self, obj):
     return obj is not None and obj.type == "MESH"
+
+
+def _live_preview_changed(settings, _context):
+    from . import preview
+
+    if settings.live_preview:
+        preview.start()
+    else:
+        preview.stop()
 
 
 def _show_keyframes_changed(settings, context):
@@ -144,6 +153,13 @@ class KFI_Settings(bpy.types.PropertyGroup):
         description="Show the keyframe objects as wireframes over the baked result, to compare "
         "them (they stay out of renders)",
         update=_show_keyframes_changed,
+    )
+    live_preview: BoolProperty(
+        name="Live Preview", default=False,
+        description="Show the in-between on the current frame over the 3D view, solved on a "
+        "coarse grid and updated as keyframes and feature points move (nothing is added to "
+        "the scene)",
+        update=_live_preview_changed,
     )
     show_all_problems: BoolProperty(
         name="All Problems", default=False,

@@ -8,4 +8,6 @@
               in-betweens
 ``chain``     `animate_chain`: several keyframes in sequence, paths bent through the
               inner keyframes, segments shared with the helper process
+``preview``   `Preview`: the maps solved once on coarse grids, then any one frame's
+              surface as the bake makes it (the live preview)
 """

@@ -1,0 +1,293 @@
+"""Live preview: the in-between on the current frame, drawn over the 3D view while the
+artist edits.
+
+While ``Scene.keyframe_implicit.live_preview`` is on, a preview worker process
+(`keyframe_implicit.preview_worker`) keeps the setup's maps solved on a coarse grid
+(`core.bake.preview`) and answers each frame with that frame's own surface; `overlay`
+draws it from a ``POST_VIEW`` draw handler. Nothing enters ``bpy.data``, the undo history
+or the outliner.
+
+When it updates:
+
+- a keyframe object or a feature Empty changes (depsgraph_update_post): `schedule` sets a
+  solve `COALESCE` seconds after the last such change, so a drag asks for one solve, after
+  it; the worker cancels a solve in flight when a new one comes;
+- the frame changes (frame_change_post): the new frame is asked for at once; the worker
+  keeps the last request of each kind, so scrubbing never queues.
+
+The main loop only ever polls: `tick`, a ``bpy.app.timers`` callback every `POLL`
+seconds, sends the due solve (reading the scene: `scene_io.read`) and takes the worker's
+answers. The longest time the add-on's own preview code held the main loop is
+`State.longest`. Turning the preview off, loading a file (load_pre) or pressing Bake ends
+the worker and removes the overlay. Failures (a refused setup, a crash of the worker)
+become `State.message`, shown in the panel; nothing raises into Blender.
+"""
+
+import time
+
+import bpy
+
+from . import features, overlay, scene_io, validate
+
+__all__ = ["State", "state", "start", "stop", "schedule", "tick", "active",
+           "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post", "HANDLERS"]
+
+#: Seconds after the last edit before its solve is asked for: a drag's moves coalesce.
+COALESCE = 0.15
+#: Seconds between the timer's polls of the worker.
+POLL = 0.03
+
+
+class State:
+    """What the live preview holds between turns of the main loop (module-level `state`).
+
+    Attributes
+    ----------
+    worker : preview_worker.PreviewWorker or None
+        The worker process while the preview is on.
+    handle : the draw handler's handle, or None.
+    due : float or None
+        ``time.perf_counter()`` at which the scheduled solve is sent.
+    solve_id : int
+        Id of the last solve sent: answers to earlier ones are stale.
+    mesh : (frame, vertices, triangles) or None
+        The preview shown: the last frame the worker answered.
+    drawn : (shader, batch) or None
+        Its `overlay.batch` (None where drawing is unavailable).
+    figures : dict
+        Of the last solve (`core.bake.preview.Preview.figures`).
+    message : str
+        Why there is no preview ("" when there is one, or one is on its way).
+    solves, frames : list of float
+        When each solve and each frame request was sent (``time.perf_counter()``).
+    shown : list of (float, int)
+        When each answered frame became the preview, and its frame.
+    longest : float
+        The longest single call of the preview's own code on the main loop, in seconds.
+    longest_in : str
+        What that call did (the function's name and the last step it began).
+    longest_cpu : float
+        The most processor time one such call used (`time.thread_time`): ``longest`` also
+        counts the time the system gave the processor to other programs meanwhile.
+    """
+
+    def __init__(self):
+        self.worker = self.handle = self.due = None
+        self.solve_id = 0
+        self.mesh = self.drawn = None
+        self.figures = {}
+        self.message = ""
+        self.solves, self.frames, self.shown = [], [], []
+        self.longest = 0.0
+        self.longest_in = ""
+        self.longest_cpu = 0.0
+        self.step = ""
+
+
+state = State()
+
+
+def active():
+    """Whether the preview is running (its worker started)."""
+    return state.worker is not None
+
+
+def _timed(fn):
+    """``fn`` with its time on the main loop counted in `State.longest`; whatever it
+    raises becomes `State.message` (nothing reaches Blender's handlers)."""
+    def timed(*args):
+        t0, cpu0 = time.perf_counter(), time.thread_time()
+        try:
+            return fn(*args)
+        except Exception as exc:  # shown in the panel; the preview must not break Blender
+            state.message = f"Live preview: {type(exc).__name__}: {exc}"
+            return None
+        finally:
+            took = time.perf_counter() - t0
+            state.longest_cpu = max(state.longest_cpu, time.thread_time() - cpu0)
+            if took > state.longest:
+                state.longest, state.longest_in = took, f"{fn.__name__}: {state.step}"
+            state.step = ""
+
+    timed.__name__, timed.__doc__ = fn.__name__, fn.__doc__
+    return timed
+
+
+def start():
+    """Start the worker, the draw handler and the timer, and schedule a first solve now."""
+    from ..preview_worker import PreviewWorker
+
+    if state.worker is not None:
+        return
+    state.__init__()
+    state.worker = PreviewWorker()
+    state.handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_VIEW")
+    state.due = time.perf_counter()
+    if not bpy.app.timers.is_registered(tick):
+        bpy.app.timers.register(tick, first_interval=0.0)
+
+
+def stop():
+    """End the worker and remove the overlay, the draw handler and the timer."""
+    if state.worker is not None:
+        state.worker.close()
+    if state.handle is not None:
+        bpy.types.SpaceView3D.draw_handler_remove(state.handle, "WINDOW")
+    if bpy.app.timers.is_registered(tick):
+        bpy.app.timers.unregister(tick)
+    state.worker = state.handle = state.due = state.mesh = state.drawn = None
+    _redraw()
+
+
+def turn_off(scene):
+    """Stop the preview and show its toggle off (what Bake does first)."""
+    stop()
+    settings = scene.keyframe_implicit
+    if settings.live_preview:
+        settings.live_preview = False
+
+
+def schedule():
+    """Ask for a solve `COALESCE` seconds from now (a later edit moves it on)."""
+    if state.worker is not None:
+        state.due = time.perf_counter() + COALESCE
+
+
+def _watched(scene):
+    """The objects whose change needs a new solve: the keyframe objects and feature Empties
+    (the originals' pointers)."""
+    objs = [kf.object for kf in scene.keyframe_implicit.keyframes if kf.object is not None]
+    objs += features.feature_objects(scene)
+    return {o.as_pointer() for o in objs}
+
+
+@bpy.app.handlers.persistent
+@_timed
+def on_depsgraph_update(scene, depsgraph):
+    """depsgraph_update_post: a keyframe object or a feature Empty moved or changed its
+    mesh: `schedule` a solve."""
+    if state.worker is None or _reading:
+        return
+    changed = [u.id.original for u in depsgraph.updates
+               if isinstance(u.id, bpy.types.Object)
+               and (u.is_updated_transform or u.is_updated_geometry)]
+    if changed and {o.as_pointer() for o in changed} & _watched(scene):
+        schedule()
+
+
+@bpy.app.handlers.persistent
+@_timed
+def on_frame_change(scene, depsgraph=None):
+    """frame_change_post: ask for the new frame (once a solve has been asked for)."""
+    if state.worker is None or _reading or not state.solves:
+        return
+    state.worker.frame(scene.frame_current)
+    state.frames.append(time.perf_counter())
+
+
+@bpy.app.handlers.persistent
+def on_load_pre(*_args):
+    """load_pre: the preview belongs to the file being left."""
+    stop()
+
+
+@bpy.app.handlers.persistent
+def on_load_post(*_args):
+    """load_post: a file saved with the preview on starts it again."""
+    scene = bpy.context.scene
+    if scene is not None and scene.keyframe_implicit.live_preview:
+        start()
+
+
+#: Blender's handler lists and the functions this module adds to them.
+HANDLERS = (("depsgraph_update_post", on_depsgraph_update),
+            ("frame_change_post", on_frame_change),
+            ("load_pre", on_load_pre), ("load_post", on_load_post))
+
+_reading = False  # the preview itself reads the scene (frame changes of `scene_io.read`)
+
+
+def _send_solve(scene):
+    """Read the scene (`scene_io.read`), check it and send the solve, or say what is wrong."""
+    global _reading
+    state.step = "reading the scene"
+    _reading = True
+    try:
+        inputs = scene_io.read(scene, bpy.context.evaluated_depsgraph_get())
+    finally:
+        _reading = False
+    errors = validate.errors(validate.check(inputs))
+    if errors:
+        state.message = f"Live preview: {errors[0].message}"
+        state.mesh = state.drawn = None
+        _redraw()
+        return
+    state.message = ""
+    state.step = "sending the solve"
+    arguments = dict(keyframes=inputs.keyframes, features=inputs.features,
+                     resolution=inputs.resolution, weights=inputs.weights,
+                     feature_names=inputs.feature_names or None,
+                     key_interpolation=inputs.key_interpolation or None)
+    state.solve_id = state.worker.solve(arguments, scene.frame_current)
+    state.solves.append(time.perf_counter())
+
+
+def _take(answer):
+    """One answer of the worker into `state`."""
+    kind, rid = answer[:2]
+    if kind == "ended":
+        state.message = (f"Live preview: its worker process stopped (exit code {answer[2]}); "
+                         "the console shows what it printed. Turn the preview off and on "
+                         "to start it again.")
+        state.worker.close()
+        state.worker = state.mesh = state.drawn = None
+        _redraw()
+    elif rid < state.solve_id:
+        return  # an answer to a setup edited since
+    elif kind == "solved":
+        state.figures = answer[2]
+    elif kind == "frame":
+        frame, vertices, triangles = answer[2:]
+        state.mesh = (frame, vertices, triangles)
+        state.step = f"the overlay of {len(triangles)} triangles"
+        state.drawn = overlay.batch(vertices, triangles)
+        state.shown.append((time.perf_counter(), frame))
+        _redraw()
+    elif kind == "failed":
+        state.message = f"Live preview: {answer[3]}"
+        state.mesh = state.drawn = None
+        _redraw()
+
+
+@_timed
+def _turn(now):
+    if state.worker is None:
+        return
+    if state.due is not None and now >= state.due:
+        state.due = None
+        _send_solve(bpy.context.scene)
+    for answer in state.worker.answers():
+        _take(answer)
+        if state.worker is None:
+            break
+
+
+def tick(now=None):
+    """The timer: send the due solve, take the worker's answers; returns the next interval
+    (None ends the timer once the preview is off). ``now`` replaces the clock (tests)."""
+    _turn(time.perf_counter() if now is None else now)
+    return POLL if state.worker is not None else None
+
+
+def _draw():
+    if state.drawn is not None:
+        overlay.draw(state.drawn)
+
+
+def _redraw():
+    """Tag every 3D view for redrawing (none in background mode)."""
+    wm = getattr(bpy.context, "window_manager", None)
+    for window in (wm.windows if wm is not None else ()):
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()

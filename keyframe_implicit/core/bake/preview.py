@@ -1,0 +1,182 @@
+"""One frame of the bake on demand: the live preview's maps solved once, then any frame alone.
+
+`Preview.solve` runs the front of `pipeline.animate` on a coarse grid (the same checks, grid,
+distance grids and `chain.animate_chain`'s in-betweens of every segment) and keeps the
+in-betweens; `Preview.frame` then makes one timeline frame's own surface as the bake's
+mesh sequence makes it (the frame's level set, eq. 3.4, its marching cubes, or the
+keyframe's own mesh on a keyframe's frame): the same functions on the same inputs, so a
+bake at the preview's resolutions has the same mesh on that frame (docs/method.md,
+section 11 for the two grids).
+
+Kept between solves: the keyframes' distance grids, while the grid and the keyframe's mesh
+are unchanged. The grid holds the feature points and their rigid sweeps (`gridfit`), so a
+feature point moved often moves the grid too, and the grids are made again then. The maps
+are solved afresh each time: the solver starts from its own initial map (the RBF of the
+feature points, eq. 2.14-2.20) and takes no other, and starting it elsewhere would change
+its answer, which must stay the bake's.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+
+import numpy as np
+
+from ..base.parallel import one_blas_thread
+from ..base.progress import Reporter
+
+__all__ = ["Preview", "PREVIEW_RESOLUTION", "PREVIEW_MOTION_RESOLUTION"]
+
+#: Cells along the longest side of the preview's surface grid (no finer than the bake's; finer
+#: where two feature points would share a cell).
+PREVIEW_RESOLUTION = 32
+#: Cells of its motion grid, where the feature points allow it (else the bake's own rule).
+PREVIEW_MOTION_RESOLUTION = 16
+
+
+class _NoSplit:
+    """The preview makes its frames one at a time: nothing to hand another process."""
+
+    @staticmethod
+    def start(_recipe):
+        return None
+
+
+class Preview:
+    """The in-betweens of one setup, kept for frames asked one at a time.
+
+    Attributes
+    ----------
+    figures : dict
+        Of the last solve: ``resolution``, ``motion_resolution``, ``grid_shape``,
+        ``motion_grid_shape`` (None: the maps are on the surface grid), ``seconds``, and
+        ``distance_grids_kept`` (how many keyframes' distance grids were not recomputed).
+    """
+
+    def __init__(self):
+        self._phis = {}  # (grid, mesh) key -> distance grid
+        self._solved = None
+        self.figures = {}
+
+    def solve(self, keyframes, features, *, resolution=48, weights=None, feature_names=None,
+              key_interpolation=None, progress=None, cancel=None, padding_cells=4):
+        """Solve every segment's maps and in-betweens at the preview's resolutions.
+
+        Parameters are `pipeline.animate`'s; ``resolution`` is the bake's own, the preview's
+        surface grid being no finer (`_grids`).
+
+        Raises ValueError on input the user must fix (the bake's own refusals), `Cancelled`
+        when ``cancel()`` returns True. On either the previous solve is gone.
+        """
+        from . import pipeline
+        from .chain import _Inbetweens
+        from .checks import check_inputs, surface_vertices
+        from ..map import terms
+        from ..motion.spline import check_key_interpolation
+
+        t0 = time.perf_counter()
+        self._solved = None
+        rep = Reporter(progress, cancel)
+        keyframes, features = check_inputs(keyframes, features, feature_names)
+        kinds = check_key_interpolation(key_interpolation, len(keyframes))
+        weight_options = {t.name: t.weight_option for t in terms.TERMS}
+        options = {weight_options[k]: float(v) for k, v in (weights or {}).items()}
+        surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
+        res, grid, motion, motion_grid = self._grids(keyframes, surfaces, features,
+                                                     feature_names, resolution, padding_cells)
+        rep(0.05, "Distance grids")
+        phis, kept = self._distance_grids(keyframes, surfaces, grid, rep.sub(0.05, 0.2), cancel)
+        artist = pipeline._artist_template(keyframes[0], surfaces[0], "keyframe")
+        frames = np.asarray([kf.frame for kf in keyframes], dtype=np.int64)
+        segments = _Inbetweens(phis, grid, features, None, options, cancel, motion_grid,
+                               (frames, kinds))
+        nseg = len(keyframes) - 1
+        with one_blas_thread():  # as in the bake: BLAS's threads round differently
+            inbetweens = [segments.make(k, None, _NoSplit, rep.sub(0.2 + 0.8 * k / nseg,
+                                                                   0.2 + 0.8 * (k + 1) / nseg))
+                          for k in range(nseg)]
+        self._solved = (grid, frames, inbetweens,
+                        None if artist is None else [s[:2] for s in surfaces])
+        self.figures = dict(resolution=res, motion_resolution=motion,
+                            grid_shape=tuple(grid.shape),
+                            motion_grid_shape=None if motion_grid is None
+                            else tuple(motion_grid.shape),
+                            seconds=time.perf_counter() - t0, distance_grids_kept=kept)
+        return self.figures
+
+    @staticmethod
+    def _grids(keyframes, surfaces, features, feature_names, resolution, padding_cells):
+        """(surface resolution, then `pipeline._bake_grid`'s grid, motion resolution and
+        motion grid) of the preview: `PREVIEW_RESOLUTION` cells and a motion grid of
+        `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one where two feature points
+        would share a motion cell; raised by a quarter at a time, up to the bake's
+        ``resolution``, where two would share a surface cell (the bake's own refusal when
+        even that does not hold them apart)."""
+        from . import pipeline
+
+        res = min(int(resolution), PREVIEW_RESOLUTION)
+        while True:
+            for motion in (min(res, PREVIEW_MOTION_RESOLUTION), None):
+                try:
+                    return (res,) + pipeline._bake_grid(keyframes, surfaces, features,
+                                                        feature_names, res, motion,
+                                                        padding_cells, None)
+                except ValueError:
+                    if res >= resolution and motion is None:
+                        raise
+            res = min(int(resolution), int(np.ceil(1.25 * res)))
+
+    def _distance_grids(self, keyframes, surfaces, grid, rep, cancel):
+        """Every keyframe's distance grid (`pipeline._distance_grid`), those of an unchanged
+        mesh on an unchanged grid kept from before; and how many were kept."""
+        from . import pipeline
+
+        keys = [_field_key(grid, s) for s in surfaces]
+        phis, kept = [], 0
+        for k, key in enumerate(keys):
+            if key in self._phis:
+                kept += 1
+            else:
+                self._phis[key] = pipeline._distance_grid(keyframes, surfaces, grid, k, rep,
+                                                          cancel)[0]
+            phis.append(self._phis[key])
+        self._phis = {key: self._phis[key] for key in keys}  # only the current ones stay
+        return phis, kept
+
+    @property
+    def solved(self):
+        """Whether the maps of a setup are solved (`frame` can answer)."""
+        return self._solved is not None
+
+    def frame(self, f):
+        """Timeline frame ``f``'s own surface, as the bake's mesh sequence has it.
+
+        Returns (vertices (V, 3) float32, triangles (F, 3) int32), world units. Frames
+        before the first keyframe or after the last show that keyframe's. RuntimeError
+        before a solve.
+        """
+        from .chain import _frame_mesh
+        from ..surface.extract import extract_surface
+
+        if self._solved is None:
+            raise RuntimeError("nothing solved yet: call solve first.")
+        grid, frames, inbetweens, meshes = self._solved
+        f = int(min(max(f, frames[0]), frames[-1]))
+        # an inner keyframe's frame ends the segment before it, as in the bake
+        k = max(0, int(np.searchsorted(frames, f, side="left")) - 1)
+        s = (f - frames[k]) / float(frames[k + 1] - frames[k])
+        own_mesh = meshes is not None and (s == 1.0 or (s == 0.0 and k == 0))
+        with one_blas_thread():
+            surface = None if own_mesh else extract_surface(inbetweens[k].levelset(s), grid)
+        v, tris = _frame_mesh(surface, meshes, k, s)
+        return np.asarray(v, dtype=np.float32), np.asarray(tris, dtype=np.int32)
+
+
+def _field_key(grid, surface):
+    """What a keyframe's distance grid depends on: the grid and the mesh's triangles."""
+    v, tris = surface[:2]
+    digest = hashlib.blake2b(np.ascontiguousarray(v, dtype=np.float64).tobytes())
+    digest.update(np.ascontiguousarray(tris, dtype=np.int64).tobytes())
+    return (tuple(np.asarray(grid.origin, float)), float(grid.spacing), tuple(grid.shape),
+            digest.hexdigest())

@@ -1,0 +1,227 @@
+"""The live preview (`blender.preview`): edits schedule one solve, a drag's moves coalesce,
+frames are answered by the worker, and turning it off, loading a file or baking ends the
+worker and removes the overlay; nothing enters bpy.data.
+
+In background mode no timer runs: the tests call `preview.tick` with the times they choose.
+"""
+
+import time
+
+import bpy
+import pytest
+
+from keyframe_implicit.blender import overlay, preview
+from keyframe_implicit.core.bake.preview import PREVIEW_RESOLUTION
+
+TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
+#: Seconds the worker may take to answer (a solve at the preview's 32 cells takes 1-3 s
+#: alone on 2 cores): a bound for a hang, not a speed figure (benchmarks/README.md has those).
+ANSWER = 120.0
+
+
+def _until(condition):
+    """Tick until ``condition()`` holds; the figures of the wait."""
+    deadline = time.perf_counter() + ANSWER
+    while not condition():
+        assert time.perf_counter() < deadline, f"no answer in {ANSWER} s: {preview.state.message}"
+        preview.tick()
+        time.sleep(0.01)
+
+
+def _feature_empty():
+    return next(o for o in bpy.context.scene.objects if o.get("kfi_pair") and o.get("kfi_side") == "A")
+
+
+def _move(obj, dx):
+    obj.location.x += dx
+    bpy.context.view_layer.update()  # what the depsgraph does after an edit: the handlers run
+
+
+@pytest.fixture
+def live(scene, kfi):
+    kfi.build_spheres(TWO)
+    settings = scene.keyframe_implicit
+    settings.live_preview = True
+    now = time.perf_counter()
+    preview.tick(now)  # the first solve goes out at once
+    assert preview.active() and len(preview.state.solves) == 1
+    yield settings
+    bpy.context.scene.keyframe_implicit.live_preview = False  # ``settings`` may be a loaded-over file's
+    preview.stop()
+
+
+def test_moving_an_empty_schedules_one_solve_and_the_frame_comes_back(live):
+    state = preview.state
+    _until(lambda: state.mesh is not None)
+    frame, vertices, triangles = state.mesh
+    assert frame == bpy.context.scene.frame_current and len(vertices) > 100 and len(triangles) > 100
+    assert state.figures["resolution"] == PREVIEW_RESOLUTION and state.message == ""
+    # a batch where this process can draw (a GPU context: an earlier render may have made
+    # one), else the mesh alone
+    assert (state.drawn is not None) == overlay.available()
+    assert state.handle is not None
+
+    other = bpy.data.objects.new("Other", None)  # not a keyframe, not a feature point
+    bpy.context.scene.collection.objects.link(other)
+    bpy.context.view_layer.update()
+    state.due = None
+    _move(other, 0.3)
+    assert state.due is None, "an unrelated object's move scheduled a solve"
+
+    t0 = time.perf_counter()
+    _move(_feature_empty(), 0.05)
+    assert state.due is not None and state.due >= t0 + preview.COALESCE
+    preview.tick(state.due - 0.01)
+    assert len(state.solves) == 1, "the solve went out before the edits settled"
+    preview.tick(state.due)
+    assert len(state.solves) == 2
+    preview.tick(time.perf_counter() + 1.0)
+    assert len(state.solves) == 2, "one move asked for more than one solve"
+
+
+def test_ten_moves_within_100_ms_coalesce_into_one_solve(live):
+    state = preview.state
+    empty = _feature_empty()
+    t0 = time.perf_counter()
+    for _ in range(10):
+        _move(empty, 0.005)
+        preview.tick()  # the timer's turns during the drag send nothing
+        time.sleep(0.008)
+    assert time.perf_counter() - t0 < 0.1 + 0.05 and len(state.solves) == 1
+    last = state.due - preview.COALESCE
+    assert last > t0 + 0.05  # the due time followed the moves
+    preview.tick(t0 + preview.COALESCE + 0.01)  # 150 ms after the first move, not the last
+    assert len(state.solves) == 1
+    preview.tick(last + preview.COALESCE + 0.001)
+    preview.tick(last + 2.0)
+    assert len(state.solves) == 2
+
+
+def test_frame_change_asks_for_that_frame(live):
+    state = preview.state
+    _until(lambda: state.mesh is not None)
+    bpy.context.scene.frame_set(4)
+    assert len(state.frames) == 1
+    _until(lambda: state.mesh[0] == 4)
+    assert state.message == ""
+
+
+def test_toggling_off_ends_the_worker_and_removes_the_overlay(live):
+    state = preview.state
+    worker, handle = state.worker, state.handle
+    live.live_preview = False
+    assert worker.process.wait(10) is not None
+    assert state.worker is None and state.handle is None and state.mesh is None
+    assert not bpy.app.timers.is_registered(preview.tick)
+    with pytest.raises(ValueError):  # the draw handler is gone: it cannot be removed again
+        bpy.types.SpaceView3D.draw_handler_remove(handle, "WINDOW")
+    _move(_feature_empty(), 0.05)
+    assert state.due is None
+
+
+def test_loading_a_file_ends_the_worker(live, tmp_path):
+    worker = preview.state.worker
+    live.live_preview = False
+    path = str(tmp_path / "off.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+    live.live_preview = True
+    worker = preview.state.worker
+    bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
+    assert worker.process.wait(10) is not None and not preview.active()
+    assert preview.state.handle is None
+    assert not bpy.context.scene.keyframe_implicit.live_preview
+
+
+def test_pressing_bake_ends_the_worker(live, kfi):
+    worker = preview.state.worker
+    assert bpy.ops.keyframe_implicit.bake(resolution=kfi.RES) == {"FINISHED"}
+    assert worker.process.wait(10) is not None and not preview.active()
+    assert not live.live_preview
+
+
+def test_no_data_block_is_created(scene, kfi):
+    kfi.build_spheres(TWO)
+    before = kfi.snapshot()
+    counts = {name: len(getattr(bpy.data, name)) for name in dir(bpy.data)
+              if isinstance(getattr(bpy.data, name, None), bpy.types.bpy_prop_collection)}
+    scene.keyframe_implicit.live_preview = True
+    preview.tick()
+    _until(lambda: preview.state.mesh is not None)
+    scene.frame_set(3)
+    _until(lambda: preview.state.mesh[0] == 3)
+    scene.frame_set(1)
+    scene.keyframe_implicit.live_preview = False
+    assert kfi.snapshot() == before
+    assert {name: len(getattr(bpy.data, name)) for name in counts} == counts
+
+
+def test_a_refused_setup_and_a_crash_become_messages(live):
+    state = preview.state
+    keyframes = live.keyframes
+    keyframes[1].frame = keyframes[0].frame  # two keyframes on one frame
+    preview.schedule()
+    preview.tick(time.perf_counter() + 1.0)
+    assert "frame" in state.message and state.mesh is None and len(state.solves) == 1
+    keyframes[1].frame = 7
+    state.worker.process.kill()
+    _until(lambda: not preview.active())
+    assert "worker process stopped" in state.message and state.mesh is None
+    live.live_preview = False  # off and on starts it again
+    live.live_preview = True
+    assert preview.active() and state.message == ""
+    preview.tick()
+    _until(lambda: state.mesh is not None)
+
+
+#: Draws an octahedron with `overlay` into a 64 x 64 offscreen buffer, identity matrices
+#: (the octahedron's middle covers the middle of the buffer), and prints the alpha of the
+#: middle pixel and of a corner.
+DRAW = """
+import bpy  # noqa: F401  (loads the gpu module)
+import gpu
+import numpy as np
+from mathutils import Matrix
+from keyframe_implicit.blender import overlay
+
+gpu.init()
+v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float32) * 0.5
+t = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5],
+              [0, 3, 5]], np.int32)
+drawn = overlay.batch(v, t)
+off = gpu.types.GPUOffScreen(64, 64)
+with off.bind():
+    fb = gpu.state.active_framebuffer_get()
+    fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+    with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+        gpu.matrix.load_matrix(Matrix.Identity(4))
+        gpu.matrix.load_projection_matrix(Matrix.Identity(4))
+        overlay.draw(drawn)
+    px = np.array(fb.read_color(0, 0, 64, 64, 4, 0, "FLOAT").to_list()).reshape(64, 64, 4)
+print("ALPHA", px[32, 32, 3], px[1, 1, 3])
+"""
+
+
+def test_overlay_draws_the_mesh_where_a_gpu_context_exists():
+    import os
+    import subprocess
+    import sys
+
+    import gpu
+    import numpy as np
+
+    v = np.eye(3, dtype=np.float32)
+    t = np.array([[0, 1, 2]], np.int32)
+    if not hasattr(gpu, "init"):  # no GPU context of the test's own making on this Blender:
+        # a batch where an earlier render left one, none otherwise
+        assert (overlay.batch(v, t) is not None) == overlay.available()
+        return
+    # gpu.init in a process of its own: this one's GPU state stays as the other tests left it
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-c", DRAW], capture_output=True, text=True,
+                         timeout=120, env=dict(os.environ, PYTHONPATH=root))
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("ALPHA")]
+    assert line, out.stdout + out.stderr
+    middle, corner = map(float, line[0].split()[1:])
+    # the middle is covered by a front and a back face, each blended at COLOR's opacity
+    a = overlay.COLOR[3]
+    assert middle == pytest.approx(a + a * (1 - a), abs=0.02) and corner == 0.0

@@ -1,0 +1,103 @@
+"""The live preview's frames (`core.bake.preview`): each the bake's own mesh on that frame,
+at the preview's resolutions; distance grids kept while only the feature points move.
+
+The bake's in-between frames depend, within the trajectories' CG tolerance, on the order
+they are made in: each frame's Poisson solve starts from the frames made before it
+(`trajectory`'s extrapolated start). A bake with one process and one with two (the later
+half of a segment's frames made in the helper, from no history) differ by up to 5e-5 h on
+these keyframes; the preview, asked for frames in the order below, by up to 2.7e-3 h. `CG_SPREAD`
+bounds that; a frame from another time, grid or map is off by a good part of h.
+"""
+
+import numpy as np
+import pytest
+
+from inbetween_cases import sphere_features, uv_sphere
+from keyframe_implicit.core import Cancelled, Keyframe, animate
+from keyframe_implicit.core.bake.preview import PREVIEW_RESOLUTION, Preview
+
+
+def _chain(shift=0.0):
+    """Three keyframes (a sphere moving, then growing); ``shift`` moves one feature point."""
+    v0, f0 = uv_sphere(np.zeros(3), 0.25, n=16)
+    o1, o2 = np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.3, 0.0])
+    feats = [sphere_features(np.zeros(3), 0.25, offset=o1),
+             sphere_features(o1, 0.25, offset=o2 - o1)]
+    feats[0][1][0] += (shift, 0.0, 0.0)
+    keyframes = [Keyframe(v0, f0, 0), Keyframe(v0 + o1, f0, 4), Keyframe(v0 * 1.3 + o2, f0, 9)]
+    return keyframes, feats
+
+
+#: How far (in h) a frame made alone may lie from the bake's, made after the frames before it.
+CG_SPREAD = 1e-2
+
+
+def _same_mesh(got, want, h, tolerance=CG_SPREAD):
+    assert got[1].shape == want[1].shape and np.array_equal(got[1], want[1])
+    assert np.abs(got[0] - want[0]).max() <= tolerance * h
+
+
+@pytest.mark.parametrize("interpolation", [None, ["linear", "ease", "linear"]])
+def test_every_frame_is_the_bake_at_the_preview_resolution(interpolation):
+    keyframes, feats = _chain()
+    preview = Preview()
+    figures = preview.solve(keyframes, feats, resolution=48, key_interpolation=interpolation)
+    assert figures["resolution"] == PREVIEW_RESOLUTION
+    anim = animate(keyframes, feats, resolution=figures["resolution"],
+                   motion_resolution=figures["motion_resolution"],
+                   key_interpolation=interpolation)
+    assert anim.stats["grid_shape"] == figures["grid_shape"]
+    assert anim.stats.get("motion_grid_shape") == figures["motion_grid_shape"]
+    h = anim.grid.spacing
+    scrubbed = [7, 2, 5, 0, 9, 3, 1, 8, 4, 6]  # every frame, keyframe frames included
+    assert sorted(scrubbed) == anim.frames.tolist()
+    for f in scrubbed:
+        exact = f in (0, 4, 9)  # a keyframe's frame is its own mesh
+        _same_mesh(preview.frame(f), anim.surfaces[f], h, 1e-6 if exact else CG_SPREAD)
+    # before the first keyframe and after the last: those keyframes' frames
+    _same_mesh(preview.frame(-3), anim.surfaces[0], h, 1e-6)
+    _same_mesh(preview.frame(20), anim.surfaces[-1], h, 1e-6)
+
+
+def test_moved_feature_keeps_the_distance_grids_and_matches_a_new_bake():
+    preview = Preview()
+    keyframes, feats = _chain()
+    first = preview.solve(keyframes, feats)
+    assert first["distance_grids_kept"] == 0
+    before = preview.frame(2)
+    keyframes, feats = _chain(shift=0.03)
+    again = preview.solve(keyframes, feats)
+    assert again["distance_grids_kept"] == 3 and again["grid_shape"] == first["grid_shape"]
+    anim = animate(keyframes, feats, resolution=again["resolution"],
+                   motion_resolution=again["motion_resolution"])
+    after = preview.frame(2)
+    _same_mesh(after, anim.surfaces[2], anim.grid.spacing)
+    assert after[0].shape != before[0].shape or np.abs(after[0] - before[0]).max() > 1e-4
+
+
+def test_cancelled_solve_leaves_nothing_solved_and_bad_input_is_refused():
+    preview = Preview()
+    keyframes, feats = _chain()
+    with pytest.raises(Cancelled):
+        preview.solve(keyframes, feats, cancel=lambda: True)
+    assert not preview.solved
+    with pytest.raises(RuntimeError, match="solve first"):
+        preview.frame(1)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        preview.solve([keyframes[0], keyframes[0]], feats[:1])
+
+
+def test_feature_points_closer_than_a_cell_raise_the_preview_resolution():
+    keyframes, feats = _chain()
+    feats[0][0][1] = feats[0][0][0] + (0.0, 0.025, 0.0)  # under one cell of the 32-cell grid
+    with pytest.raises(ValueError, match="less than one grid cell"):
+        animate(keyframes, feats, resolution=PREVIEW_RESOLUTION)
+    preview = Preview()
+    figures = preview.solve(keyframes, feats, resolution=64)
+    assert PREVIEW_RESOLUTION < figures["resolution"] < 64
+    anim = animate(keyframes, feats, resolution=figures["resolution"],
+                   motion_resolution=figures["motion_resolution"])
+    assert anim.stats["grid_shape"] == figures["grid_shape"]
+    _same_mesh(preview.frame(2), anim.surfaces[2], anim.grid.spacing)
+    with pytest.raises(ValueError, match="less than one grid cell"):  # the bake's refusal
+        preview.solve(keyframes, feats, resolution=PREVIEW_RESOLUTION)
