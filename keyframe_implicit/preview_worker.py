@@ -33,7 +33,7 @@ import sys
 import threading
 import traceback
 
-from .worker import (_BELOW_NORMAL, _NICENESS, ROOT, WORKER_ROOT, _python_path, receive,
+from .worker import (_BELOW_NORMAL, _NICENESS, ROOT, WORKER_ROOT, python_path, receive,
                      send)
 
 __all__ = ["PreviewWorker"]
@@ -53,7 +53,7 @@ class PreviewWorker:
         self.process = subprocess.Popen(
             [sys.executable, "-P", "-m", f"{WORKER_ROOT}.preview_worker"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, creationflags=_BELOW_NORMAL,
-            env=dict(os.environ, PYTHONPATH=_python_path()))
+            env=dict(os.environ, PYTHONPATH=python_path()))
         self._answers, self._requests = queue.SimpleQueue(), queue.SimpleQueue()
         self._last_id = 0
         self._requests.put(ROOT)

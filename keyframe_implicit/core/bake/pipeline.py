@@ -19,7 +19,8 @@ from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
 
-__all__ = ["Keyframe", "animate", "BakePlan", "plan_bake", "distance_fields", "finish_bake"]
+__all__ = ["Keyframe", "animate", "BakePlan", "plan_bake", "distance_fields", "finish_bake",
+           "weight_keywords"]
 
 
 @dataclass
@@ -217,18 +218,12 @@ def plan_bake(keyframes, features, *, resolution=48, weights=None, padding_cells
     The parameters are `animate`'s; ValueError (and `memory.MemoryLimitError`) on input
     the user must fix.
     """
-    from ..map import terms
     from ..motion.spline import check_key_interpolation
 
     keyframes, features = check_inputs(keyframes, features, feature_names)
     check_motion_resolution(motion_resolution, resolution)
     check_key_interpolation(options.get("key_interpolation"), len(keyframes))
-    opts = dict(options)
-    weight_options = {t.name: t.weight_option for t in terms.TERMS}  # "volume" -> volume_weight
-    for key, value in (weights or {}).items():
-        if key not in weight_options:
-            raise ValueError(f"Unknown weight {key!r}; use {sorted(weight_options)}.")
-        opts[weight_options[key]] = float(value)
+    opts = dict(options, **weight_keywords(weights))
     if max_bytes is None:
         phys = _physical_memory()
         max_bytes = int(0.75 * phys) if phys else None
@@ -246,6 +241,18 @@ def plan_bake(keyframes, features, *, resolution=48, weights=None, padding_cells
     if artist is not None:
         opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
     return BakePlan(keyframes, features, grid, surfaces, artist, opts, stats)
+
+
+def weight_keywords(weights):
+    """The weights of eq. 2.6's terms by name ({"volume": 30.0, ...}) as the solver's options
+    ({"volume_weight": 30.0, ...}); ValueError naming an unknown one."""
+    from ..map import terms
+
+    names = {t.name: t.weight_option for t in terms.TERMS}
+    unknown = sorted(set(weights or {}) - set(names))
+    if unknown:
+        raise ValueError(f"Unknown weight {unknown[0]!r}; use {sorted(names)}.")
+    return {names[key]: float(value) for key, value in (weights or {}).items()}
 
 
 def distance_fields(plan, rep, cancel=None, helper=None):

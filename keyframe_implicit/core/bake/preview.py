@@ -70,9 +70,8 @@ class Preview:
         when ``cancel()`` returns True. On either the previous solve is gone.
         """
         from . import pipeline
-        from .chain import _Inbetweens
+        from .chain import Inbetweens
         from .checks import check_inputs, surface_vertices
-        from ..map import terms
         from ..motion.spline import check_key_interpolation
 
         t0 = time.perf_counter()
@@ -80,8 +79,7 @@ class Preview:
         rep = Reporter(progress, cancel)
         keyframes, features = check_inputs(keyframes, features, feature_names)
         kinds = check_key_interpolation(key_interpolation, len(keyframes))
-        weight_options = {t.name: t.weight_option for t in terms.TERMS}
-        options = {weight_options[k]: float(v) for k, v in (weights or {}).items()}
+        options = pipeline.weight_keywords(weights)
         surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
         res, grid, motion, motion_grid = self._grids(keyframes, surfaces, features,
                                                      feature_names, resolution, padding_cells)
@@ -89,7 +87,7 @@ class Preview:
         phis, kept = self._distance_grids(keyframes, surfaces, grid, rep.sub(0.05, 0.2), cancel)
         artist = pipeline._artist_template(keyframes[0], surfaces[0], "keyframe")
         frames = np.asarray([kf.frame for kf in keyframes], dtype=np.int64)
-        segments = _Inbetweens(phis, grid, features, None, options, cancel, motion_grid,
+        segments = Inbetweens(phis, grid, features, None, options, cancel, motion_grid,
                                (frames, kinds))
         nseg = len(keyframes) - 1
         with one_blas_thread():  # as in the bake: BLAS's threads round differently
