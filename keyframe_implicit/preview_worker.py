@@ -33,8 +33,8 @@ import sys
 import threading
 import traceback
 
-from .worker import (_BELOW_NORMAL, _NICENESS, ROOT, WORKER_ROOT, python_path, receive,
-                     send)
+from .worker import (_BELOW_NORMAL, _NICENESS, ROOT, WORKER_ROOT, no_sigpipe, python_path,
+                     receive, send)
 
 __all__ = ["PreviewWorker"]
 
@@ -67,7 +67,8 @@ class PreviewWorker:
             if message is None:
                 return
             try:
-                send(self.process.stdin, message)
+                with no_sigpipe():  # the worker may have just ended: never SIGPIPE in Blender
+                    send(self.process.stdin, message)
             except (OSError, ValueError):  # the worker has ended: `answers` says so
                 return
 

@@ -29,6 +29,7 @@ Pickles name this package's classes by the sender's package name (in an installe
 maps them onto its own (`receive`).
 """
 
+import contextlib
 import importlib.util
 import os
 import pickle
@@ -81,6 +82,25 @@ class _Unpickler(pickle.Unpickler):
         if module == self._sender or module.startswith(self._sender + "."):
             module = ROOT + module[len(self._sender):]
         return super().find_class(module, name)
+
+
+@contextlib.contextmanager
+def no_sigpipe():
+    """Within this block a write to a process that has ended raises BrokenPipeError instead
+    of SIGPIPE: Python ignores that signal, but Blender's embedded interpreter does not, and
+    its default action ends Blender. The signal is blocked in this thread for the block and
+    one that a failed write left pending is taken before it is unblocked (POSIX; Windows has
+    no SIGPIPE)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGPIPE})
+    try:
+        yield
+    finally:
+        if signal.SIGPIPE not in before:
+            signal.sigtimedwait({signal.SIGPIPE}, 0)
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def receive(stream, sender_root):
@@ -164,8 +184,9 @@ class Worker:
 
     def _send_inputs(self):
         try:
-            send(self.process.stdin, ROOT)
-            send(self.process.stdin, self.arguments)
+            with no_sigpipe():
+                send(self.process.stdin, ROOT)
+                send(self.process.stdin, self.arguments)
         except OSError:  # the worker ended early (killed, or it could not start): say why below
             pass
 
