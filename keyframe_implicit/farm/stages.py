@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from ..core.base.parallel import Helper, cores, one_blas_thread
+from ..core.base.parallel import Helper, can_start_helper, cores, one_blas_thread
 from ..core.base.progress import Reporter
 from . import store
 
@@ -212,10 +212,11 @@ def _index(number, count, what):
 
 @contextlib.contextmanager
 def _task_helper():
-    """A helper process for the second core, as the worker starts one (None on one core)."""
+    """A helper process for the second core, as the worker starts one (None on one core, or
+    where none can start: in Blender's own process, for prepare)."""
     from ..core.bake.chain import HELPER_PRELOAD
 
-    helper = Helper(HELPER_PRELOAD) if cores() >= 2 else None
+    helper = Helper(HELPER_PRELOAD) if cores() >= 2 and can_start_helper() else None
     try:
         yield helper
     finally:

@@ -599,3 +599,16 @@ def test_inbetween_with_a_helper_solves_the_map_b_to_a_there():
                           alone.forward.trajectories.positions(1.0))
     assert np.array_equal(shared.backward.trajectories.positions(1.0),
                           alone.backward.trajectories.positions(1.0))
+
+
+def test_no_helper_is_started_where_its_main_module_cannot_be_found_again(monkeypatch):
+    import types
+
+    from keyframe_implicit.core.base.parallel import can_start_helper
+
+    main = types.ModuleType("__main__")
+    main.__file__ = "<blender string>"  # code run by blender -b --python-expr
+    monkeypatch.setitem(sys.modules, "__main__", main)
+    assert not can_start_helper()
+    main.__file__ = __file__
+    assert can_start_helper()

@@ -38,13 +38,24 @@ import threading
 import time
 from collections import deque
 
-__all__ = ["Helper", "HelperError", "cores", "one_blas_thread", "release_memory", "share"]
+__all__ = ["Helper", "HelperError", "cores", "can_start_helper", "one_blas_thread",
+           "release_memory", "share"]
 
 
 def cores():
     """The machine's cores (`os.cpu_count`; 1 when unknown): whether a second process, a
     second thread for the other map, or half of each Hessian product has a core of its own."""
     return os.cpu_count() or 1
+
+
+def can_start_helper():
+    """Whether a `Helper` can start from this process: a ``spawn`` child runs the parent's
+    main module again, by its module name or from its file. Code run by ``blender -b
+    --python-expr`` has neither (its main "file" is "<blender string>"); a worker started
+    with ``python -m`` has both."""
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    return getattr(main, "__spec__", None) is not None or path is None or os.path.isfile(path)
 
 
 def one_blas_thread():
