@@ -79,7 +79,7 @@ def prepare(arguments, output_mode, job_dir, source, progress=None):
     inputs = {"arguments": arguments, "output_mode": output_mode}
     plan = plan_bake(**arguments)  # refuses bad input before any file is written
     t0 = time.perf_counter()
-    with _task_helper() as helper, _one_blas_thread():
+    with _task_helper() as helper, one_blas_thread():
         phis = distance_fields(plan, rep.sub(0.0, 0.95), helper=helper)
     plan.stats["sdf_seconds"] = time.perf_counter() - t0
     job = store.fingerprint(inputs)
@@ -98,7 +98,7 @@ def solve_pair(job_dir, pair, progress=None):
     """Solve pair ``pair``'s maps (keyframes ``pair`` -> ``pair + 1``), both ways."""
     files, job, plan, chain = _open(job_dir)
     k = _index(pair, len(plan.keyframes) - 1, "pair")
-    with _task_helper() as helper, _one_blas_thread():  # one map here, one there
+    with _task_helper() as helper, one_blas_thread():  # one map here, one there
         chain.inbetweens.solve([k], helper, Reporter(progress))
     store.save(files.pair(pair), {"job": job, "maps": chain.inbetweens.solved[k]})
 
@@ -111,7 +111,7 @@ def bend_paths(job_dir, progress=None):
     inb = chain.inbetweens
     inb.solved.update({k: _read(files.pair(k + 1), job, f"maps {job_dir} --pair {k + 1}")["maps"]
                        for k in range(nseg)})
-    with _one_blas_thread():
+    with one_blas_thread():
         if inb.bends is not None:
             inb.bend_all(None, rep.sub(0.0, 0.5))
         starts = [chain.template[0]]
@@ -130,7 +130,7 @@ def make_segment(job_dir, segment, progress=None):
     inb.solved[k] = _read(files.pair(segment), job, f"maps {job_dir} --pair {segment}")["maps"]
     if inb.bends is not None:
         inb.bends[k] = paths["bends"][k]
-    with _task_helper() as helper, _one_blas_thread():
+    with _task_helper() as helper, one_blas_thread():
         local, records, stats = chain.segment(k, paths["starts"][k], helper, Reporter(progress))
     store.save(files.segment(segment), {"job": job, "frames": local, "records": records,
                                         "stats": stats})
@@ -222,12 +222,3 @@ def _task_helper():
     finally:
         if helper is not None:
             helper.close()
-
-
-@contextlib.contextmanager
-def _one_blas_thread():
-    limits = one_blas_thread()
-    try:
-        yield
-    finally:
-        limits.restore_original_limits()
