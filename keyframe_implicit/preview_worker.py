@@ -120,7 +120,8 @@ class PreviewWorker:
         self.process.wait()
         for stream in (self.process.stdin, self.process.stdout):
             try:
-                stream.close()
+                with no_sigpipe():  # closing flushes what a failed write left buffered
+                    stream.close()
             except OSError:
                 pass
 

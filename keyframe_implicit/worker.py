@@ -171,7 +171,8 @@ class Worker:
                 else:
                     answer = message
         finally:
-            self.process.stdin.close()
+            with no_sigpipe(), contextlib.suppress(OSError):  # flushes what a failed write left
+                self.process.stdin.close()
             self.process.stdout.close()
             self.process.wait()
         if self.cancelled:
