@@ -89,19 +89,20 @@ def _off_by(tr, got, want):
     return np.abs(diff).max()
 
 
-def test_next_solve_starts_from_the_parabola_through_the_last_three():
+def test_a_time_solves_the_same_whatever_was_solved_before_it():
+    """CG starts from the parabola through Y(0), Y(1/2), Y(1): closer to the answer than
+    the line through the ends, and the same start (so the same answer, to the bit) for a
+    time asked alone or after others, as a preview frame or a farm task asks it."""
     grid, y, mat = _two_balls_bending(24)
-    tr = Trajectories(grid, y, mat)
+    after, alone = Trajectories(grid, y, mat), Trajectories(grid, y, mat)
     for s in (0.2, 0.3, 0.4):
-        tr._poisson(s)
-    assert [t for t, _ in tr._solved] == [0.2, 0.3, 0.4]
-    want, _ = block_pcg(tr._L, tr._rhs(0.5), tr._mg, tol=1e-12)
-    (_, Y3), (_, Y4) = tr._solved[-2:]
-    line = 2.0 * Y4 - Y3
-    assert _off_by(tr, tr._start(0.5), want) < 0.5 * _off_by(tr, line, want)
-    tr._poisson(0.5)  # a time solved again is kept once
-    tr._poisson(0.5)
-    assert [t for t, _ in tr._solved] == [0.3, 0.4, 0.5]
+        after._poisson(s)
+    want, _ = block_pcg(alone._L, alone._rhs(0.7), alone._mg, tol=1e-12)
+    ends = alone._anchors
+    line = 0.3 * ends[0.0] + 0.7 * ends[1.0]
+    assert _off_by(alone, alone._start(0.7), want) < 0.2 * _off_by(alone, line, want)
+    assert np.array_equal(after._poisson(0.7), alone._poisson(0.7))
+    assert np.array_equal(after.positions(0.35), alone.positions(0.35))
 
 
 def test_cg_polls_cancel_every_iteration():

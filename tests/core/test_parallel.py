@@ -171,15 +171,16 @@ def test_the_helper_ends_with_its_parent_even_when_the_parent_is_killed():
 
 def test_a_bake_with_a_helper_process_is_the_bake_without_one():
     """The helper solves the map B -> A and the later half of the frames: the same maps
-    and frames as one process, up to the CG tolerance of the trajectories."""
+    and frames as one process (each frame's trajectories start CG from the same guess
+    whichever process makes it and whatever it made before)."""
     kfs, feats = turning_sphere(n=16, last=11)
     one = animate(kfs, feats, resolution=20, processes=1)
     two = animate(kfs, feats, resolution=20, processes=2)
     h = one.grid.spacing
     assert two.stats["helper_peak_rss_kib"] > 0  # a second process did take part
-    assert np.abs(one.vertices - two.vertices).max() <= 1e-4 * h
+    assert np.abs(one.vertices - two.vertices).max() <= 1e-6 * h
     for a, b in zip(one.surfaces, two.surfaces):
-        assert a[0].shape == b[0].shape and np.abs(a[0] - b[0]).max() <= 1e-4 * h
+        assert a[0].shape == b[0].shape and np.abs(a[0] - b[0]).max() <= 1e-6 * h
     for name in ("shape_keys", "mesh_sequence"):
         for qa, qb in zip(one.stats["quality"][name], two.stats["quality"][name]):
             assert qa["coverage"] == pytest.approx(qb["coverage"], abs=1e-4)

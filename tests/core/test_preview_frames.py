@@ -1,12 +1,6 @@
 """The live preview's frames (`core.bake.preview`): each the bake's own mesh on that frame,
-at the preview's resolutions; distance grids kept while only the feature points move.
-
-The bake's in-between frames depend, within the trajectories' CG tolerance, on the order
-they are made in: each frame's Poisson solve starts from the frames made before it
-(`trajectory`'s extrapolated start). A bake with one process and one with two (the later
-half of a segment's frames made in the helper, from no history) differ by up to 5e-5 h on
-these keyframes; the preview, asked for frames in the order below, by up to 2.7e-3 h. `CG_SPREAD`
-bounds that; a frame from another time, grid or map is off by a good part of h.
+at the preview's resolutions, to 1e-6 h whatever order the frames are asked in; distance grids
+kept while only the feature points move.
 """
 
 import numpy as np
@@ -28,11 +22,7 @@ def _chain(shift=0.0):
     return keyframes, feats
 
 
-#: How far (in h) a frame made alone may lie from the bake's, made after the frames before it.
-CG_SPREAD = 1e-2
-
-
-def _same_mesh(got, want, h, tolerance=CG_SPREAD):
+def _same_mesh(got, want, h, tolerance=1e-6):
     assert got[1].shape == want[1].shape and np.array_equal(got[1], want[1])
     assert np.abs(got[0] - want[0]).max() <= tolerance * h
 
@@ -52,11 +42,10 @@ def test_every_frame_is_the_bake_at_the_preview_resolution(interpolation):
     scrubbed = [7, 2, 5, 0, 9, 3, 1, 8, 4, 6]  # every frame, keyframe frames included
     assert sorted(scrubbed) == anim.frames.tolist()
     for f in scrubbed:
-        exact = f in (0, 4, 9)  # a keyframe's frame is its own mesh
-        _same_mesh(preview.frame(f), anim.surfaces[f], h, 1e-6 if exact else CG_SPREAD)
+        _same_mesh(preview.frame(f), anim.surfaces[f], h)
     # before the first keyframe and after the last: those keyframes' frames
-    _same_mesh(preview.frame(-3), anim.surfaces[0], h, 1e-6)
-    _same_mesh(preview.frame(20), anim.surfaces[-1], h, 1e-6)
+    _same_mesh(preview.frame(-3), anim.surfaces[0], h)
+    _same_mesh(preview.frame(20), anim.surfaces[-1], h)
 
 
 def test_moved_feature_keeps_the_distance_grids_and_matches_a_new_bake():

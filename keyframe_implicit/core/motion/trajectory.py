@@ -17,9 +17,12 @@ Levin (2000), the "stronger reading" of docs/method.md, section 5:
 3. node positions Y(s) minimise  sum_c w_c sum_{edges (i, j) of c} |Y_j - Y_i - F_c(s) (x_j - x_i)|^2,
    a Poisson problem whose matrix (a weighted graph Laplacian of the grid
    edges) does not depend on s: its multigrid preconditioner is built ONCE and
-   every frame is a few conjugate-gradient iterations started from the line
-   through the previous two frames' solutions (`multigrid`), which any
-   iteration can stop on cancel. Each connected component's translation is fixed by putting the
+   every frame is a few conjugate-gradient iterations (`multigrid`), which any
+   iteration can stop on cancel, started from the parabola through the
+   solutions at s = 0, 1/2 and 1. That start depends on s alone, so a frame's
+   positions do not depend on which frames were made before it: a frame made
+   alone (the live preview, the helper's half of a segment, a farm's task) is
+   the same as in a bake. Each connected component's translation is fixed by putting the
    centroid of its material on the straight path (1 - s) x_bar + s y_bar;
 4. the residual r = y - Y(1) is added linearly, x(s) = Y(s) + s r, so the path
    ends exactly at y (eq. 3.1's last term).
@@ -78,7 +81,6 @@ __all__ = ["Trajectories"]
 
 
 _CACHED = 3  # times whose active-node positions `Trajectories` keeps
-_EXTRAPOLATED = 3  # solutions a Poisson solve's start is extrapolated from
 _TARGET_CHUNK = 32_768  # cells whose target gradients `Trajectories._rhs` makes at once
 
 
@@ -385,7 +387,6 @@ class Trajectories:
         coords = np.stack(np.unravel_index(nodes, grid.shape), axis=1)
         self._mg = BlockMultigrid(self._L, coords, check=self._check)
         del coords
-        self._solved = []  # the last (s, Y) solved, at distinct times: the next solve's start
         self.stats["multigrid_levels"] = self._mg.sizes
         self.stats["cg_iterations"] = []
 
@@ -412,9 +413,11 @@ class Trajectories:
         self.stats["active_components"] = int(ncomp)
 
         # residual so that x(1) = y exactly; the map itself starts CG (it differs from Y(1)
-        # by that residual and a translation)
+        # by that residual and a translation). Y(0) is the grid itself (F_c(0) = I).
         self._check()
-        self._resid = ya - self._poisson(1.0, start=ya)
+        y1 = self._poisson(1.0, start=ya)
+        self._resid = ya - y1
+        self._anchors = {0.0: self.grid.node_points(nodes), 1.0: y1}  # `_start`
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
 
         # blend of the Poisson paths with the body formula over the outer half of the margin
@@ -453,13 +456,11 @@ class Trajectories:
 
     def _poisson(self, s, start=None):
         """Poisson positions Y(s) of the active nodes (before the residual); CG starts from
-        ``start``, by default from the last solutions (`_start`)."""
+        ``start``, by default from `_start`."""
         rhs = self._rhs(s)
         start = self._start(s) if start is None else start
         Y, its = block_pcg(self._L, rhs, self._mg, start, tol=self.tolerance,
                            check=self._check)
-        kept = [(t, Yt) for t, Yt in self._solved if t != s]
-        self._solved = kept[1 - _EXTRAPOLATED:] + [(s, Y.copy())]
         self.stats["cg_iterations"].append(its)
         # fix each component's translation: material centroid on the straight path
         target = (1.0 - s) * self._xbar + s * self._ybar
@@ -467,17 +468,14 @@ class Trajectories:
         return Y
 
     def _start(self, s):
-        """CG's start at time s: the parabola through the last three solutions at
-        distinct times (frames are evenly spaced, so its error is third order in the
-        step), or the line or point through fewer."""
-        if not self._solved:
-            return None
-        times = np.array([t for t, _ in self._solved])
-        start = np.zeros_like(self._solved[0][1])
-        for i, (ti, Yi) in enumerate(self._solved):  # Lagrange weights at s
-            others = np.delete(times, i)
-            start += np.prod((s - others) / (ti - others)) * Yi
-        return start
+        """CG's start at time s: the parabola through Y(0), Y(1/2) and Y(1), the middle one
+        solved (from the line through the ends) the first time it is needed. A function of
+        s alone, so that Y(s) does not depend on the times solved before it."""
+        a = self._anchors
+        if 0.5 not in a:
+            a[0.5] = self._poisson(0.5, start=0.5 * (a[0.0] + a[1.0]))
+        return ((1.0 - s) * (1.0 - 2.0 * s) * a[0.0] + 4.0 * s * (1.0 - s) * a[0.5]
+                + s * (2.0 * s - 1.0) * a[1.0])
 
     def _formula(self, s, x, y, xb, yb, R, rv):
         d = self.dim
