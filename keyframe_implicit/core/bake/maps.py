@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 import time
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 from ..base.parallel import cores, share
@@ -111,10 +112,28 @@ def on_solve_grid(map_options, grid, solve_grid):
 
 def solve_fields(phis, grid, motion_grid):
     """The keyframes' fields on the grid their maps are solved on: ``phis`` themselves, or
-    read at the nodes of the ``motion_grid``."""
+    read at the nodes of the ``motion_grid`` (`OnMotionGrid`)."""
     if motion_grid is None:
         return list(phis)
-    return [on_motion_grid(phi, grid, motion_grid) for phi in phis]
+    return OnMotionGrid(phis, grid, motion_grid)
+
+
+class OnMotionGrid(Sequence):
+    """Keyframe fields read at the nodes of a motion grid (`finepaths.on_motion_grid`),
+    each the first time it is asked for: a task that solves one pair's maps reads two,
+    one that only builds trajectories from solved maps none."""
+
+    def __init__(self, phis, grid, motion_grid):
+        self.phis, self.grid, self.motion_grid = phis, grid, motion_grid
+        self._read = {}
+
+    def __len__(self):
+        return len(self.phis)
+
+    def __getitem__(self, k):
+        if k not in self._read:  # two threads may both read it: the same array either way
+            self._read[k] = on_motion_grid(self.phis[k], self.grid, self.motion_grid)
+        return self._read[k]
 
 
 def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,

@@ -41,7 +41,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
-from scipy.interpolate import RBFInterpolator
 
 from ..base import elements
 from ..base.grid import Grid
@@ -109,7 +108,7 @@ def _rbf_map(fa, fb, pts, grid: Grid, material):
     kernels = ("thin_plate_spline",) if grid.dim == 2 else ("cubic", "linear")
     best, best_det = None, -np.inf
     for kernel in kernels:
-        y = _guarded(lambda: pts + RBFInterpolator(fa, fb - fa, kernel=kernel, degree=1)(pts),
+        y = _guarded(lambda: pts + _rbf(fa, fb - fa, kernel=kernel, degree=1)(pts),
                      grid, material)
         if y is None:
             continue
@@ -246,7 +245,7 @@ def _rigid_map(mask, fa, fb, phi_b, labels_b, centroids_b, grid, pts):
             _, _, s = _principal_frame(comp_pts)
             sigma = max(float(np.sqrt(np.sum(s ** 2))), 2 * grid.spacing)
             rigid = y
-            y = _guarded(lambda: rigid + RBFInterpolator(
+            y = _guarded(lambda: rigid + _rbf(
                 fa, resid, kernel="gaussian", epsilon=1.0 / sigma, degree=-1)(pts),
                 grid, mask.reshape(-1))
             if y is None:  # an ill-conditioned correction: the solver's constraints do it
@@ -317,3 +316,12 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
         return InitialMap(maps[0].reshape(shape), labels, methods, comp_of)
     out = _blend(maps, labels, pts)
     return InitialMap(out.reshape(shape), labels, methods, comp_of)
+
+
+def _rbf(*args, **kwargs):
+    """``scipy.interpolate.RBFInterpolator``, imported when first used: a process that
+    only builds trajectories from solved maps (a farm's later tasks) does not pay for
+    scipy.interpolate."""
+    from scipy.interpolate import RBFInterpolator
+
+    return RBFInterpolator(*args, **kwargs)
