@@ -247,6 +247,8 @@ def test_velocity_over_a_frame_step_reuses_the_neighbouring_frames_and_matches_t
     grid, phi_a, phi_b, mapped, _ = rigid_case(n=36)
     ib = Inbetween.from_map(phi_a, phi_b, grid, mapped)
     V0, _ = extract_surface(phi_a, grid)
+    for t in (ib.forward, ib.backward):
+        t.trajectories.setup()
     fw, bw = (t.trajectories.stats["cg_iterations"] for t in (ib.forward, ib.backward))
     step = 1.0 / 12
     before = len(fw) + len(bw)

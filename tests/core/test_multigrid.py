@@ -9,6 +9,13 @@ from keyframe_implicit.core.base.multigrid import BlockMultigrid, block_pcg
 from keyframe_implicit.core.motion.trajectory import Trajectories
 
 
+def _set_up(*args):
+    """`Trajectories` with their Poisson problem built (`Trajectories.setup`)."""
+    tr = Trajectories(*args)
+    tr.setup()
+    return tr
+
+
 def _two_balls_bending(n=40):
     """A map of two separate balls, each bent differently: two components, no closed form."""
     grid = Grid((-1.0, -1.0, -1.0), 2.0 / (n - 1), (n, n, n))
@@ -33,7 +40,7 @@ def _direct(L, rhs, comp):
 
 def test_trajectories_agree_with_the_direct_solve_to_a_ten_thousandth_of_a_cell():
     grid, y, mat = _two_balls_bending()
-    tr = Trajectories(grid, y, mat)
+    tr = _set_up(grid, y, mat)
     assert tr.stats["active_components"] == 2
     assert len(tr.stats["multigrid_levels"]) >= 3
     for s in (0.25, 0.5, 0.9):
@@ -54,7 +61,7 @@ def test_right_hand_side_in_chunks_of_cells_is_the_whole_one(monkeypatch):
     from keyframe_implicit.core.motion import trajectory
 
     grid, y, mat = _two_balls_bending(24)
-    tr = Trajectories(grid, y, mat)
+    tr = _set_up(grid, y, mat)
     assert tr._ncells > 800 and tr._ncells % 400
     whole = tr._B @ (grid.spacing * np.swapaxes(tr._cell_targets(0.3), 1, 2).reshape(-1, 3))
     monkeypatch.setattr(trajectory, "_TARGET_CHUNK", 400)
@@ -66,13 +73,13 @@ def test_preconditioner_makes_cg_iterations_independent_of_the_grid():
     its = []
     for n in (24, 48):
         grid, y, mat = _two_balls_bending(n)
-        its.append(Trajectories(grid, y, mat).stats["cg_iterations"][0])
+        its.append(_set_up(grid, y, mat).stats["cg_iterations"][0])
     assert its[1] <= its[0] + 4, its
 
 
 def test_warm_start_from_the_answer_takes_no_iteration():
     grid, y, mat = _two_balls_bending(24)
-    tr = Trajectories(grid, y, mat)
+    tr = _set_up(grid, y, mat)
     rhs = tr._rhs(0.5)
     x, it = block_pcg(tr._L, rhs, tr._mg, tol=1e-10)
     assert it > 3
@@ -94,7 +101,7 @@ def test_a_time_solves_the_same_whatever_was_solved_before_it():
     the line through the ends, and the same start (so the same answer, to the bit) for a
     time asked alone or after others, as a preview frame or a farm task asks it."""
     grid, y, mat = _two_balls_bending(24)
-    after, alone = Trajectories(grid, y, mat), Trajectories(grid, y, mat)
+    after, alone = _set_up(grid, y, mat), _set_up(grid, y, mat)
     for s in (0.2, 0.3, 0.4):
         after._poisson(s)
     want, _ = block_pcg(alone._L, alone._rhs(0.7), alone._mg, tol=1e-12)
@@ -107,7 +114,7 @@ def test_a_time_solves_the_same_whatever_was_solved_before_it():
 
 def test_cg_polls_cancel_every_iteration():
     grid, y, mat = _two_balls_bending(24)
-    tr = Trajectories(grid, y, mat)
+    tr = _set_up(grid, y, mat)
     rhs = tr._rhs(0.5)
     calls = []
 
@@ -129,7 +136,7 @@ def test_coarsest_inverse_cuts_the_translations():
     grid = Grid((-1.0, -1.0, -1.0), 2.0 / 95, (96, 96, 96))
     x = grid.points()
     mat = np.linalg.norm(x / [0.6, 0.45, 0.45], axis=-1) < 1
-    tr = Trajectories(grid, 1.1 * x, mat)
+    tr = _set_up(grid, 1.1 * x, mat)
     one = np.ones(tr._mg.coarse.shape[0])
     assert np.abs(tr._mg.coarse @ one).max() < 1e-8 * np.abs(tr._mg.coarse).max()
     assert max(tr.stats["cg_iterations"]) < 30
@@ -140,7 +147,7 @@ def test_v_cycle_is_symmetric_whatever_the_sweeps(sweeps, coarse_sweeps):
     """CG needs a symmetric preconditioner: each level smooths as often after its coarse
     correction as before it (the first sweep being the Jacobi step from zero)."""
     grid, y, mat = _two_balls_bending(24)
-    tr = Trajectories(grid, y, mat)
+    tr = _set_up(grid, y, mat)
     coords = np.stack(np.unravel_index(tr._nodes, grid.shape), 1)
     mg = BlockMultigrid(tr._L, coords, coarse_size=60, sweeps=sweeps, coarse_sweeps=coarse_sweeps)
     assert len(mg.levels) >= 2  # a coarse level smooths too

@@ -140,10 +140,10 @@ def test_folded_cells_keep_paths_finite_and_straight_for_a_squeeze():
     # fold; a pure squeeze has no rotation, so every path is the straight one
     grid, phi_a, _, mapped, _ = merge_case(d=2, n=40, gap=0.12, overlap=0.04)
     traj = Trajectories(grid, mapped, phi_a < 0)
-    assert traj.stats["folded_cells"] > 0
     x = grid.points()
     for s in (0.3, 0.7):
         np.testing.assert_allclose(traj.positions(s), (1 - s) * x + s * mapped, atol=1e-9)
+    assert traj.stats["folded_cells"] > 0
     np.testing.assert_array_equal(traj.positions(1.0), mapped)
 
 
@@ -163,6 +163,19 @@ def test_global_form_keeps_the_joint_closed_where_the_per_node_formula_opens_it(
     for s in (0.25, 0.5, 0.75):
         assert _joint_span("global", s) < 1.03
     assert _joint_span("local", 0.5) > 1.12
+
+
+def test_the_ends_need_no_solve():
+    """At s = 0 and 1 the paths are the grid and the map: nothing is solved for them (the
+    template on a segment's last frame, made alone, costs no Poisson setup)."""
+    grid, phi_a, _, mapped, _ = bend_case(d=3, n=24)
+    traj = Trajectories(grid, mapped, phi_a < 0)
+    p = grid.points().reshape(-1, 3)[::97]
+    np.testing.assert_array_equal(traj(p, 1.0), Trajectories(grid, mapped, phi_a < 0)(p, 1.0))
+    np.testing.assert_array_equal(traj.positions(0.0), grid.points())
+    assert "setup_seconds" not in traj.stats
+    traj(p, 0.5)
+    assert traj.stats["setup_seconds"] > 0 and traj.stats["cg_iterations"]
 
 
 def test_bad_input_is_refused_with_a_message():
@@ -191,6 +204,7 @@ def test_per_grid_node_only_the_map_the_region_and_the_body_are_kept():
     node, or computed for the nodes asked about."""
     grid, phi_a, _, mapped, _ = bend_case(d=3, n=24)
     traj = Trajectories(grid, mapped, phi_a < 0)
+    traj.positions(0.5)  # the Poisson problem built
     per_node = sum(v.nbytes for v in vars(traj).values()
                    if isinstance(v, np.ndarray) and v.shape[:1] == (grid.size,))
     assert per_node <= grid.size * (3 * 8 + 2 + 1)  # + the material mask given
@@ -202,6 +216,7 @@ def test_the_body_formula_is_blended_in_over_the_outer_half_of_the_margin_only()
     evaluated only where w < 1, and that gives the same positions as everywhere."""
     grid, phi_a, _, mapped, _ = bend_case(d=3, n=24)
     tr = Trajectories(grid, mapped, phi_a < 0)
+    tr.setup()
     inner = tr._wblend == 1.0
     assert inner.any() and (~inner).any()
     assert np.array_equal(np.flatnonzero(~inner), tr._blended)

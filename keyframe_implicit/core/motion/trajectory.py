@@ -64,6 +64,8 @@ joint half-way (see tests/core/test_trajectory.py).
 
 from __future__ import annotations
 
+import threading
+import time
 
 import numpy as np
 import scipy.sparse as sp
@@ -258,15 +260,13 @@ class Trajectories:
     Attributes
     ----------
     stats : dict
-        ``active_nodes``, ``active_cells``, ``components``, ``setup_seconds``;
-        global method: ``multigrid_levels`` (unknowns per level) and
+        ``components``; global method, once `setup` has run: ``active_nodes``,
+        ``active_cells``, ``setup_seconds``, ``multigrid_levels`` (unknowns per level) and
         ``cg_iterations`` (one entry per solve).
     """
 
     def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
                  margin_cells=4.0, margin_weight=0.1, mass=None, tolerance=1e-5, cancel=None):
-        import time
-
         y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
                                       margin_weight)
         d = grid.dim
@@ -305,12 +305,25 @@ class Trajectories:
             self._bodies[int(lab)] = (xb, yb, R, rotation_log(R[None])[0])
         self.stats["components"] = len(labels)
 
+        self._unset = None  # global method: the distances `setup` still needs
         if method == "local":
             self._init_local()
         else:
-            t0 = time.perf_counter()
-            self._init_global(dist.reshape(-1))
-            self.stats["setup_seconds"] = time.perf_counter() - t0
+            self._unset = dist.reshape(-1)[self._region]  # at the region's nodes only
+            self._setup_lock = threading.Lock()
+
+    def setup(self):
+        """Build the global method's Poisson problem, its multigrid and Y(1); done the first
+        time a time strictly between 0 and 1 is asked, since the ends need only the map
+        (the template on a segment's last frame, made alone, needs no solve)."""
+        if self._unset is None:
+            return
+        with self._setup_lock:  # the two transports of a frame may ask at once
+            if self._unset is not None:
+                t0 = time.perf_counter()
+                self._init_global(self._unset)
+                self._unset = None
+                self.stats["setup_seconds"] = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
     @property
@@ -370,7 +383,8 @@ class Trajectories:
         nodes = np.arange(grid.size)
         self._ext = self._body_arrays(nodes)
 
-    def _init_global(self, dist):
+    def _init_global(self, region_dist):
+        """`setup`: ``region_dist`` holds each region node's distance to the material."""
         grid, d = self.grid, self.dim
         _, nodes, lc = elements.cells_within(grid, self.region_nodes())
         touch = self.material.reshape(-1)[nodes][lc].any(axis=1)  # a corner inside
@@ -421,7 +435,7 @@ class Trajectories:
         self.stats["residual_max"] = float(np.abs(self._resid).max()) if n else 0.0
 
         # blend of the Poisson paths with the body formula over the outer half of the margin
-        dl = dist[nodes]
+        dl = region_dist[np.searchsorted(np.flatnonzero(self._region), nodes)]
         self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
         self._blended = np.flatnonzero(self._wblend < 1.0)  # where the body formula counts
 
@@ -528,6 +542,7 @@ class Trajectories:
             xb, yb, R, rv = (a[nodes] for a in self._ext)
             return self._formula(s, self.grid.node_points(nodes), self._y[nodes], xb, yb,
                                  self._local_R[nodes], self._local_rv[nodes])
+        self.setup()
         out = np.empty((nodes.size, self.dim))
         loc = self._local(nodes)
         act = loc >= 0
