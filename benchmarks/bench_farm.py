@@ -8,6 +8,7 @@ steps one after another, each task a process of its own with a helper for the se
 core). What the ratio above 1 costs is the tasks' own starts and reads and the Paths step.
 
     python benchmarks/bench_farm.py --resolution 64 [--scene assets/splash.blend] [--runs 3]
+                                    [--pairs-per-task N]
 """
 
 from __future__ import annotations
@@ -48,14 +49,16 @@ def local_bake(scene, resolution, work):
     return seconds, out
 
 
-def farm_job(scene, resolution, work):
-    """Seconds of ``openjd run`` (the template written before the clock starts), each step's
-    seconds from its log, and the .blend it wrote."""
+def farm_job(scene, resolution, work, pairs_per_task=None):
+    """Seconds of ``openjd run`` (the template written before the clock starts; the job
+    parameter PairsPerTask when given), each step's seconds from its log, and the .blend it
+    wrote."""
     job = os.path.join(work, "job")
     _timed([sys.executable, "-m", "keyframe_implicit", "farm", "template", job, "--scene", scene,
             "--resolution", str(resolution)], work)
     openjd = os.path.join(os.path.dirname(sys.executable), "openjd")
-    seconds, log = _timed([openjd, "run", os.path.join(job, "template.yaml")], work)
+    chunk = [] if pairs_per_task is None else ["-p", f"PairsPerTask={pairs_per_task}"]
+    seconds, log = _timed([openjd, "run", os.path.join(job, "template.yaml"), *chunk], work)
     return seconds, step_seconds(log), os.path.join(job, "baked.blend")
 
 
@@ -100,6 +103,8 @@ def main(argv=None):
     p.add_argument("--resolution", type=int, default=64)
     p.add_argument("--scene", default=os.path.join(ROOT, "assets", "splash.blend"))
     p.add_argument("--runs", type=int, default=1)
+    p.add_argument("--pairs-per-task", type=int, default=None,
+                   help="the job parameter PairsPerTask (default: the template's)")
     args = p.parse_args(argv)
     scene = os.path.abspath(args.scene)
     local, farm, steps, diffs = [], [], [], []
@@ -107,7 +112,7 @@ def main(argv=None):
         work = tempfile.mkdtemp()
         try:
             t_local, out_local = local_bake(scene, args.resolution, work)
-            t_farm, step, out_farm = farm_job(scene, args.resolution, work)
+            t_farm, step, out_farm = farm_job(scene, args.resolution, work, args.pairs_per_task)
             diffs.append(largest_difference(out_local, out_farm))
         finally:
             shutil.rmtree(work, ignore_errors=True)
@@ -116,7 +121,7 @@ def main(argv=None):
         steps.append(step)
     ratios = [f / t for f, t in zip(farm, local)]
     print(f"{os.path.basename(scene)} at {args.resolution}, {os.cpu_count()} cores, "
-          f"{args.runs} run(s), medians")
+          f"{args.runs} run(s), medians, PairsPerTask {args.pairs_per_task or 'default'}")
     print("| local bake s | openjd run s | ratio | " + " | ".join(f"{s} s" for s in STEPS)
           + " | largest difference |")
     print("|---" * (len(STEPS) + 4) + "|")

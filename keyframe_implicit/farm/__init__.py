@@ -1,6 +1,6 @@
 """The bake on a render farm: its stages as separate tasks over a job directory.
 
-``stages``    the bake taken apart where its work is independent: prepare, a pair's maps,
+``stages``    the bake taken apart where its work is independent: prepare, pairs' maps,
               the paths, a segment's frames, assemble (bpy-free)
 ``store``     the job directory's files: plain arrays and a JSON tree, a manifest
 ``template``  the Open Job Description job template that runs the stages in order

@@ -1,7 +1,7 @@
 """``python -m keyframe_implicit farm STAGE ...``: the bake's stages one at a time.
 
     prepare SCENE.blend DIR [--resolution N]   read the scene as Bake does (needs bpy)
-    maps DIR --pair I                          keyframes I -> I+1: their two maps
+    maps DIR --pair I[-J]                      keyframes I -> I+1 (to J -> J+1): their maps
     paths DIR                                  every segment's bends and starting template
     segment DIR --segment I                    keyframes I -> I+1: their frames
     assemble DIR --out OUT.blend [--scene S]   write the result as a local bake (needs bpy)
@@ -34,9 +34,11 @@ def _parser():
     s.add_argument("--segments", type=int, default=None,
                    help="refuse a scene with another number of segments")
     s.add_argument("--blender", default="", help="run inside this Blender executable")
-    s = sub.add_parser("maps", help="solve one keyframe pair's maps")
+    s = sub.add_parser("maps", help="solve keyframe pairs' maps")
     s.add_argument("dir")
-    s.add_argument("--pair", type=int, required=True, help="pair I: keyframes I -> I+1")
+    s.add_argument("--pair", type=_pairs, required=True,
+                   help="pair I (keyframes I -> I+1), or pairs I-J or I,J,... sharing the "
+                        "task's two processes")
     s = sub.add_parser("paths", help="every segment's bends and starting template")
     s.add_argument("dir")
     s = sub.add_parser("segment", help="one segment's frames")
@@ -54,6 +56,19 @@ def _parser():
     s.add_argument("--resolution", type=int, default=0,
                    help="with --scene: grid resolution (default: the scene's setting)")
     return p
+
+
+def _pairs(text):
+    """``I``, ``I-J`` or ``I,J,...`` (an Open Job Description chunk) as a list of ints."""
+    numbers = []
+    try:
+        for part in text.split(","):
+            first, _, last = part.partition("-")
+            numbers.extend(range(int(first), int(last or first) + 1))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a pair number, a range I-J or a "
+                                         "list I,J,...") from None
+    return numbers
 
 
 def _log(prefix):
@@ -134,7 +149,7 @@ def _run(args):
     if args.stage == "prepare":
         _prepare(args)
     elif args.stage == "maps":
-        stages.solve_pair(args.dir, args.pair, _log(f"maps {args.pair}"))
+        stages.solve_pair(args.dir, args.pair, _log(f"maps {','.join(map(str, args.pair))}"))
     elif args.stage == "paths":
         stages.bend_paths(args.dir, _log("paths"))
     elif args.stage == "segment":

@@ -47,9 +47,8 @@ class JobFiles:
     def pair(self, i):
         return self.path("maps", f"pair_{i}.npz")
 
-    @property
-    def paths(self):
-        return self.path("paths.npz")
+    def paths(self, i):
+        return self.path("paths", f"segment_{i}.npz")
 
     def segment(self, i):
         return self.path("segments", f"segment_{i}.npz")
@@ -95,17 +94,22 @@ def prepare(arguments, output_mode, job_dir, source, progress=None):
 
 
 def solve_pair(job_dir, pair, progress=None):
-    """Solve pair ``pair``'s maps (keyframes ``pair`` -> ``pair + 1``), both ways."""
-    files, job, plan, chain = _open(job_dir)
-    k = _index(pair, len(plan.keyframes) - 1, "pair")
-    with _task_helper() as helper, one_blas_thread():  # one map here, one there
-        chain.inbetweens.solve([k], helper, Reporter(progress))
-    store.save(files.pair(pair), {"job": job, "maps": chain.inbetweens.solved[k]})
+    """Solve the maps of pair ``pair`` (keyframes ``pair`` -> ``pair + 1``), both ways, or of
+    every pair in ``pair`` (a sequence): their maps shared between this process and a
+    helper, each taking the next map when it is free, as the local bake shares them."""
+    with _task_helper() as helper:
+        files, job, plan, chain = _open(job_dir)
+        pairs = [pair] if np.ndim(pair) == 0 else list(pair)
+        ks = [_index(p, len(plan.keyframes) - 1, "pair") for p in pairs]
+        with one_blas_thread():  # one map here, one there
+            chain.inbetweens.solve(ks, helper, Reporter(progress))
+    for p, k in zip(pairs, ks):
+        store.save(files.pair(p), {"job": job, "maps": chain.inbetweens.solved[k]})
 
 
 def bend_paths(job_dir, progress=None):
     """Every segment's bends (`spline.Bend`, None when no path bends) and the template's
-    vertices on every segment's first frame, from every pair's maps."""
+    vertices on its first frame, from every pair's maps; a file per segment."""
     files, job, plan, chain = _open(job_dir)
     nseg, rep = len(plan.keyframes) - 1, Reporter(progress)
     inb = chain.inbetweens
@@ -118,20 +122,25 @@ def bend_paths(job_dir, progress=None):
         for k in range(nseg - 1):
             starts.append(chain.end_template(k, starts[-1]))
             rep(0.5 + 0.5 * (k + 1) / nseg, f"template on keyframe {k + 2}")
-    store.save(files.paths, {"job": job, "bends": inb.bends, "starts": starts})
+    for k in range(nseg):
+        bends = None if inb.bends is None else inb.bends[k]
+        store.save(files.paths(k + 1), {"job": job, "bends": bends, "start": starts[k]})
 
 
 def make_segment(job_dir, segment, progress=None):
     """Segment ``segment``'s frames (keyframes ``segment`` -> ``segment + 1``)."""
-    files, job, plan, chain = _open(job_dir)
-    k = _index(segment, len(plan.keyframes) - 1, "segment")
-    paths = _read(files.paths, job, f"paths {job_dir}")
-    inb = chain.inbetweens
-    inb.solved[k] = _read(files.pair(segment), job, f"maps {job_dir} --pair {segment}")["maps"]
-    if inb.bends is not None:
-        inb.bends[k] = paths["bends"][k]
-    with _task_helper() as helper, one_blas_thread():
-        local, records, stats = chain.segment(k, paths["starts"][k], helper, Reporter(progress))
+    with _task_helper() as helper:
+        files, job, plan, chain = _open(job_dir)
+        k = _index(segment, len(plan.keyframes) - 1, "segment")
+        paths = _read(files.paths(segment), job, f"paths {job_dir}")
+        inb = chain.inbetweens
+        inb.solved[k] = _read(files.pair(segment), job,
+                              f"maps {job_dir} --pair {segment}")["maps"]
+        if inb.bends is not None:
+            inb.bends[k] = paths["bends"]
+        with one_blas_thread():
+            local, records, stats = chain.segment(k, paths["start"], helper,
+                                                  Reporter(progress))
     store.save(files.segment(segment), {"job": job, "frames": local, "records": records,
                                         "stats": stats})
 
@@ -213,7 +222,8 @@ def _index(number, count, what):
 @contextlib.contextmanager
 def _task_helper():
     """A helper process for the second core, as the worker starts one (None on one core, or
-    where none can start: in Blender's own process, for prepare)."""
+    where none can start: in Blender's own process, for prepare). Started first thing in a
+    task, it imports while the task reads its files."""
     from ..core.bake.chain import HELPER_PRELOAD
 
     helper = Helper(HELPER_PRELOAD) if cores() >= 2 and can_start_helper() else None

@@ -5,6 +5,11 @@ Steps, each a command of this package's farm command line (`farm.cli`):
     Prepare -> Maps (a task per keyframe pair) -> Paths -> Segments (a task per segment)
     -> Assemble
 
+Maps' tasks are run in chunks of ``PairsPerTask`` pairs (the ``TASK_CHUNKING`` extension):
+a chunk shares its pairs' maps between the task's two processes, each taking the next map
+when it is free, as the local bake does; one pair alone leaves a core idle while its
+longer map ends (benchmarks/README.md, "Render farm").
+
 Paths is one short task between the two parallel steps: a segment's paths bend with its
 neighbours' maps (docs/method.md, section 12), and a segment starts from the template
 where the one before it ended. Job parameters: the .blend, the job directory, the output
@@ -26,6 +31,8 @@ import sys
 __all__ = ["job_template", "write_template", "to_yaml", "TEMPLATE"]
 
 TEMPLATE = "template.yaml"
+#: Default of the job parameter PairsPerTask (module docstring).
+PAIRS_PER_TASK = 3
 _PACKAGE = __package__.rsplit(".", 1)[0].rsplit(".", 1)[-1]  # as `python -m` names it
 
 
@@ -35,9 +42,14 @@ def _stage(*args):
                                   "args": ["-m", _PACKAGE, "farm", *args]}}}
 
 
-def _tasks(name, count):
-    return {"taskParameterDefinitions": [{"name": name, "type": "INT",
-                                          "range": f"1-{count}"}]}
+def _tasks(name, count, chunk=None):
+    """A parameter space of one task per number 1..``count``, run ``chunk`` (a job
+    parameter's name) at a time when given."""
+    task = {"name": name, "type": "INT", "range": f"1-{count}"}
+    if chunk is not None:
+        task.update(type="CHUNK[INT]", chunks={"defaultTaskCount": f"{{{{Param.{chunk}}}}}",
+                                               "rangeConstraint": "CONTIGUOUS"})
+    return {"taskParameterDefinitions": [task]}
 
 
 def job_template(job_dir, blend_path, segments, resolution, python=None, python_path=None,
@@ -57,6 +69,9 @@ def job_template(job_dir, blend_path, segments, resolution, python=None, python_
              default="baked.blend", description="The baked .blend."),
         dict(name="Resolution", type="INT", default=int(resolution), minValue=4,
              maxValue=1024, description="Grid cells along the keyframes' longest side."),
+        dict(name="PairsPerTask", type="INT", default=PAIRS_PER_TASK, minValue=1,
+             description="Keyframe pairs whose maps one task of Maps solves, sharing its "
+                         "two processes."),
         dict(name="Python", type="STRING", default=python or sys.executable,
              description="The Python that runs the stages (with the bpy module, unless "
                          "Blender is set)."),
@@ -74,7 +89,7 @@ def job_template(job_dir, blend_path, segments, resolution, python=None, python_
             "{{Param.Resolution}}", "--segments", str(int(segments)),
             "--blender={{Param.Blender}}")),
         dict(name="Maps", dependencies=[{"dependsOn": "Prepare"}],
-             parameterSpace=_tasks("Pair", segments),
+             parameterSpace=_tasks("Pair", segments, chunk="PairsPerTask"),
              script=_stage("maps", "{{Param.JobDir}}", "--pair", pair)),
         dict(name="Paths", dependencies=[{"dependsOn": "Maps"}],
              script=_stage("paths", "{{Param.JobDir}}")),
@@ -87,6 +102,7 @@ def job_template(job_dir, blend_path, segments, resolution, python=None, python_
     ]
     return {
         "specificationVersion": "jobtemplate-2023-09",
+        "extensions": ["TASK_CHUNKING"],
         "name": "Keyframe Implicit bake",
         "parameterDefinitions": params,
         "jobEnvironments": [{"name": "KeyframeImplicit",

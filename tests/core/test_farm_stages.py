@@ -65,12 +65,14 @@ def test_the_assembled_bake_is_the_local_bake_on_every_frame(job):
 
 
 def test_the_paths_bend_through_the_middle_keyframe(job):
-    paths = store.load(stages.JobFiles(job).paths)
-    assert set(paths["bends"]) == {0, 1}
-    bends = paths["bends"]  # per segment, the forward and the backward transport's
-    assert all(isinstance(b, Bend) for pair in bends.values() for b in pair)
-    assert np.abs(bends[0][0].end).max() > 0 and np.abs(bends[1][0].start).max() > 0
-    assert len(paths["starts"]) == 2
+    files = stages.JobFiles(job)
+    first, second = (store.load(files.paths(i)) for i in (1, 2))
+    # per segment, the forward and the backward transport's bends
+    assert all(isinstance(b, Bend) for paths in (first, second) for b in paths["bends"])
+    assert np.abs(first["bends"][0].end).max() > 0 and np.abs(second["bends"][0].start).max() > 0
+    # the second segment starts where the first one's template ends, on keyframe 2
+    local = animate(**_arguments(), surfaces=False, coverage=False)
+    np.testing.assert_allclose(second["start"], local.vertices[4], rtol=0, atol=1e-6)
 
 
 def test_rerunning_a_segment_writes_the_same_frames(job_copy):
@@ -104,6 +106,26 @@ def test_a_directory_of_another_version_or_none_is_refused(job_copy, tmp_path):
         stages.solve_pair(str(job_copy), 1)
     with pytest.raises(store.JobError, match=r"not a prepared job directory .*'farm prepare"):
         stages.solve_pair(str(tmp_path), 1)
+
+
+def test_pairs_solved_in_one_task_are_the_pairs_solved_one_by_one(job_copy):
+    files = stages.JobFiles(job_copy)
+    alone = [store.load(files.pair(i))["maps"] for i in (1, 2)]
+    for i in (1, 2):
+        os.remove(files.pair(i))
+    stages.solve_pair(str(job_copy), [1, 2])  # shared by this process and a helper
+    for i, (res, back, _) in zip((1, 2), alone):
+        shared, shared_back, _ = store.load(files.pair(i))["maps"]
+        np.testing.assert_array_equal(shared.mapped, res.mapped)
+        np.testing.assert_array_equal(shared_back.mapped, back.mapped)
+
+
+@pytest.mark.parametrize("text,pairs", [("2", [2]), ("1-3", [1, 2, 3]), ("1,3", [1, 3]),
+                                        ("4-4", [4])])
+def test_pairs_are_read_as_open_job_description_writes_a_chunk(text, pairs):
+    from keyframe_implicit.farm.cli import _parser
+
+    assert _parser().parse_args(["maps", "DIR", "--pair", text]).pair == pairs
 
 
 def test_a_pair_out_of_range_is_refused(job):

@@ -14,6 +14,8 @@ import pytest
 import yaml
 from openjd.model import create_job, decode_job_template
 
+from keyframe_implicit.farm.template import PAIRS_PER_TASK
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SPLASH = ROOT / "assets" / "splash.blend"
 RESOLUTION = 34  # the smallest the splash's feature points allow (one cell apart)
@@ -84,6 +86,8 @@ def _get(collection, prop, dtype, width):
 def test_openjd_run_bakes_exactly_what_one_machine_bakes(job, local):
     job_dir, log = job
     assert "All actions completed successfully" in log
+    chunks = [line.split("= ")[-1] for line in log.splitlines() if "Pair(CHUNK[INT]) =" in line]
+    assert len(chunks) == -(-3 // PAIRS_PER_TASK)  # the maps of three pairs, in chunks
     for step in STEPS:
         assert f"Running step '{step}'" in log
     farm, alone = _baked_arrays(job_dir / "baked.blend"), _baked_arrays(local)
@@ -99,14 +103,16 @@ def test_the_template_is_valid_and_has_a_task_per_pair_and_segment(job):
     checked = _openjd("check", job_dir / "template.yaml", cwd=job_dir)
     assert checked.returncode == 0 and "passes validation" in checked.stdout
     template = decode_job_template(
-        template=yaml.safe_load((job_dir / "template.yaml").read_text()))
+        template=yaml.safe_load((job_dir / "template.yaml").read_text()),
+        supported_extensions=["TASK_CHUNKING"])
     assert [s.name for s in template.steps] == STEPS
     made = create_job(job_template=template, job_parameter_values={})
     written = (job_dir / "template.yaml").read_text()
     done = _command("farm", "template", job_dir, cwd=job_dir)  # again, from the job's manifest
     assert done.returncode == 0 and (job_dir / "template.yaml").read_text() == written
     tasks = {s.name: s.parameterSpace for s in made.steps}
-    assert list(tasks["Maps"].taskParameterDefinitions["Pair"].range) == [1, 2, 3]
+    pairs = tasks["Maps"].taskParameterDefinitions["Pair"]
+    assert list(pairs.range) == [1, 2, 3] and pairs.chunks.defaultTaskCount == PAIRS_PER_TASK
     assert list(tasks["Segments"].taskParameterDefinitions["Segment"].range) == [1, 2, 3]
     assert [d.dependsOn for d in made.steps[3].dependencies] == ["Paths"]
 

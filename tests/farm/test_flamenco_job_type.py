@@ -43,7 +43,8 @@ def _compile(settings):
 
 def test_the_job_type_compiles_into_the_stages_with_their_dependencies():
     settings = {"blendfile": "/shots/splash.blend", "job_dir": "/shots/splash_farm",
-                "output_file": "/shots/splash_baked.blend", "resolution": 64, "segments": 3}
+                "output_file": "/shots/splash_baked.blend", "resolution": 64, "segments": 3,
+                "pairs_per_task": 1}
     done = _compile(settings)
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
@@ -61,7 +62,21 @@ def test_the_job_type_compiles_into_the_stages_with_their_dependencies():
     prepare = tasks["prepare"]["commands"][0]["parameters"]["args"]
     assert prepare[-4:] == ["--resolution", "64", "--segments", "3"]
     assert {s["key"] for s in out["settings"]} == {"blendfile", "job_dir", "output_file",
-                                                   "resolution", "segments"}
+                                                   "resolution", "pairs_per_task", "segments"}
+
+
+@pytest.mark.parametrize("chunk,maps", [(2, {"maps-1-2": "1-2", "maps-3": "3"}),
+                                        (3, {"maps-1-3": "1-3"}), (5, {"maps-1-3": "1-3"})])
+def test_maps_tasks_take_pairs_per_task_pairs_as_the_template_chunks_them(chunk, maps):
+    settings = {"blendfile": "s.blend", "job_dir": "d", "output_file": "o.blend",
+                "resolution": 48, "segments": 3, "pairs_per_task": chunk}
+    done = _compile(settings)
+    assert done.returncode == 0, done.stderr
+    tasks = {t["name"]: t for t in json.loads(done.stdout)["tasks"]}
+    made = {name: t["commands"][0]["parameters"]["args"][-1] for name, t in tasks.items()
+            if name.startswith("maps")}
+    assert made == maps
+    assert tasks["paths"]["deps"] == list(maps)
 
 
 def test_a_scene_without_a_pair_of_keyframes_is_refused():

@@ -4,8 +4,8 @@
 // worker's Blender on the scene with the add-on enabled and runs one stage of
 // `python -m keyframe_implicit farm` inside it (the add-on's farm command line):
 //
-//   prepare -> maps (a task per keyframe pair) -> paths -> segment (a task per segment)
-//   -> assemble
+//   prepare -> maps (a task per pairs_per_task keyframe pairs) -> paths
+//   -> segment (a task per segment) -> assemble
 //
 // The job directory must be on storage every worker sees. Untested on a real Flamenco
 // (none runs where the add-on is developed): the tests compile a job with a stand-in for
@@ -26,6 +26,8 @@ const JOB_TYPE = {
     { key: "resolution", type: "int32", required: true, default: 48,
       eval: "C.scene.keyframe_implicit.resolution",
       description: "Grid cells along the keyframes' longest side" },
+    { key: "pairs_per_task", type: "int32", required: true, default: 3,
+      description: "Keyframe pairs whose maps one task solves, sharing the worker's cores" },
     { key: "segments", type: "int32", required: true,
       eval: "len(C.scene.keyframe_implicit.keyframes) - 1", visible: "hidden",
       description: "Keyframe pairs in the scene: one maps task and one segment task each" },
@@ -66,9 +68,12 @@ function compileJob(job) {
   const dir = settings.job_dir;
   const prepare = stage("prepare", ["prepare", settings.blendfile, dir,
     "--resolution", String(settings.resolution), "--segments", String(settings.segments)]);
+  const chunk = Math.max(1, settings.pairs_per_task || 1);
   const maps = [];
-  for (let i = 1; i <= settings.segments; i++) {
-    maps.push(after([prepare], stage(`maps-${i}`, ["maps", dir, "--pair", String(i)])));
+  for (let i = 1; i <= settings.segments; i += chunk) {
+    const last = Math.min(i + chunk - 1, settings.segments);
+    const pairs = last > i ? `${i}-${last}` : String(i);
+    maps.push(after([prepare], stage(`maps-${pairs}`, ["maps", dir, "--pair", pairs])));
   }
   const paths = after(maps, stage("paths", ["paths", dir]));
   const segments = [];
