@@ -38,7 +38,7 @@ _EXPORTS = {
     "MemoryLimitError": "bake.memory",
     "check_memory": "bake.memory",
     "solve_map": "map.solver",
-    "MapResult": "map.solver",
+    "MapResult": "map.result",
     "inbetween": "bake.maps",
     "Inbetween": "motion.levelset",
     "Transport": "motion.transport",

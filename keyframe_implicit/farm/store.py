@@ -38,7 +38,7 @@ def _classes():
     """The classes a job file may hold, by name: {name: (class, fields of an object)}."""
     from ..core.bake.pipeline import BakePlan, Keyframe
     from ..core.base.grid import Grid
-    from ..core.map.solver import MapResult
+    from ..core.map.result import MapResult
     from ..core.map.tear import Tear
     from ..core.motion.spline import Bend
     from ..core.surface.attributes import MeshAttributes

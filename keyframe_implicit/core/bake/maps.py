@@ -18,7 +18,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 from ..base.parallel import cores, share
 from ..base.progress import Reporter
-from ..map import solver
 from ..map.options import MapOptions
 from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
@@ -139,7 +138,7 @@ class OnMotionGrid(Sequence):
 def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,
                 cancel=None, bends=None):
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
-    `solver.MapResult`, solved on ``grid`` or on a motion grid (``res.grid``); ``seconds``
+    `result.MapResult`, solved on ``grid`` or on a motion grid (``res.grid``); ``seconds``
     the time the maps took, for its stats. ``on_maps`` as in `inbetween`; ``bends`` as in
     `Inbetween.from_map`."""
     st = {"map_seconds": seconds, "map": res.stats}
@@ -165,13 +164,15 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
     their kernels); it reports no progress of its own and stops when the
     forward one fails or the caller cancels.
     """
+    from ..map.solver import solve_map  # here: a process that only reads maps never loads it
+
     if not two_sided:
-        return solver.solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
+        return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
                          cancel=cancel, options=map_options), None
     if not (parallel and cores() >= 2):
-        res = solver.solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
+        res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
                         cancel=cancel, options=map_options)
-        back = solver.solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),
+        back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),
                          cancel=cancel, options=map_options)
         return res, back
     failed = threading.Event()
@@ -180,10 +181,10 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
         return failed.is_set() or (cancel is not None and cancel())
 
     with ThreadPoolExecutor(max_workers=1) as pool:
-        job = pool.submit(solver.solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
+        job = pool.submit(solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
                           options=map_options)
         try:
-            res = solver.solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
+            res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
                             cancel=cancel, options=map_options)
         except BaseException:
             failed.set()
@@ -210,6 +211,8 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     from the end of the one before it (or the window's start) until both its maps are
     solved, so they add up to the window's time.
     """
+    from ..map.solver import solve_map
+
     t0 = time.perf_counter()
     if helper is None:
         out, n = {}, len(window)
@@ -230,10 +233,10 @@ def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, canc
     def here(job, stop):
         mine.append(job)
         part = rep.sub((len(mine) - 1) / len(jobs), len(mine) / len(jobs))
-        return solver.solve_map(*arguments(job), progress=part, cancel=stop, options=map_options)
+        return solve_map(*arguments(job), progress=part, cancel=stop, options=map_options)
 
     def there(job):
-        return solver.solve_map, arguments(job), {"options": map_options}
+        return solve_map, arguments(job), {"options": map_options}
 
     done, ends, _ = share(jobs, here, there, helper, check=rep.check, cancel=cancel)
     out, start = {}, t0

@@ -12,4 +12,5 @@ feature constraints C y = d (eq. 2.14-2.20), by constrained Gauss-Newton, coarse
 ``tear``         where a map spreads one component over several: its pieces and crack
 ``coarse``       the coarse correction of the linear solves
 ``solver``       `solve_map`: the Gauss-Newton iteration (sec. 2.5)
+``result``       `MapResult`, what a solve returns
 """

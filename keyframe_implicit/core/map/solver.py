@@ -56,7 +56,6 @@ import dataclasses
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -68,7 +67,8 @@ from .options import MapOptions, weight_options
 from .hierarchy import coarse_to_fine, correction, fields_on, prolong, start_map
 from .rbf import initial_map
 from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
-from .tear import Tear, find_tear, prolong_pieces
+from .result import MapResult
+from .tear import find_tear, prolong_pieces
 from . import terms
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
@@ -76,38 +76,6 @@ __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 #: Default options of `solve_map` besides the term weights (`options.MapOptions`).
 DEFAULTS = {f.name: getattr(MapOptions(), f.name) for f in dataclasses.fields(MapOptions)
             if f.name != "weights"}
-
-
-@dataclass
-class MapResult:
-    """Result of `solve_map`.
-
-    mapped : ndarray, grid.shape + (d,)
-        y(x) for every node (the smooth extension outside ``region``).
-    stats : dict
-        ``iterations`` (finest level), ``levels`` (per-level dicts), ``history``
-        (per finest-level iteration: energy and each term), ``terms`` (final
-        value of each weighted term), ``max_abs_det_minus_1``, ``min_det``
-        (material cells, all quadrature points), ``feature_residual``
-        (world units) and ``feature_residual_h`` (in grid spacings),
-        ``seconds`` (per stage), ``active_nodes``, ``unknowns``,
-        ``patch_features`` / ``hard_features`` (constraint kinds).
-    grid : `Grid`
-    region : bool array (grid.shape), the solved nodes of the finest level.
-    material : bool array (grid.shape), phi_a < 0.
-    components : int array (grid.shape), labels of A's material components.
-    tear : `tear.Tear` or None
-        The pieces of A's torn components and the crack between them, where the map
-        spreads a component of A over several of B (`tear.find_tear`).
-    """
-
-    mapped: np.ndarray
-    stats: dict
-    grid: Grid
-    region: np.ndarray
-    material: np.ndarray
-    components: np.ndarray = field(default=None)
-    tear: Tear | None = field(default=None)
 
 
 # ----------------------------------------------------------------------------

@@ -1,0 +1,44 @@
+"""What a solve of the volume map returns (`solver.solve_map`), kept apart from the solver
+so that a process which only reads solved maps (a farm's later tasks) need not import it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..base.grid import Grid
+
+__all__ = ["MapResult"]
+
+
+@dataclass
+class MapResult:
+    """Result of `solve_map`.
+
+    mapped : ndarray, grid.shape + (d,)
+        y(x) for every node (the smooth extension outside ``region``).
+    stats : dict
+        ``iterations`` (finest level), ``levels`` (per-level dicts), ``history``
+        (per finest-level iteration: energy and each term), ``terms`` (final
+        value of each weighted term), ``max_abs_det_minus_1``, ``min_det``
+        (material cells, all quadrature points), ``feature_residual``
+        (world units) and ``feature_residual_h`` (in grid spacings),
+        ``seconds`` (per stage), ``active_nodes``, ``unknowns``,
+        ``patch_features`` / ``hard_features`` (constraint kinds).
+    grid : `Grid`
+    region : bool array (grid.shape), the solved nodes of the finest level.
+    material : bool array (grid.shape), phi_a < 0.
+    components : int array (grid.shape), labels of A's material components.
+    tear : `tear.Tear` or None
+        The pieces of A's torn components and the crack between them, where the map
+        spreads a component of A over several of B (`tear.find_tear`).
+    """
+
+    mapped: np.ndarray
+    stats: dict
+    grid: Grid
+    region: np.ndarray
+    material: np.ndarray
+    components: np.ndarray = field(default=None)
+    tear: Tear | None = field(default=None)
