@@ -4,10 +4,14 @@ so that a process which only reads solved maps (a farm's later tasks) need not i
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..base.grid import Grid
+
+if TYPE_CHECKING:  # read by type checkers only: tear needs the solver's hierarchy
+    from .tear import Tear
 
 __all__ = ["MapResult"]
 
