@@ -38,30 +38,44 @@ def _parser():
     return p
 
 
+def check_paths(scene_path=None, out_path=None):
+    """ValueError saying what to fix when ``scene_path`` is not a file or the folder of
+    ``out_path`` does not exist (None: not checked); before bpy is needed."""
+    if scene_path is not None and not os.path.isfile(scene_path):
+        raise ValueError(f"No such file: {scene_path!r}: give the path of a .blend file.")
+    out_dir = None if out_path is None else os.path.dirname(os.path.abspath(out_path))
+    if out_dir is not None and not os.path.isdir(out_dir):
+        raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
+
+
+def percent_log(prefix, log=print):
+    """A progress callback ``(fraction, message)`` that logs a line ``[prefix] NN% message``
+    every 10 percent and at the end."""
+    last = [-1]
+
+    def report(fraction, message):
+        pct = int(100 * fraction)
+        if pct >= last[0] + 10 or pct == 100:
+            last[0] = pct
+            log(f"[{prefix}] {pct:3d}% {message}")
+
+    return report
+
+
 def bake_file(scene_path, out_path, resolution=0, log=print):
     """Open ``scene_path``, bake every scene that has keyframes, save to ``out_path``.
 
     Raises ValueError with a user-facing message on failure.
     """
-    if not os.path.isfile(scene_path):
-        raise ValueError(f"No such file: {scene_path!r}: give the path of a .blend file.")
     if resolution < 0:
         raise ValueError(f"--resolution must be positive, got {resolution}.")
-    out_dir = os.path.dirname(os.path.abspath(out_path))
-    if not os.path.isdir(out_dir):
-        raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
+    check_paths(scene_path, out_path)
     from .blender import bake
 
     for scene, depsgraph in bake.open_file(scene_path):
-        last = [-1]
-
-        def report(job, fraction, message, scene=scene):
-            pct = int(100 * fraction)
-            if pct >= last[0] + 10 or pct == 100:
-                last[0] = pct
-                log(f"[{scene.name}] {pct:3d}% {message}")
-
-        obj = bake.bake_scene(scene, resolution, depsgraph, on_progress=report)
+        report = percent_log(scene.name, log)
+        obj = bake.bake_scene(scene, resolution, depsgraph,
+                              on_progress=lambda _job, fraction, text: report(fraction, text))
         first, last = obj["kfi_frames"]
         log(f"[{scene.name}] baked '{obj.name}': frames {first}-{last}, "
             f"{len(obj.data.vertices)} vertices")

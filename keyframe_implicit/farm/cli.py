@@ -72,15 +72,9 @@ def _pairs(text):
 
 
 def _log(prefix):
-    last = [-1]
+    from ..__main__ import percent_log
 
-    def report(fraction, message):
-        pct = int(100 * fraction)
-        if pct >= last[0] + 10 or pct == 100:
-            last[0] = pct
-            print(f"[{prefix}] {pct:3d}% {message}", flush=True)
-
-    return report
+    return percent_log(prefix, lambda line: print(line, flush=True))
 
 
 def _in_blender(blender, argv):
@@ -93,8 +87,11 @@ def _in_blender(blender, argv):
 
 
 def _prepare(args):
+    from ..__main__ import check_paths
     from ..blender import bake
     from ..blender.farm import prepare_scene
+
+    check_paths(args.scene)
 
     for scene, depsgraph in bake.open_file(args.scene):
         manifest = prepare_scene(scene, depsgraph, args.dir, args.scene, args.resolution,
@@ -105,15 +102,14 @@ def _prepare(args):
 
 
 def _assemble(args):
+    from ..__main__ import check_paths
     from ..blender import bake
     from ..blender.farm import assemble_scene
     from . import store
 
     manifest = store.read_manifest(args.dir)
-    out_dir = os.path.dirname(os.path.abspath(args.out))
-    if not os.path.isdir(out_dir):
-        raise ValueError(f"Output folder {out_dir!r} does not exist: create it first.")
     scene_path = args.scene or manifest["scene"]
+    check_paths(scene_path, args.out)
     for scene, depsgraph in bake.open_file(scene_path):
         if scene.name == manifest["scene_name"]:
             obj = assemble_scene(scene, depsgraph, args.dir, _log("assemble"))
@@ -129,8 +125,11 @@ def _template(args):
     from .template import TEMPLATE, write_template
 
     if args.scene:  # read the scene (as Bake checks it), nothing baked yet
+        from ..__main__ import check_paths
         from ..blender import bake
         from ..blender.farm import export_job
+
+        check_paths(args.scene)
 
         for scene, depsgraph in bake.open_file(args.scene):
             export_job(scene, depsgraph, args.scene, job_dir=args.dir,
