@@ -17,9 +17,8 @@ __all__ = ["prepare_scene", "assemble_scene", "job_dir_of", "export_job"]
 
 
 def _inputs_of(inputs):
-    """What ``prepare`` keeps of a `scene_io.BakeInput`, and its fingerprint."""
-    kept = {"arguments": bake.BakeJob(inputs).arguments(), "output_mode": inputs.output_mode}
-    return kept, store.fingerprint(kept)
+    """What ``prepare`` keeps of a `scene_io.BakeInput` (its fingerprint is the job's)."""
+    return {"arguments": bake.BakeJob(inputs).arguments(), "output_mode": inputs.output_mode}
 
 
 def prepare_scene(scene, depsgraph, job_dir, scene_path, resolution=0, segments=None,
@@ -35,7 +34,7 @@ def prepare_scene(scene, depsgraph, job_dir, scene_path, resolution=0, segments=
         raise ValueError(f"The scene '{scene.name}' has {n} segments but the job was written "
                          f"for {segments}: write the job again ('farm template', or Export "
                          f"Farm Job in the panel).")
-    kept, _ = _inputs_of(inputs)
+    kept = _inputs_of(inputs)
     source = {"scene": os.path.abspath(scene_path), "scene_name": scene.name}
     return stages.prepare(kept["arguments"], kept["output_mode"], job_dir, source, progress)
 
@@ -48,7 +47,7 @@ def assemble_scene(scene, depsgraph, job_dir, progress=None):
     """
     manifest = store.read_manifest(job_dir)
     inputs = bake.collect(scene, depsgraph, manifest["resolution"])
-    if _inputs_of(inputs)[1] != manifest["fingerprint"]:
+    if store.fingerprint(_inputs_of(inputs)) != manifest["fingerprint"]:
         raise store.JobError(
             f"{job_dir!r} was prepared from '{manifest.get('scene_name')}' in "
             f"{manifest.get('scene')!r}, not from this scene as it is now ('{scene.name}'): "
