@@ -2,7 +2,7 @@
 
 Every file is a ``.npz`` of plain arrays (read with ``allow_pickle=False``) beside a JSON
 tree that names them, so a job directory can come from another machine without running
-anything it holds. Classes are rebuilt only from this package's own list (`_CLASSES`).
+anything it holds. Classes are rebuilt only from this package's own list (`_classes`).
 
 A file carries the fingerprint of the inputs ``prepare`` read (`fingerprint`); a stage
 refuses a file made for other inputs, and the manifest (`read_manifest`) refuses a

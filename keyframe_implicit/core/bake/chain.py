@@ -192,8 +192,8 @@ class Chain:
     def end_template(self, k, start):
         """The template's vertices on segment ``k``'s last frame (s = 1) from ``start`` on
         its first: the next segment's ``start``, without making its frames."""
-        segment, local = self._segment(k, start)
-        inb = self.inbetweens.make(k, None, FrameSplit(None, local, segment), Reporter())
+        segment, _ = self._segment(k, start)
+        inb = self.inbetweens.make(k, None, None, Reporter())
         return _template(inb, segment, _detail(inb, segment), 1.0)["vertices"]
 
 
@@ -252,21 +252,23 @@ class Inbetweens:
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
 
     def make(self, k, helper, split, rep):
-        """Segment ``k``'s in-betweens; ``split`` (`FrameSplit`) hears of them as soon as
-        their recipe is known; progress to 0.5 of ``rep``."""
+        """Segment ``k``'s in-betweens; ``split`` (`FrameSplit`, or None when no other
+        process makes frames) hears of them as soon as their recipe is known; progress to
+        0.5 of ``rep``."""
         from ..motion.levelset import Inbetween
         from .maps import from_solved, pair_inbetweens
 
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
+        on_maps = None if split is None else split.start
         if self.bends is not None:
-            return self._make_bent(k, helper, split, rep)
+            return self._make_bent(k, helper, on_maps, rep)
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
                                       options=self.motion_options, motion_grid=self.motion_grid)
         if helper is None and k not in self.solved:
             return pair_inbetweens(a, b, self.grid, self.features[k], self.map_options,
                                    self.motion_options, progress=rep.sub(0.0, 0.5),
-                                   cancel=cancel, on_maps=split.start,
+                                   cancel=cancel, on_maps=on_maps,
                                    motion_grid=self.motion_grid)
         if k not in self.solved:
             self.solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
@@ -274,12 +276,12 @@ class Inbetweens:
         res, back, seconds = self.solved.pop(k)
         rep(0.4, "trajectories")
         inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
-                          on_maps=split.start, cancel=cancel)
+                          on_maps=on_maps, cancel=cancel)
         rep(0.5, "in-betweens ready")
         return inb
 
     def solve(self, window, helper, rep):
-        """The maps of the segments in ``window``, into ``_solved``."""
+        """The maps of the segments in ``window``, into ``solved``."""
         from .maps import on_solve_grid, solve_maps_shared
 
         window = [k for k in window if k not in self.solved]  # given, or solved before
@@ -290,7 +292,7 @@ class Inbetweens:
             self.solve_phis, solve_grid, self.features, window, self.motion_options.two_sided,
             helper, rep, self.cancel, on_solve_grid(self.map_options, self.grid, solve_grid)))
 
-    def _make_bent(self, k, helper, split, rep):
+    def _make_bent(self, k, helper, on_maps, rep):
         """`make` with the paths bent through the keyframes: on the first segment every
         map and every `Bend` is made (to 0.4 of ``rep``)."""
         from ..motion.levelset import Inbetween
@@ -307,7 +309,7 @@ class Inbetweens:
         else:
             res, back, seconds = self.solved.pop(k)
             inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
-                              on_maps=split.start, cancel=cancel, bends=self.bends[k])
+                              on_maps=on_maps, cancel=cancel, bends=self.bends[k])
         rep(0.5, "in-betweens ready")
         return inb
 

@@ -35,14 +35,6 @@ PREVIEW_RESOLUTION = 32
 PREVIEW_MOTION_RESOLUTION = 16
 
 
-class _NoSplit:
-    """The preview makes its frames one at a time: nothing to hand another process."""
-
-    @staticmethod
-    def start(_recipe):
-        return None
-
-
 class Preview:
     """The in-betweens of one setup, kept for frames asked one at a time.
 
@@ -91,8 +83,8 @@ class Preview:
                                (frames, kinds))
         nseg = len(keyframes) - 1
         with one_blas_thread():  # as in the bake: BLAS's threads round differently
-            inbetweens = [segments.make(k, None, _NoSplit, rep.sub(0.2 + 0.8 * k / nseg,
-                                                                   0.2 + 0.8 * (k + 1) / nseg))
+            inbetweens = [segments.make(k, None, None, rep.sub(0.2 + 0.8 * k / nseg,
+                                                               0.2 + 0.8 * (k + 1) / nseg))
                           for k in range(nseg)]
         self._solved = (grid, frames, inbetweens,
                         None if artist is None else [s[:2] for s in surfaces])
