@@ -28,8 +28,8 @@ import numpy as np
 
 from ..core.surface.attributes import MeshAttributes
 from ..core.bake.pipeline import Keyframe
-from ..core.fields.mesh import Surface
-from ..core.fields.mesh import read_surface as measure_surface
+from ..core.fields.measure import Surface
+from ..core.fields.measure import read_surface as measure_surface
 from . import features, volumes
 
 
@@ -47,7 +47,7 @@ class ListedKeyframe:
         Its object's type ("MESH", "CURVE", ...); "" without an object.
     in_scene : bool
         Whether the object is in the scene that is read.
-    surface : core.fields.mesh.Surface or None
+    surface : core.fields.measure.Surface or None
         Its evaluated mesh as the bake reads it (`cached_surface`), for a mesh object in
         the scene; else None.
     modified : bool
@@ -222,7 +222,7 @@ def mesh_arrays(obj, depsgraph, attributes=False):
 
 def read_surface(obj, depsgraph):
     """``obj``'s evaluated mesh in world space as the bake reads it: faces only, each part
-    facing one way (`core.fields.mesh.read_surface`, the measure the bake's own check uses).
+    facing one way (`core.fields.measure.read_surface`, the measure the bake's own check uses).
 
     Parameters
     ----------
@@ -233,7 +233,7 @@ def read_surface(obj, depsgraph):
 
     Returns
     -------
-    core.fields.mesh.Surface
+    core.fields.measure.Surface
         With no triangles when the mesh has no faces. The panel asks through
         `cached_surface`.
     """

@@ -9,7 +9,7 @@ feature Empty's parent) comes as plain facts of the reading. `problems` reads a 
 setup and checks it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
 
 The surface checks (`surface_problems`) judge each keyframe's evaluated mesh by the
-bake's own measure (`core.fields.mesh.read_surface`: faces only, each part facing one
+bake's own measure (`core.fields.measure.read_surface`: faces only, each part facing one
 way): a keyframe that encloses no volume (a plane) is refused, in the words the bake's own
 refusal uses; what the bake reads correctly as it is (faces facing inward, loose vertices,
 holes, non-manifold edges) is a warning that says so. The panel and the Bake button's poll
@@ -217,7 +217,7 @@ def surface_problems(surface, modified=False):
 
     Parameters
     ----------
-    surface : core.fields.mesh.Surface
+    surface : core.fields.measure.Surface
         The keyframe object's evaluated mesh as the bake reads it.
     modified : bool
         Whether that mesh is the object's after its modifiers.

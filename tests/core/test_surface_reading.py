@@ -1,11 +1,11 @@
-"""The keyframe measure the bake and the Blender panel share (`fields.mesh.read_surface`)
+"""The keyframe measure the bake and the Blender panel share (`fields.measure.read_surface`)
 against the bake's own distance grids, on generated meshes as artists leave them."""
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 
 from hostile_meshes import SPHERE, grid_has_inside, hostile_meshes
-from keyframe_implicit.core.fields.mesh import read_surface
+from keyframe_implicit.core.fields.measure import read_surface
 
 FIXED = settings(derandomize=True, database=None, deadline=None, max_examples=25,
                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -27,8 +27,9 @@ def _segment_label(i):
 def surface_vertices(k, kf):
     """(vertices (V, 3), triangles, loose, face vertices) of a keyframe; loose counts vertices
     of no face. Refuses, before any grid work, a keyframe that encloses no volume
-    (`fields.mesh.read_surface`, the measure the Blender panel judges it by too)."""
-    from ..fields.mesh import check_vertices, read_surface, triangulate
+    (`fields.measure.read_surface`, the measure the Blender panel judges it by too)."""
+    from ..fields.measure import read_surface
+    from ..fields.mesh import check_vertices, triangulate
 
     label = keyframe_label(k, kf)
     try:
@@ -50,7 +51,7 @@ def no_volume_words(surface):
 
     Parameters
     ----------
-    surface : fields.mesh.Surface
+    surface : fields.measure.Surface
         A reading whose ``encloses_volume`` is False.
     """
     if surface.triangles == 0:
@@ -204,7 +205,7 @@ def no_volume_message(k, kf, v, tris, grid):
         return (f"{label} is only {cells:.1f} grid cells across: the grid spans all keyframes and "
                 "feature points, which are far apart compared to this keyframe. Move them closer "
                 "together or raise the resolution.")
-    from ..fields.mesh import read_surface
+    from ..fields.measure import read_surface
 
     open_edges = read_surface(v, tris).open_edges
     if open_edges:
