@@ -23,13 +23,22 @@ Background use (what the modal operator does)::
     if job.state == DONE: obj = job.apply(scene)   # or a step per turn: job.apply_steps(scene)
 """
 
+from __future__ import annotations
+
 import os
 import threading
 import time
+from collections.abc import Generator
+from typing import TYPE_CHECKING
 
 from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
 from . import output, scene_io, validate, volumes
+
+if TYPE_CHECKING:  # read by type checkers only
+    import bpy
+
+    from ..core.bake.animation import Animation
 
 READY, RUNNING, DONE, CANCELLED, FAILED = "READY", "RUNNING", "DONE", "CANCELLED", "FAILED"
 
@@ -186,31 +195,62 @@ class BakeJob:
         """Write the result into ``scene`` (main thread); returns the output object."""
         return output.run_steps(self.apply_steps(scene))
 
-    def apply_steps(self, scene):
-        """`apply` a piece at a time (`output.write_steps`): a generator that yields between
+    def apply_steps(self, scene: bpy.types.Scene) -> Generator[None, None, bpy.types.Object]:
+        """`apply` a piece at a time (`apply_result_steps`): a generator that yields between
         pieces and returns the output object. The modal bake runs pieces until its budget
         per turn of the main loop is spent and keeps polling (`poll`), so the object's
-        ``kfi_main_loop_stall`` counts the writing too. Closed half way (the close reaches
-        the writer, which removes what it made), it leaves the scene as it was (OpenVDB
-        files already written stay on disk)."""
+        ``kfi_main_loop_stall`` counts the writing too."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
-        stats = dict(getattr(self.result, "stats", {}) or {})
-        self.notes = list(stats.pop("notes", []))
-        stats.setdefault("seconds", self.seconds)
-        stats["resolution"] = self.inputs.resolution
-        settings = scene.keyframe_implicit
-        paths = volumes.write_result(settings, self.result) if self.inputs.levelsets else []
-        obj = yield from output.write_steps(scene, settings, self.result, stats=stats,
-                                            notes=self.notes,
-                                            material_names=self.inputs.material_names)
+        self.notes = []
+        obj = yield from apply_result_steps(scene, self.inputs, self.result, self.seconds,
+                                            self.notes)
         if self.poll_step:  # polled by a main loop (a blocking bake is not)
             obj["kfi_main_loop_stall"] = self.stall
-        if paths:
-            vol = volumes.add_volume_object(obj, paths, int(self.result.frames[0]))
-            obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "
-                                  f"{os.path.dirname(paths[0])}.")
         return obj
+
+
+def apply_result(scene: bpy.types.Scene, inputs: scene_io.BakeInput, result: Animation,
+                 seconds: float, notes: list[str] | None = None) -> bpy.types.Object:
+    """Write a finished bake into ``scene`` (main thread); returns the output object.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    inputs : scene_io.BakeInput
+        What was baked (its output settings, resolution and materials).
+    result : core.bake.animation.Animation
+        The bake's result: a `BakeJob`'s, or the farm's stages' (`blender.farm`).
+    seconds : float
+        How long the bake took, kept in the object's figures unless the result has its own.
+    notes : list, optional
+        Receives what the user should know about the result (warnings): the bake's own and
+        the writer's.
+    """
+    return output.run_steps(apply_result_steps(scene, inputs, result, seconds, notes))
+
+
+def apply_result_steps(scene: bpy.types.Scene, inputs: scene_io.BakeInput, result: Animation,
+                       seconds: float, notes: list[str] | None = None
+                       ) -> Generator[None, None, bpy.types.Object]:
+    """`apply_result` a piece at a time (`output.write_steps`): a generator that yields
+    between pieces and returns the output object. Closed half way (the close reaches the
+    writer, which removes what it made), it leaves the scene as it was (OpenVDB files
+    already written stay on disk)."""
+    notes = [] if notes is None else notes
+    stats = dict(getattr(result, "stats", {}) or {})
+    notes.extend(stats.pop("notes", []))
+    stats.setdefault("seconds", seconds)
+    stats["resolution"] = inputs.resolution
+    settings = scene.keyframe_implicit
+    paths = volumes.write_result(settings, result) if inputs.levelsets else []
+    obj = yield from output.write_steps(scene, settings, result, stats=stats, notes=notes,
+                                        material_names=inputs.material_names)
+    if paths:
+        vol = volumes.add_volume_object(obj, paths, int(result.frames[0]))
+        obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "
+                              f"{os.path.dirname(paths[0])}.")
+    return obj
 
 
 def collect(scene, depsgraph, resolution=0):
@@ -271,33 +311,3 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None
         notes.extend(job.notes)
     return obj
 
-
-def open_file(scene_path):
-    """Open the .blend ``scene_path`` (without its UI) and yield (scene, depsgraph) of each
-    of its scenes with keyframes, the scene made the window's when there is a window.
-    ValueError when none has keyframes."""
-    import bpy
-
-    from .. import register
-
-    register()
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(scene_path), load_ui=False)
-    scenes = [s for s in bpy.data.scenes if len(s.keyframe_implicit.keyframes)]
-    if not scenes:
-        raise ValueError(f"{scene_path!r} has no Keyframe Implicit setup: add keyframes in the "
-                         "sidebar (View3D > Sidebar > Keyframe Implicit) and save it.")
-    for scene in scenes:
-        window = bpy.context.window
-        if window is not None:
-            window.scene = scene
-        depsgraph = scene.view_layers[0].depsgraph if window is None else None
-        if depsgraph is not None:
-            depsgraph.update()
-        yield scene, depsgraph
-
-
-def save_copy(out_path):
-    """Save the open file's state to ``out_path`` as a copy (the open file keeps its path)."""
-    import bpy
-
-    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(out_path), copy=True)

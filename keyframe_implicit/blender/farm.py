@@ -2,16 +2,23 @@
 
 ``prepare`` reads a scene exactly as the Bake button does (`bake.collect`, the worker's
 arguments) into a job directory; ``assemble`` writes the job's result into the scene
-exactly as a local bake does (`bake.BakeJob.apply`). The stages between them need no
+exactly as a local bake does (`bake.apply_result`). The stages between them need no
 Blender (`farm.stages`). Assemble reads the scene again and refuses a job prepared from
 another scene, or from this one before it changed.
 """
 
+from __future__ import annotations
+
 import os
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from ..farm import stages, store
 from ..farm.template import write_template
 from . import bake
+
+if TYPE_CHECKING:  # read by type checkers only
+    import bpy
 
 __all__ = ["prepare_scene", "assemble_scene", "job_dir_of", "export_job"]
 
@@ -39,7 +46,8 @@ def prepare_scene(scene, depsgraph, job_dir, scene_path, resolution=0, segments=
     return stages.prepare(kept["arguments"], kept["output_mode"], job_dir, source, progress)
 
 
-def assemble_scene(scene, depsgraph, job_dir, progress=None):
+def assemble_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, job_dir: str,
+                   progress: Callable[[float, str], None] | None = None) -> bpy.types.Object:
     """Write the job's result into ``scene`` as a local bake would; returns the output object.
 
     Raises `store.JobError` when the job was prepared from another scene or the scene has
@@ -52,11 +60,8 @@ def assemble_scene(scene, depsgraph, job_dir, progress=None):
             f"{job_dir!r} was prepared from '{manifest.get('scene_name')}' in "
             f"{manifest.get('scene')!r}, not from this scene as it is now ('{scene.name}'): "
             "assemble into the scene the job was prepared from, or prepare the job again.")
-    job = bake.BakeJob(inputs)
-    job.result = stages.assemble(job_dir, progress)
-    job.state = bake.DONE
-    job.seconds = job.result.stats.get("total_seconds", 0.0)
-    return job.apply(scene)
+    result = stages.assemble(job_dir, progress)
+    return bake.apply_result(scene, inputs, result, result.stats.get("total_seconds", 0.0))
 
 
 def job_dir_of(blend_path):

@@ -4,9 +4,11 @@
               the paths, a segment's frames, assemble (bpy-free)
 ``store``     the job directory's files: plain arrays and a JSON tree, a manifest
 ``template``  the Open Job Description job template that runs the stages in order
-``cli``       ``python -m keyframe_implicit farm STAGE ...``
 ``flamenco``  the same job as a Flamenco job type (JavaScript)
 
 The Blender side of prepare and assemble, and the panel's Export Farm Job, are in
-``blender.farm``.
+``blender.farm``, which imports this package; the command line that runs each stage,
+``python -m keyframe_implicit farm STAGE ...``, is ``cli.farm``. Nothing here imports
+either: this package sits below the Blender side and the command line, beside the
+worker, whose ``python_path`` the template reads.
 """

@@ -1,6 +1,6 @@
 """The bake as an Open Job Description job template (``jobtemplate-2023-09``).
 
-Steps, each a command of this package's farm command line (`farm.cli`):
+Steps, each a command of this package's farm command line (`cli.farm`):
 
     Prepare -> Maps (a task per keyframe pair) -> Paths -> Segments (a task per segment)
     -> Assemble

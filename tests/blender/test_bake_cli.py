@@ -6,7 +6,8 @@ import sys
 
 import bpy
 
-from keyframe_implicit import __main__ as cli
+from keyframe_implicit.__main__ import main
+from keyframe_implicit.cli.bake import bake_file
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -17,7 +18,7 @@ def test_cli_bakes_a_saved_scene(scene, kfi, tmp_path):
     out = tmp_path / "baked.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(src))
     lines = []
-    cli.bake_file(str(src), str(out), kfi.RES, log=lines.append)
+    bake_file(str(src), str(out), kfi.RES, log=lines.append)
     assert out.is_file()
     assert any("baked 'KFI Animation': frames 1-4" in line for line in lines)
     bpy.ops.wm.open_mainfile(filepath=str(out))
@@ -29,18 +30,18 @@ def test_cli_bakes_a_saved_scene(scene, kfi, tmp_path):
 def test_cli_main_reports_setup_errors(scene, tmp_path, capsys):
     src = tmp_path / "empty.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(src))
-    assert cli.main(["bake", str(src), "--out", str(tmp_path / "o.blend")]) == 1
+    assert main(["bake", str(src), "--out", str(tmp_path / "o.blend")]) == 1
     err = capsys.readouterr().err
     assert "has no Keyframe Implicit setup" in err and "sidebar" in err
     assert not (tmp_path / "o.blend").exists()
 
 
 def test_cli_bad_paths_and_arguments_exit_nonzero(tmp_path, capsys):
-    assert cli.main(["bake", str(tmp_path / "nope.blend"), "--out", str(tmp_path / "o.blend")]) == 1
+    assert main(["bake", str(tmp_path / "nope.blend"), "--out", str(tmp_path / "o.blend")]) == 1
     assert "No such file" in capsys.readouterr().err
     src = tmp_path / "x.blend"
     src.write_bytes(b"")
-    assert cli.main(["bake", str(src), "--out", str(tmp_path / "missing" / "o.blend")]) == 1
+    assert main(["bake", str(src), "--out", str(tmp_path / "missing" / "o.blend")]) == 1
     assert "does not exist: create it first" in capsys.readouterr().err
 
 

@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 import pytest
 
-from keyframe_implicit import demo
+from keyframe_implicit.cli import demo
 
 
 def _read_png(path):

@@ -123,7 +123,7 @@ def test_pairs_solved_in_one_task_are_the_pairs_solved_one_by_one(job_copy):
 @pytest.mark.parametrize("text,pairs", [("2", [2]), ("1-3", [1, 2, 3]), ("1,3", [1, 3]),
                                         ("4-4", [4])])
 def test_pairs_are_read_as_open_job_description_writes_a_chunk(text, pairs):
-    from keyframe_implicit.farm.cli import _parser
+    from keyframe_implicit.cli.farm import _parser
 
     assert _parser().parse_args(["maps", "DIR", "--pair", text]).pair == pairs
 
@@ -161,7 +161,7 @@ def test_the_store_keeps_classes_keys_and_types_and_holds_no_pickle(tmp_path):
 
 
 def test_blender_stages_run_inside_the_blender_given(monkeypatch):
-    from keyframe_implicit.farm import cli
+    from keyframe_implicit.cli import farm as cli
 
     calls = []
     monkeypatch.setattr(cli.subprocess, "call", lambda argv: calls.append(argv) or 0)

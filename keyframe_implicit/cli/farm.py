@@ -10,6 +10,9 @@
 ``--blender PATH`` runs prepare or assemble inside that Blender (``blender -b``) instead
 of importing the bpy module. Exit status 0 on success, 1 when the stage fails (the
 message says why and what to do), 2 on bad arguments.
+
+The stages themselves are in `farm` (bpy-free) and, for prepare and assemble, in
+`blender.farm`.
 """
 
 from __future__ import annotations
@@ -18,6 +21,10 @@ import argparse
 import os
 import subprocess
 import sys
+
+from ..farm import stages, store
+from ..farm.template import TEMPLATE, write_template
+from . import check_paths, failure_line, open_file, percent_log, save_copy
 
 __all__ = ["main"]
 
@@ -72,8 +79,6 @@ def _pairs(text):
 
 
 def _log(prefix):
-    from ..__main__ import percent_log
-
     return percent_log(prefix, lambda line: print(line, flush=True))
 
 
@@ -87,13 +92,11 @@ def _in_blender(blender, argv):
 
 
 def _prepare(args):
-    from ..__main__ import check_paths
-    from ..blender import bake
     from ..blender.farm import prepare_scene
 
     check_paths(args.scene)
 
-    for scene, depsgraph in bake.open_file(args.scene):
+    for scene, depsgraph in open_file(args.scene):
         manifest = prepare_scene(scene, depsgraph, args.dir, args.scene, args.resolution,
                                  args.segments, _log("prepare"))
         print(f"prepared '{manifest['scene_name']}': {manifest['keyframes']} keyframes, "
@@ -102,18 +105,15 @@ def _prepare(args):
 
 
 def _assemble(args):
-    from ..__main__ import check_paths
-    from ..blender import bake
     from ..blender.farm import assemble_scene
-    from . import store
 
     manifest = store.read_manifest(args.dir)
     scene_path = args.scene or manifest["scene"]
     check_paths(scene_path, args.out)
-    for scene, depsgraph in bake.open_file(scene_path):
+    for scene, depsgraph in open_file(scene_path):
         if scene.name == manifest["scene_name"]:
             obj = assemble_scene(scene, depsgraph, args.dir, _log("assemble"))
-            bake.save_copy(args.out)
+            save_copy(args.out)
             print(f"assembled '{obj.name}' into {args.out}")
             return
     raise store.JobError(f"{scene_path!r} has no scene '{manifest['scene_name']}' with a "
@@ -121,17 +121,12 @@ def _assemble(args):
 
 
 def _template(args):
-    from . import store
-    from .template import TEMPLATE, write_template
-
     if args.scene:  # read the scene (as Bake checks it), nothing baked yet
-        from ..__main__ import check_paths
-        from ..blender import bake
         from ..blender.farm import export_job
 
         check_paths(args.scene)
 
-        for scene, depsgraph in bake.open_file(args.scene):
+        for scene, depsgraph in open_file(args.scene):
             export_job(scene, depsgraph, args.scene, job_dir=args.dir,
                        resolution=args.resolution)
             break
@@ -143,8 +138,6 @@ def _template(args):
 
 
 def _run(args):
-    from . import stages
-
     if args.stage == "prepare":
         _prepare(args)
     elif args.stage == "maps":
@@ -159,7 +152,7 @@ def _run(args):
         _template(args)
 
 
-def main(argv):
+def main(argv: list[str]) -> int:
     """Run one stage (module docstring); returns the exit status."""
     args = _parser().parse_args(argv)
     if getattr(args, "blender", ""):
@@ -171,8 +164,6 @@ def main(argv):
               "--blender PATH.", file=sys.stderr)
         return 1
     except Exception as exc:  # noqa: BLE001 - every failure becomes a message and exit 1
-        from ..__main__ import failure_line
-
         print(failure_line(f"farm {args.stage}", exc), file=sys.stderr)
         return 1
     return 0

@@ -32,7 +32,8 @@ import numpy as np
 SCENES = ("rigid", "merge", "bend", "splash", "suzanne")
 DEFAULT_SCENE = "merge"
 DEFAULT_RESOLUTION = 32
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: The checkout: the folder above this package, where assets/ lies.
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ASSETS = os.path.join(ROOT, "assets")
 
 KEY_BORDER = np.array([0.95, 0.55, 0.1, 1.0], dtype=np.float32)  # sRGB, keyframe tiles
@@ -80,9 +81,9 @@ def ensure_registered():
     import bpy
 
     if not hasattr(bpy.types.Scene, "keyframe_implicit"):
-        import keyframe_implicit
+        from .. import register
 
-        keyframe_implicit.register()
+        register()
 
 
 def open_scene(name):
