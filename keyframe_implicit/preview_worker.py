@@ -1,8 +1,9 @@
 """The live preview in a worker process: `core.bake.preview.Preview`, kept alive while the
 preview is on.
 
-Launched as the bake's worker is (`worker.Worker`: the same Python, ``-P -m``, the same
-``PYTHONPATH``, never bpy, pickles on its standard streams), for the same reasons: the
+Launched as the bake's worker is (`worker.start_process`: the same Python, ``-P -m``, the
+same ``PYTHONPATH``, never bpy, the bake's messages on its standard streams), for the same
+reasons: the
 core's numpy calls hold the GIL, and a crash must not take Blender with it; and at the
 same lower priority, so that Blender's main loop and drawing go first (at Blender's own
 priority it was not measurably faster beside a busy window: benchmarks/README.md, "Live
@@ -22,19 +23,16 @@ answers, each carrying the id of the request it answers):
 A solve or a stop cancels the work in flight (the core's ``cancel`` callable, checked
 between its steps); a frame cancels a frame in flight. Requests that arrive while the
 worker is busy coalesce: it takes the last solve, then the last frame. The worker leaves
-when stdin ends (the parent has gone or closed it).
+when stdin ends (the parent has gone or closed it: `wire.follow_parent`).
 """
 
-import os
 import pickle
 import queue
-import subprocess
-import sys
 import threading
 import traceback
 
-from .worker import (_BELOW_NORMAL, _NICENESS, ROOT, WORKER_ROOT, no_sigpipe, python_path,
-                     receive, send)
+from .core.base.wire import follow_parent, receive, send
+from .worker import ROOT, WORKER_ROOT, connect_parent, lower_priority, no_sigpipe, start_process
 
 __all__ = ["PreviewWorker"]
 
@@ -50,10 +48,7 @@ class PreviewWorker:
     """
 
     def __init__(self):
-        self.process = subprocess.Popen(
-            [sys.executable, "-P", "-m", f"{WORKER_ROOT}.preview_worker"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, creationflags=_BELOW_NORMAL,
-            env=dict(os.environ, PYTHONPATH=python_path()))
+        self.process, self._stream = start_process("preview_worker")
         self._answers, self._requests = queue.SimpleQueue(), queue.SimpleQueue()
         self._last_id = 0
         self._requests.put(ROOT)
@@ -68,7 +63,7 @@ class PreviewWorker:
                 return
             try:
                 with no_sigpipe():  # the worker may have just ended: never SIGPIPE in Blender
-                    send(self.process.stdin, message)
+                    send(self._stream, message)
             except (OSError, ValueError):  # the worker has ended: `answers` says so
                 return
 
@@ -93,7 +88,7 @@ class PreviewWorker:
     def _read(self):
         while True:
             try:
-                self._answers.put(receive(self.process.stdout, WORKER_ROOT))
+                self._answers.put(receive(self._stream, (WORKER_ROOT, ROOT)))
             except (EOFError, OSError, ValueError, pickle.UnpicklingError):
                 break
         self._answers.put(("ended", None, self.process.wait()))
@@ -128,33 +123,27 @@ class PreviewWorker:
 
 class _Requests:
     """The worker's side of stdin: a thread keeps the last solve and the last frame asked
-    for, and cancels the work in flight that a new request makes pointless."""
+    for, and cancels the work in flight that a new request makes pointless. When stdin
+    ends (the parent has gone) the worker ends, with nothing to answer."""
 
-    def __init__(self, stream, sender):
-        self._stream, self._sender = stream, sender
+    def __init__(self, parent, sender):
         self._ready = threading.Condition()
         self._solve = self._frame = None
         self._busy = None  # (kind, threading.Event) of the work in flight
-        self.ended = False
-        threading.Thread(target=self._read, daemon=True).start()
+        follow_parent(parent, self._take, rename=(sender, ROOT), code=0)
 
-    def _read(self):
-        while True:
-            try:
-                message = receive(self._stream, self._sender)
-            except (EOFError, OSError):
-                os._exit(0)  # the parent has gone: nothing to answer
-            with self._ready:
-                kind = message[0]
-                if kind == "solve":
-                    self._solve, self._frame = message, None
-                elif kind == "frame":
-                    self._frame = message
-                else:  # stop
-                    self._solve = self._frame = None
-                if self._busy is not None and (kind != "frame" or self._busy[0] == "frame"):
-                    self._busy[1].set()
-                self._ready.notify()
+    def _take(self, message):
+        with self._ready:
+            kind = message[0]
+            if kind == "solve":
+                self._solve, self._frame = message, None
+            elif kind == "frame":
+                self._frame = message
+            else:  # stop
+                self._solve = self._frame = None
+            if self._busy is not None and (kind != "frame" or self._busy[0] == "frame"):
+                self._busy[1].set()
+            self._ready.notify()
 
     def next(self):
         """The next request to work on (the last solve, else the last frame) and the event
@@ -172,13 +161,9 @@ class _Requests:
 
 def main():
     """The worker: answer requests (module docstring) until stdin ends."""
-    if hasattr(os, "nice"):
-        os.nice(_NICENESS)
-    answers = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # prints go to stderr, never into the answers
-    sys.stdout = sys.stderr
-    sender = pickle.load(sys.stdin.buffer)
-    requests = _Requests(sys.stdin.buffer, sender)
+    lower_priority()
+    parent, sender = connect_parent()
+    requests = _Requests(parent, sender)
     from .core.bake.preview import Preview
     from .core.base.progress import Cancelled
 
@@ -189,19 +174,19 @@ def main():
         try:
             if kind == "solve":
                 figures = preview.solve(**message[2], cancel=cancelled.is_set)
-                send(answers, ("solved", rid, figures))
+                send(parent, ("solved", rid, figures))
                 message = ("frame", rid, message[3])
             if cancelled.is_set():
                 continue
             mesh = preview.frame(message[2])
             if not cancelled.is_set():
-                send(answers, ("frame", rid, message[2]) + mesh)
+                send(parent, ("frame", rid, message[2]) + mesh)
         except Cancelled:
             continue
         except Exception as exc:  # every failure is the parent's to show
             if not isinstance(exc, ValueError):
                 traceback.print_exc()
-            send(answers, ("failed", rid, type(exc).__name__, str(exc),
+            send(parent, ("failed", rid, type(exc).__name__, str(exc),
                            isinstance(exc, ValueError)))
 
 

@@ -14,36 +14,39 @@ it never imports bpy. Its ``PYTHONPATH`` holds the folder above this package and
 numpy, scipy, scikit-image and threadpoolctl were found in (in Blender: the extension's
 unpacked wheels), ahead of the parent's own ``PYTHONPATH``.
 
-Protocol: pickles on the worker's standard streams.
+Protocol: the bake's messages (`core.base.wire`) on the worker's standard streams.
 
 - parent -> stdin: the sender's package name, then `animate`'s keyword arguments and,
   optionally, ``output_mode`` (the output setting: the worker then also makes the output's
   mesh, `Animation.output_mesh`, so Blender's main loop only copies it in). The worker
-  leaves as soon as stdin reaches its end (the parent has gone).
+  leaves as soon as stdin reaches its end (the parent has gone: `wire.follow_parent`).
 - worker -> stdout: ``("progress", fraction, message)`` any number of times, then
   ``("done", animation)`` or ``("failed", type name, text, is a ValueError)``. Whatever else
   the worker prints goes to stderr (the console), never into this stream.
 
 Pickles name this package's classes by the sender's package name (in an installed extension
 ``bl_ext.user_default.keyframe_implicit``, in the worker ``keyframe_implicit``); the receiver
-maps them onto its own (`receive`).
+maps them onto its own (`wire.receive`'s ``rename``).
+
+The live preview's worker (`preview_worker`) is started, lowered and connected the same
+way: `start_process`, `lower_priority`, `connect_parent`.
 """
 
 import contextlib
 import importlib.util
 import os
-import pickle
 import signal
 import site
 import subprocess
 import sys
-import threading
 import traceback
 
 from .core.base.parallel import Helper, cores
 from .core.base.progress import Cancelled
+from .core.base.wire import Stream, follow_parent, receive, send
 
-__all__ = ["Worker", "WorkerError"]
+__all__ = ["Worker", "WorkerError", "start_process", "lower_priority", "connect_parent",
+           "no_sigpipe", "python_path", "NICENESS"]
 
 #: This package's name here, and as the worker imports it (the name of its folder).
 ROOT = __package__
@@ -57,7 +60,7 @@ _PROCESSES = 2 if cores() >= 2 else 1
 #: on Windows the worker starts in the below-normal class): when the bake and Blender's main
 #: loop want the same cores, the main loop and its drawing go first. The worker's helper
 #: process inherits it.
-_NICENESS = 10
+NICENESS = 10
 _BELOW_NORMAL = getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0)  # 0: not Windows
 
 
@@ -65,23 +68,6 @@ class WorkerError(RuntimeError):
     """The worker process failed in a way the user cannot fix by changing the input: it
     crashed, ran out of memory, or the core raised something other than a ValueError.
     The text says what happened, at which stage, and what to try."""
-
-
-def send(stream, message):
-    """Write one message (any picklable object) and flush it."""
-    pickle.dump(message, stream, protocol=5)
-    stream.flush()
-
-
-class _Unpickler(pickle.Unpickler):
-    def __init__(self, stream, sender_root):
-        super().__init__(stream)
-        self._sender = sender_root
-
-    def find_class(self, module, name):
-        if module == self._sender or module.startswith(self._sender + "."):
-            module = ROOT + module[len(self._sender):]
-        return super().find_class(module, name)
 
 
 @contextlib.contextmanager
@@ -103,12 +89,6 @@ def no_sigpipe():
             signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-def receive(stream, sender_root):
-    """Read one message sent from a process whose copy of this package is ``sender_root``;
-    raises EOFError at the end of the stream."""
-    return _Unpickler(stream, sender_root).load()
-
-
 def python_path():
     """The worker's PYTHONPATH: the folder holding this package, then the folders numpy,
     scipy, scikit-image and threadpoolctl come from unless they are this Python's own
@@ -128,6 +108,39 @@ def python_path():
     return os.pathsep.join(dirs + [p for p in given if p and p not in dirs])
 
 
+def start_process(module: str) -> tuple[subprocess.Popen, Stream]:
+    """Start this package's ``module`` (``worker`` or ``preview_worker``) as a worker
+    process: the same Python, ``python -P -m`` (no working directory on its sys.path: it
+    could shadow any module) with `python_path`, at a lower priority on Windows (on POSIX
+    the worker lowers its own: `lower_priority`). Returns the process and the stream to it
+    (its stdin and stdout)."""
+    process = subprocess.Popen(
+        [sys.executable, "-P", "-m", f"{WORKER_ROOT}.{module}"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, creationflags=_BELOW_NORMAL,
+        env=dict(os.environ, PYTHONPATH=python_path()))
+    return process, Stream(process.stdout, process.stdin)
+
+
+def lower_priority() -> None:
+    """In a worker process: lower its scheduling priority by `NICENESS` (POSIX; a no-op
+    elsewhere, where `start_process` starts it below normal)."""
+    if hasattr(os, "nice"):
+        os.nice(NICENESS)
+
+
+def connect_parent() -> tuple[Stream, str]:
+    """In a worker process: the stream to the parent and the parent's package name (its
+    first message). Standard output is kept for the answers alone: whatever Python or a
+    library prints goes to stderr (the console), never into the stream. Both ends are
+    unbuffered files, so a thread that follows the parent (`wire.follow_parent`) holds no
+    buffer's lock when the interpreter exits."""
+    answers = open(os.dup(1), "wb", buffering=0)
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+    parent = Stream(open(0, "rb", buffering=0, closefd=False), answers)
+    return parent, receive(parent)  # a str: no class to rename
+
+
 class Worker:
     """One worker process running `core.bake.pipeline.animate` on ``arguments`` (started at once).
 
@@ -142,11 +155,7 @@ class Worker:
         self.arguments = arguments
         self.stage = "starting"  # the last progress message, named in failure messages
         self.cancelled = False
-        # -P: no working directory on the worker's sys.path (it could shadow any module)
-        self.process = subprocess.Popen(
-            [sys.executable, "-P", "-m", f"{WORKER_ROOT}.worker"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, creationflags=_BELOW_NORMAL,
-            env=dict(os.environ, PYTHONPATH=python_path()))
+        self.process, self._stream = start_process("worker")
 
     def cancel(self):
         """End the bake now (from any thread): the process is killed, `result` raises
@@ -186,15 +195,15 @@ class Worker:
     def _send_inputs(self):
         try:
             with no_sigpipe():
-                send(self.process.stdin, ROOT)
-                send(self.process.stdin, self.arguments)
+                send(self._stream, ROOT)
+                send(self._stream, self.arguments)
         except OSError:  # the worker ended early (killed, or it could not start): say why below
             pass
 
     def _messages(self):
         while True:
             try:
-                yield receive(self.process.stdout, WORKER_ROOT)
+                yield receive(self._stream, (WORKER_ROOT, ROOT))
             except EOFError:
                 return
 
@@ -232,17 +241,13 @@ def _signal_name(number):
 
 def main():
     """The worker: read the inputs from stdin, run `animate`, answer on stdout."""
-    if hasattr(os, "nice"):
-        os.nice(_NICENESS)
+    lower_priority()
     # the helper's interpreter loads while this one reads the inputs and imports the core
     # (named, not imported, here: `chain.HELPER_PRELOAD` would import the core first)
     helper = Helper((f"{__package__}.core.bake.chain",)) if _PROCESSES > 1 else None
-    answers = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # prints (Python's or a library's) go to stderr, never into the answers
-    sys.stdout = sys.stderr
-    sender = pickle.load(sys.stdin.buffer)  # a str: no class to map
-    arguments = receive(sys.stdin.buffer, sender)
-    threading.Thread(target=_leave_when_parent_gone, daemon=True).start()
+    parent, sender = connect_parent()
+    arguments = receive(parent, (sender, ROOT))
+    follow_parent(parent)  # a worker whose parent has gone stops at once, not bakes on
     from .core.bake import pipeline
     from .core.surface.meshdata import resolve_output
 
@@ -250,28 +255,19 @@ def main():
     try:
         try:
             result = pipeline.animate(**arguments, processes=_PROCESSES, helper=helper,
-                                      progress=lambda f, m: send(answers, ("progress", f, m)))
+                                      progress=lambda f, m: send(parent, ("progress", f, m)))
         finally:  # before the output mesh: the helper's memory goes with it
             if helper is not None:
                 helper.close()
         if mode is not None:  # the output's mesh, edges and all, made here, not in Blender
-            send(answers, ("progress", 1.0, "Preparing the output mesh"))
+            send(parent, ("progress", 1.0, "Preparing the output mesh"))
             result.output_mesh(resolve_output(mode, result.stats)[0])
     except Exception as exc:  # every failure is the parent's to report
         if not isinstance(exc, ValueError):
             traceback.print_exc()
-        send(answers, ("failed", type(exc).__name__, str(exc), isinstance(exc, ValueError)))
+        send(parent, ("failed", type(exc).__name__, str(exc), isinstance(exc, ValueError)))
         return
-    send(answers, ("done", result))
-
-
-def _leave_when_parent_gone():
-    """A worker whose parent has gone (its stdin ends) stops at once instead of baking on.
-    Reads the file descriptor, not ``sys.stdin``: a daemon thread blocked inside a buffered
-    file's lock would abort the interpreter's shutdown."""
-    while os.read(0, 4096):
-        pass
-    os._exit(1)
+    send(parent, ("done", result))
 
 
 if __name__ == "__main__":

@@ -247,4 +247,4 @@ def test_worker_and_its_helper_yield_the_cores_to_blender(scene, kfi):
     assert job.state == bake.DONE, job.error_message()
     # the worker, its helper on two cores (and multiprocessing's resource tracker)
     assert len(seen) >= worker._PROCESSES, seen
-    assert all(nice == min(mine + worker._NICENESS, 19) for nice in seen.values()), (mine, seen)
+    assert all(nice == min(mine + worker.NICENESS, 19) for nice in seen.values()), (mine, seen)

@@ -379,12 +379,12 @@ def test_the_helper_gets_its_frames_before_this_process_builds_its_trajectories(
 
 
 def test_arrays_cross_the_pipe_out_of_band_and_arrive_writable():
-    """`parallel.send` pickles only the arrays' shapes and types; each contiguous array's
+    """`wire.send` pickles only the arrays' shapes and types; each contiguous array's
     memory is a message of its own, read into the buffer the received array uses."""
     import multiprocessing
     import threading
 
-    from keyframe_implicit.core.base.parallel import receive, send
+    from keyframe_implicit.core.base.wire import receive, send
 
     mine, theirs = multiprocessing.Pipe()
     sent = []

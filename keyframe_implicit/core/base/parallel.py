@@ -6,20 +6,14 @@ the Gauss-Newton loop and of the frame loop (many mid-sized numpy calls) keeps
 one of them waiting for the other, and a two-core machine bakes at about one
 core's speed. `Helper` is one more interpreter of the same Python (started with
 ``spawn``, so it is the same on Linux, macOS and Windows) that runs one call at
-a time: its arguments and result travel pickled over a pipe.
-
-Arrays travel out of band (pickle protocol 5): the pickle holds their shapes and
-types, and each array's memory is written to the pipe from where it lies and read
-into the buffer the rebuilt array will use. A plain `Connection.send` pickles
-everything into one bytes object first, and `recv` reads one back before
-unpickling: a copy of all the arrays on each side, for as long as the transfer
-takes (1.3 GB for a 256-cell bake's in-betweens).
+a time: its arguments and result travel pickled over a pipe, their arrays out of band
+(`wire`: the message format every process of the bake speaks).
 
 Its first message says it has started (`Helper.ready`): work that this process can
 do itself goes to the helper only once it is up (`pipeline._distance_grids`).
 
-The helper dies with its parent: it watches a second pipe (a "lifeline") that
-only the parent holds, so a parent killed outright (a cancelled bake's worker)
+The helper dies with its parent: it follows a second pipe (a "lifeline", `wire.follow_parent`)
+that only the parent holds, so a parent killed outright (a cancelled bake's worker)
 takes its helper with it. `Helper.close` ends it at once, finished or not.
 
 While a bake runs, BLAS keeps to one thread in each process (`one_blas_thread`).
@@ -32,11 +26,12 @@ from __future__ import annotations
 import ctypes
 import multiprocessing
 import os
-import pickle
 import sys
 import threading
 import time
 from collections import deque
+
+from .wire import follow_parent, receive, send
 
 __all__ = ["Helper", "HelperError", "cores", "can_start_helper", "one_blas_thread",
            "release_memory", "share"]
@@ -282,29 +277,6 @@ class _Stop(Exception):
     """Ends the thread that feeds the helper (`share`) when this process stops."""
 
 
-def send(conn, obj):
-    """Send ``obj`` over a `multiprocessing` connection, its arrays' memory out of band:
-    the buffers' sizes, the pickle, then each buffer as it lies, each a message.
-    Pickling happens before anything is sent, so a failure leaves the pipe clean."""
-    buffers = []
-    head = pickle.dumps(obj, protocol=5, buffer_callback=buffers.append)
-    raw = [b.raw() for b in buffers]
-    conn.send_bytes(pickle.dumps([r.nbytes for r in raw]))
-    conn.send_bytes(head)
-    for r in raw:
-        conn.send_bytes(r)
-
-
-def receive(conn):
-    """The object `send` sent: each buffer read into a bytearray its array then uses."""
-    sizes = pickle.loads(conn.recv_bytes())
-    head = conn.recv_bytes()
-    buffers = [bytearray(n) for n in sizes]
-    for b in buffers:
-        conn.recv_bytes_into(b)
-    return pickle.loads(head, buffers=buffers)
-
-
 def _ended(code):
     what = f"was killed by signal {-code}" if code is not None and code < 0 else \
         f"exited with code {code}"
@@ -314,7 +286,7 @@ def _ended(code):
 
 def _serve(conn, lifeline, preload):
     """The helper's loop: answer each (fn, args, kwargs) with (True, value) or (False, exc)."""
-    threading.Thread(target=_leave_with_parent, args=(lifeline,), daemon=True).start()
+    follow_parent(lifeline)
     for name in preload:
         __import__(name)
     one_blas_thread()  # for the helper's life: it only ever runs a bake's half
@@ -344,12 +316,3 @@ class _Ready:
 
 def _reraise(exc):
     raise exc
-
-
-def _leave_with_parent(lifeline):
-    """Exit at once when the parent's end of the lifeline closes (the parent is gone)."""
-    try:
-        lifeline.recv()
-    except (EOFError, OSError):
-        pass
-    os._exit(1)
