@@ -7,7 +7,8 @@ Module map (operators and panels are thin; logic lives in plain functions):
 ``features``   feature-point pairs as Empties (create, pair, find, remove)
 ``scene_io``   scene -> `BakeInput`, the bake read once (meshes, points, facts)
 ``validate``   problems of a `BakeInput` (a setup), with what to do
-``bake``       `collect` (read, check), `BakeJob` (the core, cancel), `bake_scene`
+``bake``       `collect` (read, check), `BakeJob` (the core, cancel), `apply_result`
+               (a result into the scene), `bake_scene`
 ``output``     numpy -> mesh object with one shape key per frame
 ``fcurves``    F-curves on Blender 4.2 (Action.fcurves) and 4.4+ (slotted actions)
 ``materials``  shader nodes on Blender 4.x (``use_nodes``) and 5.0+ (always on)

@@ -8,4 +8,5 @@
 ``multigrid``  the block multigrid preconditioner of the Poisson solves
 ``progress``   progress reports and cancellation
 ``parallel``   the helper process, BLAS threads, memory given back
+``wire``       the messages between the bake's processes, and a child following its parent
 """
