@@ -3,13 +3,12 @@ preview is on.
 
 Launched as the bake's worker is (`worker.start_process`: the same Python, ``-P -m``, the
 same ``PYTHONPATH``, never bpy, the bake's messages on its standard streams), for the same
-reasons: the
-core's numpy calls hold the GIL, and a crash must not take Blender with it; and at the
-same lower priority, so that Blender's main loop and drawing go first (at Blender's own
-priority it was not measurably faster beside a busy window: benchmarks/README.md, "Live
-preview"). It stays
-alive between requests and keeps the solved in-betweens, so a frame change costs only that
-frame's transport, level set and marching cubes.
+reasons: the core's numpy calls hold the GIL, and a crash must not take Blender with it;
+and at the same lower priority, so that Blender's main loop and drawing go first (at
+Blender's own priority it was not measurably faster beside a busy window:
+benchmarks/README.md, "Live preview"). It stays alive between requests and keeps the
+solved in-betweens, so a frame change costs only that frame's transport, level set and
+marching cubes.
 
 Protocol (parent -> stdin: the sender's package name, then requests; worker -> stdout:
 answers, each carrying the id of the request it answers):
@@ -47,7 +46,7 @@ class PreviewWorker:
     ``("ended", None, exit code)``.
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.process, self._stream = start_process("preview_worker")
         self._answers, self._requests = queue.SimpleQueue(), queue.SimpleQueue()
         self._last_id = 0
@@ -159,7 +158,7 @@ class _Requests:
             return message, self._busy[1]
 
 
-def main():
+def main() -> None:
     """The worker: answer requests (module docstring) until stdin ends."""
     lower_priority()
     parent, sender = connect_parent()
@@ -187,7 +186,7 @@ def main():
             if not isinstance(exc, ValueError):
                 traceback.print_exc()
             send(parent, ("failed", rid, type(exc).__name__, str(exc),
-                           isinstance(exc, ValueError)))
+                          isinstance(exc, ValueError)))
 
 
 if __name__ == "__main__":

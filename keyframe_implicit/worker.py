@@ -151,7 +151,7 @@ class Worker:
         ``output_mode`` (see the protocol above).
     """
 
-    def __init__(self, arguments):
+    def __init__(self, arguments: dict) -> None:
         self.arguments = arguments
         self.stage = "starting"  # the last progress message, named in failure messages
         self.cancelled = False
@@ -239,7 +239,7 @@ def _signal_name(number):
         return f"signal {number}"
 
 
-def main():
+def main() -> None:
     """The worker: read the inputs from stdin, run `animate`, answer on stdout."""
     lower_priority()
     # the helper's interpreter loads while this one reads the inputs and imports the core
