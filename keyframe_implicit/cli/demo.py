@@ -76,7 +76,7 @@ def parse_args(argv):
 
 
 # --------------------------------------------------------------------------- scene
-def ensure_registered():
+def ensure_registered() -> None:
     """Register the add-on from this checkout (once per process)."""
     import bpy
 

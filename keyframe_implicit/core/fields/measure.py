@@ -7,9 +7,11 @@ keyframe by.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .mesh import check_vertices, clean_triangles, orient_faces, triangulate
 from .winding import WindingTree
@@ -60,12 +62,13 @@ class Surface:
     loose_reach: float = 0.0
 
     @property
-    def encloses_volume(self):
+    def encloses_volume(self) -> bool:
         """Whether the distance field finds an inside (`VOLUME_SHARE` of the faces' box)."""
         return self.triangles > 0 and self.volume > VOLUME_SHARE * self.extent ** 3
 
 
-def read_surface(vertices, faces):
+def read_surface(vertices: ArrayLike,
+                 faces: ArrayLike | Sequence[Sequence[int]]) -> Surface:
     """Measure a keyframe mesh as the bake reads it: faces only, cleaned and oriented.
 
     Parameters
