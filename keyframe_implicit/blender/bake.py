@@ -118,9 +118,10 @@ class BakeJob:
             self._worker = Worker(dict(self.arguments(), output_mode=self.inputs.output_mode))
         return self._worker.result(self._progress)
 
-    def run(self):
+    def run(self) -> str:
         """Bake in a worker process, waiting in the calling thread; sets state to DONE,
-        CANCELLED or FAILED."""
+        CANCELLED or FAILED (`error`: a refusal of the core as a ValueError with Blender's
+        menu paths, `validate.with_menu_paths`; any other failure as it was raised)."""
         self.state = RUNNING
         t0 = time.perf_counter()
         try:
@@ -131,7 +132,9 @@ class BakeJob:
             self.state = CANCELLED
         except Exception as exc:  # reported to the user by the caller
             self.result = None
-            self.error = exc
+            # a refusal of the core (ValueError) says what to fix: add where Blender does it
+            self.error = (ValueError(validate.with_menu_paths(str(exc)))
+                          if isinstance(exc, ValueError) else exc)
             self.state = FAILED
         finally:
             self.seconds = time.perf_counter() - t0
@@ -196,7 +199,7 @@ class BakeJob:
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
-        self.notes = list(stats.pop("notes", []))
+        self.notes = [validate.with_menu_paths(n) for n in stats.pop("notes", [])]
         stats.setdefault("seconds", self.seconds)
         stats["resolution"] = self.inputs.resolution
         settings = scene.keyframe_implicit

@@ -254,7 +254,7 @@ def _take(answer):
         state.shown.append((time.perf_counter(), frame))
         _redraw()
     elif kind == "failed":
-        state.message = f"Live preview: {answer[3]}"
+        state.message = f"Live preview: {validate.with_menu_paths(answer[3])}"
         state.mesh = state.drawn = None
         _redraw()
 

@@ -156,8 +156,9 @@ def test_failing_core_leaves_scene_unchanged(scene, kfi, in_worker):
     """)
     with pytest.raises(RuntimeError) as err:
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
-    # the core's own text, as the core wrote it, without a type name in front
-    assert "Error: Keyframe 1 is not a closed surface: close its holes." in str(err.value)
+    # the core's own text, without a type name in front, with where Blender does the fix
+    assert ("Error: Keyframe 1 is not a closed surface: close its holes (Mesh > Clean Up > "
+            "Fill Holes).") in str(err.value)
     assert "ValueError" not in str(err.value)
     assert kfi.snapshot() == state
 
