@@ -26,10 +26,12 @@ Background use (what the modal operator does)::
 import os
 import threading
 import time
+from collections.abc import Callable, Generator
 
 from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
 from . import output, scene_io, validate, volumes
+from .diagnostics import Diagnostics
 
 READY, RUNNING, DONE, CANCELLED, FAILED = "READY", "RUNNING", "DONE", "CANCELLED", "FAILED"
 
@@ -50,35 +52,28 @@ class BakeJob:
     inputs : scene_io.BakeInput
     on_progress : callable(job, fraction, message), optional
         Called after each progress report, from the thread that runs the job (`run`).
-    poll_step : float, optional
-        Seconds between the poller's turns when nothing holds it up (the modal operator's
-        timer step); 0 when nobody polls.
-
-    Attributes
-    ----------
-    max_poll_gap : float
-        The longest time, in seconds, between `start` or a `poll` call and the next `poll`
-        call while the bake ran: how long the polling main loop went without a turn (the
-        poller's own step included).
+    diagnostics : diagnostics.Diagnostics, optional
+        Measures the polling (`Diagnostics.max_poll_gap`: how long the polling main loop
+        went without a turn) for whoever asked; None measures nothing.
     """
 
-    def __init__(self, inputs, on_progress=None, poll_step=0.0):
+    def __init__(self, inputs: scene_io.BakeInput,
+                 on_progress: Callable[["BakeJob", float, str], None] | None = None,
+                 diagnostics: Diagnostics | None = None):
         self.inputs = inputs
         self.on_progress = on_progress
-        self.poll_step = poll_step
+        self.diagnostics = diagnostics
         self.state = READY
         self.fraction = 0.0
         self.message = "Waiting"
         self.result = None
         self.error = None
         self.seconds = 0.0
-        self.max_poll_gap = 0.0
         self.notes = []  # what the user should know about a successful bake (warnings)
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._thread = None
         self._worker = None
-        self._last_poll = None
 
     # -- cancellation (the path ESC uses) ---------------------------------
     def cancel(self):
@@ -140,11 +135,12 @@ class BakeJob:
             self.seconds = time.perf_counter() - t0
         return self.state
 
-    def start(self):
+    def start(self) -> None:
         """Run the job in a daemon thread (which mostly waits for the worker's messages)."""
         self._thread = threading.Thread(target=self.run, name="keyframe_implicit bake", daemon=True)
         self.state = RUNNING
-        self._last_poll = time.perf_counter()  # a stall right after the start counts too
+        if self.diagnostics is not None:  # a stall right after the start counts too
+            self.diagnostics.started()
         self._thread.start()
 
     @property
@@ -160,20 +156,13 @@ class BakeJob:
         if self._thread is not None:
             self._thread.join(timeout)
 
-    def poll(self):
+    def poll(self) -> bool:
         """What the main loop calls on each of its turns while the bake runs (the modal
-        operator's timer events): updates `max_poll_gap`; returns `finished`."""
-        now = time.perf_counter()
-        if self._last_poll is not None:
-            self.max_poll_gap = max(self.max_poll_gap, now - self._last_poll)
-        self._last_poll = now
+        operator's timer events): returns `finished` at once, never waiting for the job
+        (`Diagnostics.polled` counts the turn when diagnostics were asked for)."""
+        if self.diagnostics is not None:
+            self.diagnostics.polled()
         return self.finished
-
-    @property
-    def stall(self):
-        """The longest time, in seconds, the polling main loop was held up while the bake
-        ran: `max_poll_gap` beyond the poller's own step (``poll_step``)."""
-        return max(0.0, self.max_poll_gap - self.poll_step)
 
     def status(self):
         """(fraction, message) of the last progress report, safe from any thread."""
@@ -189,13 +178,13 @@ class BakeJob:
         """Write the result into ``scene`` (main thread); returns the output object."""
         return output.run_steps(self.apply_steps(scene))
 
-    def apply_steps(self, scene):
+    def apply_steps(self, scene: "bpy.types.Scene") -> Generator[None, None, "bpy.types.Object"]:
         """`apply` a piece at a time (`output.write_steps`): a generator that yields between
         pieces and returns the output object. The modal bake runs pieces until its budget
-        per turn of the main loop is spent and keeps polling (`poll`), so the object's
-        ``kfi_main_loop_stall`` counts the writing too. Closed half way (the close reaches
-        the writer, which removes what it made), it leaves the scene as it was (OpenVDB
-        files already written stay on disk)."""
+        per turn of the main loop is spent and keeps polling (`poll`), so a measured poll
+        gap counts the writing too. Closed half way (the close reaches the writer, which
+        removes what it made), it leaves the scene as it was (OpenVDB files already written
+        stay on disk)."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         stats = dict(getattr(self.result, "stats", {}) or {})
@@ -207,8 +196,6 @@ class BakeJob:
         obj = yield from output.write_steps(scene, settings, self.result, stats=stats,
                                             notes=self.notes,
                                             material_names=self.inputs.material_names)
-        if self.poll_step:  # polled by a main loop (a blocking bake is not)
-            obj["kfi_main_loop_stall"] = self.stall
         if paths:
             vol = volumes.add_volume_object(obj, paths, int(self.result.frames[0]))
             obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "
