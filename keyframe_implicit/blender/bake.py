@@ -184,17 +184,15 @@ class BakeJob:
         per turn of the main loop is spent and keeps polling (`poll`), so a measured poll
         gap counts the writing too. Closed half way (the close reaches the writer, which
         removes what it made), it leaves the scene as it was (OpenVDB files already written
-        stay on disk)."""
+        stay on disk). The core's notes become `notes`, with Blender's menu paths."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
-        stats = dict(getattr(self.result, "stats", {}) or {})
-        self.notes = [validate.with_menu_paths(n) for n in stats.pop("notes", [])]
-        stats.setdefault("seconds", self.seconds)
-        stats["resolution"] = self.inputs.resolution
+        notes = (getattr(self.result, "stats", {}) or {}).get("notes", [])
+        self.notes = [validate.with_menu_paths(n) for n in notes]
         settings = scene.keyframe_implicit
         paths = volumes.write_result(settings, self.result) if self.inputs.levelsets else []
-        obj = yield from output.write_steps(scene, settings, self.result, stats=stats,
-                                            notes=self.notes,
+        obj = yield from output.write_steps(scene, settings, self.result,
+                                            resolution=self.inputs.resolution, notes=self.notes,
                                             material_names=self.inputs.material_names)
         if paths:
             vol = volumes.add_volume_object(obj, paths, int(self.result.frames[0]))

@@ -41,7 +41,7 @@ def test_two_keyframes_bake_matches_keyframes_and_keeps_volume(scene, kfi):
     # keyframes untouched
     assert {o.name: kfi.mesh_hash(o.data) for o in objs} == before
 
-    h = out["kfi_spacing"]
+    h = out["kfi_stats"]["spacing"]
     vols = []
     for f in frames:
         scene.frame_set(f)
@@ -73,7 +73,7 @@ def test_three_keyframes_bake_into_one_object(scene, kfi):
     assert len(bpy.data.objects) == n_objects + 1
     out = scene.keyframe_implicit.output_object
     assert len(out.data.shape_keys.key_blocks) - 1 == 7
-    h = out["kfi_spacing"]
+    h = out["kfi_stats"]["spacing"]
     for name, center, radius, frame in specs:
         scene.frame_set(frame)
         assert _active_keys(out) == [output.frame_key_name(frame)]
