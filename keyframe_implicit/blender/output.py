@@ -45,7 +45,8 @@ frame range), its kind (``kfi_output_kind``), the report the panel shows
 on (`STATS`, the Figures' first line, `grid_line`). Nothing else: no timings, no counts.
 """
 
-from collections.abc import Generator
+from collections.abc import Generator, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import bpy
 import numpy as np
@@ -53,6 +54,9 @@ import numpy as np
 from ..core.surface.meshdata import FRAME_ATTRIBUTE, MESH_SEQUENCE, SHAPE_KEYS, resolve_output
 from ..core.surface.quality import describe_worst, worst_frame
 from . import fcurves, features
+
+if TYPE_CHECKING:
+    from ..core.bake.animation import Animation
 
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
@@ -285,7 +289,7 @@ def report_details(kind, frames, stats):
     return lines
 
 
-def grid_figures(animation, resolution: int = 0) -> dict:
+def grid_figures(animation: "Animation", resolution: int = 0) -> dict:
     """The figures `STATS` keeps of ``animation``'s bake: its ``resolution`` (when given),
     its motion grid's resolution (when it had one) and its grid ``spacing``."""
     figures = {"resolution": int(resolution)} if resolution else {}
@@ -298,7 +302,7 @@ def grid_figures(animation, resolution: int = 0) -> dict:
     return figures
 
 
-def grid_line(figures) -> str:
+def grid_line(figures: Mapping) -> str:
     """The Figures' first line: the grids of the bake (`STATS`), whose cell is the unit of
     the distances below it ("Grid: resolution 48, a cell 0.0521 across; motion grid
     resolution 32")."""
@@ -380,8 +384,10 @@ def retire_output(scene, settings, old):
             f"'{old.name}' instead of being replaced.")
 
 
-def write_animation(scene, settings, animation, *, resolution: int = 0, material_names=(),
-                    notes: list | None = None) -> bpy.types.Object:
+def write_animation(scene: bpy.types.Scene, settings: bpy.types.PropertyGroup,
+                    animation: "Animation", *, resolution: int = 0,
+                    material_names: Sequence[str] = (), notes: list | None = None,
+                    ) -> bpy.types.Object:
     """Create the output object for ``animation`` and make it the setup's output.
 
     The output is shape keys or a mesh sequence (`resolve_output` with
@@ -409,8 +415,10 @@ def run_steps(steps):
             return done.value
 
 
-def write_steps(scene, settings, animation, *, resolution: int = 0, material_names=(),
-                notes: list | None = None) -> Generator[None, None, bpy.types.Object]:
+def write_steps(scene: bpy.types.Scene, settings: bpy.types.PropertyGroup,
+                animation: "Animation", *, resolution: int = 0,
+                material_names: Sequence[str] = (), notes: list | None = None,
+                ) -> Generator[None, None, bpy.types.Object]:
     """`write_animation` as a generator: it yields after each piece of work (a few copies
     into the mesh, a batch of shape keys, the object) and returns the new object, so the
     modal bake writes a large result over several turns of the main loop. Closed before

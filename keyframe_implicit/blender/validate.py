@@ -23,6 +23,7 @@ core's messages number them; repeated problems of one kind are one line with a c
 from dataclasses import dataclass
 
 from ..core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, THICKEN, no_volume_words
+from ..core.fields.mesh import Surface
 from . import scene_io
 
 ERROR = "ERROR"
@@ -229,7 +230,7 @@ def _off_keyframe(seg, number, parent, empties, listed):
             f"'{listed[number - 1].name}' (Ctrl+P > Keep Transform).")
 
 
-def surface_problems(surface, modified=False):
+def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str, str]]:
     """``(level, message)`` of each problem of a keyframe's surface (none when it is sound).
 
     Parameters
