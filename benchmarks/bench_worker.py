@@ -4,7 +4,7 @@ Two unit spheres 1.5 apart on frames 1 and 7, baked at each resolution given (de
 
 - ``process``: `BakeJob` (the worker process), polled by a loop that, like the modal
   operator's timer, calls ``job.poll()`` every 20 ms: seconds and the longest gap between
-  two polls (``max_poll_gap``; 20 ms is no stall at all);
+  two polls (`Diagnostics.max_poll_gap`; 20 ms is no stall at all);
 - ``thread``: the same poll loop while `pipeline.animate` runs in a thread of this process
   (how the bake ran before the worker process);
 - ``in-process``: `pipeline.animate` alone: the worker's overhead is ``process`` minus this;
@@ -20,6 +20,7 @@ import bpy
 
 import keyframe_implicit
 from keyframe_implicit.blender import bake
+from keyframe_implicit.blender.diagnostics import Diagnostics
 from keyframe_implicit.core.bake import pipeline
 
 POLL = 0.02
@@ -45,14 +46,16 @@ class InThreadJob(bake.BakeJob):
         return pipeline.animate(**self._arguments(), progress=self._progress)
 
 
-def polled(job):
-    """Run ``job`` under a 20 ms poll loop; (seconds, longest gap between polls)."""
+def polled(kind, inputs):
+    """Run a ``kind`` job of ``inputs`` under a 20 ms poll loop; (seconds, longest gap
+    between polls)."""
+    job = kind(inputs, diagnostics=Diagnostics())
     t0 = time.perf_counter()
     job.start()
     while not job.poll():
         time.sleep(POLL)
     assert job.state == bake.DONE, job.error_message()
-    return time.perf_counter() - t0, job.max_poll_gap
+    return time.perf_counter() - t0, job.diagnostics.max_poll_gap
 
 
 def cancel_latency(inputs, stage):
@@ -76,7 +79,7 @@ def main(resolutions):
     for res in resolutions:
         inputs = bake.collect(scene, bpy.context.evaluated_depsgraph_get(), res)
         for mode, kind in (("process", bake.BakeJob), ("thread", InThreadJob)):
-            seconds, gap = polled(kind(inputs))
+            seconds, gap = polled(kind, inputs)
             print(f"{res:>4} {mode:<10} {seconds:8.2f} {gap * 1000:25.0f} ms", flush=True)
         t0 = time.perf_counter()
         pipeline.animate(**bake.BakeJob(inputs)._arguments())

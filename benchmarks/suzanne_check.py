@@ -190,7 +190,7 @@ def report(renders=None, resolution=40):
         scene = bpy.context.scene
         a, b = build(scene, resolution)
         obj = bake(scene, mode)
-        h = obj["kfi_spacing"]
+        h = obj["kfi_stats"]["spacing"]
         src = {FRAMES[0]: evaluated(a, FRAMES[0]), FRAMES[1]: evaluated(b, FRAMES[1])}
         first, last = evaluated(obj, FRAMES[0]), evaluated(obj, FRAMES[1])
         exact_a = len(first["co"]) == len(src[FRAMES[0]]["co"]) and \

@@ -16,8 +16,9 @@ of its first segment, turn the Live Preview on and wait for its first frame; the
   time from the key to that frame's preview on screen.
 
 Throughout, a `bpy.app.timers` callback asking for a call every `TICK` seconds records the
-main loop's turns: the longest gap is Blender's whole (its drawing included), and
-``preview.state.longest`` is the longest call of the preview's own code. OUTDIR receives
+main loop's turns: the longest gap is Blender's whole (its drawing included); the preview
+records into a `Diagnostics` set as the add-on's ``diagnostics.current`` when each solve and
+frame went out and came back, and ``longest``, the longest call of its own code. OUTDIR receives
 ``preview_<scene>_{on,dragged,scrubbed}.png`` (the display grabbed with ``xwd``). Blender
 quits when done, exit code 1 on any error.
 """
@@ -95,17 +96,16 @@ def screen_point(obj):
     return int(win.x + main.x + p.x), int(win.height - (main.y + p.y))
 
 
-def on_screen(pv, rec, after):
+def on_screen(diag, rec, after):
     """Steps: until the preview holds a frame answered after ``after`` and the 3D view has
     redrawn since; returns (answer's time, redraw's time)."""
-    state = pv.state
-    yield from wait_for(lambda: any(t > after for t, _ in state.shown), "preview answer")
-    shown = next(t for t, _ in state.shown if t > after)
+    yield from wait_for(lambda: any(t > after for t, _ in diag.shown), "preview answer")
+    shown = next(t for t, _ in diag.shown if t > after)
     yield from wait_for(lambda: rec.drawn_after(shown) is not None, "redraw")
     return shown, rec.drawn_after(shown)
 
 
-def drag(pv, rec, empty, direction):
+def drag(pv, diag, rec, empty, direction):
     """Steps: one G-move of ``empty`` with real input events; returns the figures."""
     x, y = screen_point(empty)
     xdotool("mousemove", x, y).wait()
@@ -116,26 +116,26 @@ def drag(pv, rec, empty, direction):
         xdotool("mousemove_relative", "--", direction * STEP_PIXELS, 0)
         yield 0.03
     yield 0.1
-    before = len(pv.state.solves)
+    before = len(diag.solves)
     release = time.perf_counter()
     xdotool("click", "1")
-    yield from wait_for(lambda: len(pv.state.solves) > before, "solve after the release")
-    sent = pv.state.solves[before]
-    shown, drawn = yield from on_screen(pv, rec, sent)
+    yield from wait_for(lambda: len(diag.solves) > before, "solve after the release")
+    sent = diag.solves[before]
+    shown, drawn = yield from on_screen(diag, rec, sent)
     return dict(latency=drawn - release, sent=sent - release, answered=shown - sent,
                 drawn=drawn - shown, figures=dict(pv.state.figures))
 
 
-def scrub(pv, rec, scene):
+def scrub(diag, rec, scene):
     """Steps: one Right arrow (next frame); returns the seconds to that frame on screen."""
     frame = scene.frame_current + 1
     start = time.perf_counter()
     xdotool("key", "Right")
-    yield from wait_for(lambda: any(t > start and f == frame for t, f in pv.state.shown),
+    yield from wait_for(lambda: any(t > start and f == frame for t, f in diag.shown),
                         f"frame {frame}")
-    shown = next(t for t, f in pv.state.shown if t > start and f == frame)
+    shown = next(t for t, f in diag.shown if t > start and f == frame)
     yield from wait_for(lambda: rec.drawn_after(shown) is not None, "redraw")
-    asked = next((t for t in pv.state.frames if t > start), shown)
+    asked = next((t for t in diag.frames if t > start), shown)
     return dict(latency=rec.drawn_after(shown) - start, asked=asked - start,
                 answered=shown - asked, drawn=rec.drawn_after(shown) - shown)
 
@@ -145,6 +145,8 @@ def scene_steps(path, shots):
     yield from open_scene(path)
     yield 1.0
     pv = addon_module("blender.preview")
+    measured = addon_module("blender.diagnostics")
+    diag = measured.current = measured.Diagnostics()
     scene = bpy.context.scene
     settings = scene.keyframe_implicit
     frames = [kf.frame for kf in settings.keyframes]
@@ -158,26 +160,27 @@ def scene_steps(path, shots):
     load = os.getloadavg()
     t_on = time.perf_counter()
     settings.live_preview = True
-    shown, drawn = yield from on_screen(pv, rec, t_on)
+    shown, drawn = yield from on_screen(diag, rec, t_on)
     first = drawn - t_on
     yield 1.0
     grab(f"preview_{name}_on", shots)
     yield 1.0
     drags = []
     for i in range(DRAGS):
-        drags.append((yield from drag(pv, rec, empty, 1 if i % 2 == 0 else -1)))
+        drags.append((yield from drag(pv, diag, rec, empty, 1 if i % 2 == 0 else -1)))
         yield 0.5
     grab(f"preview_{name}_dragged", shots)
     yield 1.0
     scrubs = []
     for _ in range(SCRUBS):
-        scrubs.append((yield from scrub(pv, rec, scene)))
+        scrubs.append((yield from scrub(diag, rec, scene)))
         yield 0.3
     grab(f"preview_{name}_scrubbed", shots)
     yield 1.0
-    longest, longest_in, cpu = pv.state.longest, pv.state.longest_in, pv.state.longest_cpu
+    longest, longest_in, cpu = diag.longest, diag.longest_in, diag.longest_cpu
     gap = rec.longest_gap(t_on)
     settings.live_preview = False
+    measured.current = None
     rec.stop()
     lat = np.array([d["latency"] for d in drags])
     f = drags[-1]["figures"]

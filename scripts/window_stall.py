@@ -20,8 +20,8 @@ median and 99th percentile, and the gaps over 50 ms of stall; for ``running``, t
 gaps with the bake's stage at their start and the 3D view's drawing inside them, the gaps
 without 3D view drawing split by whether the sidebar was drawn in them (a new progress
 text redraws it: Blender's drawing, not the bake's work) and when the 3D view drew; and the
-modal operator's own figure (the job's ``max_poll_gap`` beyond its timer step, which the
-output object keeps as ``kfi_main_loop_stall``). OUTDIR receives ``window_baking_<res>.png``,
+modal operator's own figure (the longest gap between its polls beyond its timer step, from
+the `Diagnostics` this script sets as the add-on's ``diagnostics.current``). OUTDIR receives ``window_baking_<res>.png``,
 the window grabbed (by ``xwd`` in a process of its own) half-way through each bake; the gap
 around that grab is left out of ``running``. Blender quits when done, with exit code 1 on
 any error.
@@ -126,8 +126,11 @@ def reference(rec, name, redraw=False):
 
 
 def bake(rec, res):
-    """Steps: one modal bake at ``res``, recorded; returns the job (via StopIteration)."""
+    """Steps: one modal bake at ``res``, recorded, its polling measured (the job's
+    ``diagnostics``); returns the job (via StopIteration)."""
     ops = addon_module("blender.ops")
+    measured = addon_module("blender.diagnostics")
+    diag = measured.current = measured.Diagnostics()
     win, area, _, main = view3d()
     settings = bpy.context.scene.keyframe_implicit
     settings.resolution = res or settings.resolution
@@ -145,6 +148,7 @@ def bake(rec, res):
     with bpy.context.temp_override(window=win, area=area, region=main):
         assert bpy.ops.keyframe_implicit.bake("INVOKE_DEFAULT") == {"RUNNING_MODAL"}
     marks["invoked"] = time.perf_counter()
+    measured.current = None  # the job keeps it
     rec.label = label
     job = ops.running[0]
     grab, shot = None, os.path.join(OUT, f"window_baking_{settings.resolution}.xwd")
@@ -165,7 +169,6 @@ def bake(rec, res):
 
 
 def report(rec, job, marks, load):
-    out = bpy.context.scene.keyframe_implicit.output_object
     grab = (marks.get("grab", 0.0), marks.get("grabbed", 0.0))
     first = next(t for t in rec.times if t > marks["invoked"])
     end = max(t for t, lab in zip(rec.times, rec.labels) if lab != "after" and t > first)
@@ -205,10 +208,9 @@ def report(rec, job, marks, load):
               f"{np.median([d for _, d in draws]) * 1000:.0f} ms median, "
               f"{max(d for _, d in draws) * 1000:.0f} ms longest; at (s after the invoke) "
               + ", ".join(f"{s - marks['invoke']:.2f}" for s, _ in draws))
-    kept = out.get("kfi_main_loop_stall") if out is not None else None
-    print(f"  modal operator: timer step {job.poll_step * 1000:.0f} ms, longest gap between its polls "
-          f"{job.max_poll_gap * 1000:.0f} ms, stall {job.stall * 1000:.0f} ms"
-          + (f" (kfi_main_loop_stall {kept * 1000:.0f} ms)" if kept is not None else ""), flush=True)
+    step, gap = addon_module("blender.ops").TIMER_STEP, job.diagnostics.max_poll_gap
+    print(f"  modal operator: timer step {step * 1000:.0f} ms, longest gap between its polls "
+          f"{gap * 1000:.0f} ms, stall {max(0.0, gap - step) * 1000:.0f} ms", flush=True)
 
 
 def steps():

@@ -28,12 +28,13 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING
 
 from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
 from . import output, scene_io, validate, volumes
+from .diagnostics import Diagnostics
 
 if TYPE_CHECKING:  # read by type checkers only
     import bpy
@@ -59,35 +60,28 @@ class BakeJob:
     inputs : scene_io.BakeInput
     on_progress : callable(job, fraction, message), optional
         Called after each progress report, from the thread that runs the job (`run`).
-    poll_step : float, optional
-        Seconds between the poller's turns when nothing holds it up (the modal operator's
-        timer step); 0 when nobody polls.
-
-    Attributes
-    ----------
-    max_poll_gap : float
-        The longest time, in seconds, between `start` or a `poll` call and the next `poll`
-        call while the bake ran: how long the polling main loop went without a turn (the
-        poller's own step included).
+    diagnostics : diagnostics.Diagnostics, optional
+        Measures the polling (`Diagnostics.max_poll_gap`: how long the polling main loop
+        went without a turn) for whoever asked; None measures nothing.
     """
 
-    def __init__(self, inputs, on_progress=None, poll_step=0.0):
+    def __init__(self, inputs: scene_io.BakeInput,
+                 on_progress: Callable[["BakeJob", float, str], None] | None = None,
+                 diagnostics: Diagnostics | None = None):
         self.inputs = inputs
         self.on_progress = on_progress
-        self.poll_step = poll_step
+        self.diagnostics = diagnostics
         self.state = READY
         self.fraction = 0.0
         self.message = "Waiting"
         self.result = None
         self.error = None
         self.seconds = 0.0
-        self.max_poll_gap = 0.0
         self.notes = []  # what the user should know about a successful bake (warnings)
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._thread = None
         self._worker = None
-        self._last_poll = None
 
     # -- cancellation (the path ESC uses) ---------------------------------
     def cancel(self):
@@ -127,9 +121,10 @@ class BakeJob:
             self._worker = Worker(dict(self.arguments(), output_mode=self.inputs.output_mode))
         return self._worker.result(self._progress)
 
-    def run(self):
+    def run(self) -> str:
         """Bake in a worker process, waiting in the calling thread; sets state to DONE,
-        CANCELLED or FAILED."""
+        CANCELLED or FAILED (`error`: a refusal of the core as a ValueError with Blender's
+        menu paths, `validate.with_menu_paths`; any other failure as it was raised)."""
         self.state = RUNNING
         t0 = time.perf_counter()
         try:
@@ -140,17 +135,20 @@ class BakeJob:
             self.state = CANCELLED
         except Exception as exc:  # reported to the user by the caller
             self.result = None
-            self.error = exc
+            # a refusal of the core (ValueError) says what to fix: add where Blender does it
+            self.error = (ValueError(validate.with_menu_paths(str(exc)))
+                          if isinstance(exc, ValueError) else exc)
             self.state = FAILED
         finally:
             self.seconds = time.perf_counter() - t0
         return self.state
 
-    def start(self):
+    def start(self) -> None:
         """Run the job in a daemon thread (which mostly waits for the worker's messages)."""
         self._thread = threading.Thread(target=self.run, name="keyframe_implicit bake", daemon=True)
         self.state = RUNNING
-        self._last_poll = time.perf_counter()  # a stall right after the start counts too
+        if self.diagnostics is not None:  # a stall right after the start counts too
+            self.diagnostics.started()
         self._thread.start()
 
     @property
@@ -166,20 +164,13 @@ class BakeJob:
         if self._thread is not None:
             self._thread.join(timeout)
 
-    def poll(self):
+    def poll(self) -> bool:
         """What the main loop calls on each of its turns while the bake runs (the modal
-        operator's timer events): updates `max_poll_gap`; returns `finished`."""
-        now = time.perf_counter()
-        if self._last_poll is not None:
-            self.max_poll_gap = max(self.max_poll_gap, now - self._last_poll)
-        self._last_poll = now
+        operator's timer events): returns `finished` at once, never waiting for the job
+        (`Diagnostics.polled` counts the turn when diagnostics were asked for)."""
+        if self.diagnostics is not None:
+            self.diagnostics.polled()
         return self.finished
-
-    @property
-    def stall(self):
-        """The longest time, in seconds, the polling main loop was held up while the bake
-        ran: `max_poll_gap` beyond the poller's own step (``poll_step``)."""
-        return max(0.0, self.max_poll_gap - self.poll_step)
 
     def status(self):
         """(fraction, message) of the last progress report, safe from any thread."""
@@ -198,20 +189,18 @@ class BakeJob:
     def apply_steps(self, scene: bpy.types.Scene) -> Generator[None, None, bpy.types.Object]:
         """`apply` a piece at a time (`apply_result_steps`): a generator that yields between
         pieces and returns the output object. The modal bake runs pieces until its budget
-        per turn of the main loop is spent and keeps polling (`poll`), so the object's
-        ``kfi_main_loop_stall`` counts the writing too."""
+        per turn of the main loop is spent and keeps polling (`poll`), so a measured poll
+        gap counts the writing too. The core's notes become `notes`, with Blender's menu
+        paths."""
         if self.state != DONE:
             raise RuntimeError(f"Nothing to apply: the bake is {self.state.lower()}.")
         self.notes = []
-        obj = yield from apply_result_steps(scene, self.inputs, self.result, self.seconds,
-                                            self.notes)
-        if self.poll_step:  # polled by a main loop (a blocking bake is not)
-            obj["kfi_main_loop_stall"] = self.stall
+        obj = yield from apply_result_steps(scene, self.inputs, self.result, self.notes)
         return obj
 
 
 def apply_result(scene: bpy.types.Scene, inputs: scene_io.BakeInput, result: Animation,
-                 seconds: float, notes: list[str] | None = None) -> bpy.types.Object:
+                 notes: list[str] | None = None) -> bpy.types.Object:
     """Write a finished bake into ``scene`` (main thread); returns the output object.
 
     Parameters
@@ -221,31 +210,27 @@ def apply_result(scene: bpy.types.Scene, inputs: scene_io.BakeInput, result: Ani
         What was baked (its output settings, resolution and materials).
     result : core.bake.animation.Animation
         The bake's result: a `BakeJob`'s, or the farm's stages' (`blender.farm`).
-    seconds : float
-        How long the bake took, kept in the object's figures unless the result has its own.
     notes : list, optional
-        Receives what the user should know about the result (warnings): the bake's own and
-        the writer's.
+        Receives what the user should know about the result (warnings): the bake's own,
+        with Blender's menu paths (`validate.with_menu_paths`), and the writer's.
     """
-    return output.run_steps(apply_result_steps(scene, inputs, result, seconds, notes))
+    return output.run_steps(apply_result_steps(scene, inputs, result, notes))
 
 
 def apply_result_steps(scene: bpy.types.Scene, inputs: scene_io.BakeInput, result: Animation,
-                       seconds: float, notes: list[str] | None = None
+                       notes: list[str] | None = None
                        ) -> Generator[None, None, bpy.types.Object]:
     """`apply_result` a piece at a time (`output.write_steps`): a generator that yields
     between pieces and returns the output object. Closed half way (the close reaches the
     writer, which removes what it made), it leaves the scene as it was (OpenVDB files
     already written stay on disk)."""
     notes = [] if notes is None else notes
-    stats = dict(getattr(result, "stats", {}) or {})
-    notes.extend(stats.pop("notes", []))
-    stats.setdefault("seconds", seconds)
-    stats["resolution"] = inputs.resolution
+    stats = getattr(result, "stats", {}) or {}
+    notes.extend(validate.with_menu_paths(n) for n in stats.get("notes", []))
     settings = scene.keyframe_implicit
     paths = volumes.write_result(settings, result) if inputs.levelsets else []
-    obj = yield from output.write_steps(scene, settings, result, stats=stats, notes=notes,
-                                        material_names=inputs.material_names)
+    obj = yield from output.write_steps(scene, settings, result, resolution=inputs.resolution,
+                                        notes=notes, material_names=inputs.material_names)
     if paths:
         vol = volumes.add_volume_object(obj, paths, int(result.frames[0]))
         obj["kfi_report"] += (f" OpenVDB volume '{vol.name}': {len(paths)} files in "

@@ -61,7 +61,7 @@ def assemble_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None
             f"{manifest.get('scene')!r}, not from this scene as it is now ('{scene.name}'): "
             "assemble into the scene the job was prepared from, or prepare the job again.")
     result = stages.assemble(job_dir, progress)
-    return bake.apply_result(scene, inputs, result, result.stats.get("total_seconds", 0.0))
+    return bake.apply_result(scene, inputs, result)
 
 
 def job_dir_of(blend_path):

@@ -7,7 +7,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, features, preview, result_view, validate
+from . import bake, diagnostics, features, preview, result_view, validate
 
 _OPTS = {"REGISTER", "UNDO"}
 # Redo-panel ("Adjust Last Operation") hygiene: a property the panel fills in itself is not
@@ -289,8 +289,9 @@ def menu_func(self, context):
 #: The BakeJob of the modal bake in progress (at most one): the panel shows its progress.
 running = []
 # Seconds between the modal bake's polls of its job. A poll costs next to nothing (nothing
-# is redrawn unless the progress text changed), and a short step keeps its stall figure
-# (`BakeJob.stall`: the longest gap between polls beyond this step) within 20 ms of the truth.
+# is redrawn unless the progress text changed), and a short step keeps a measured stall (the
+# longest gap between polls beyond this step, `Diagnostics.max_poll_gap`) within 20 ms of the
+# truth.
 TIMER_STEP = 0.02
 # Seconds of writing the result per turn of the main loop: pieces of `BakeJob.apply_steps` run
 # until this is spent. Every turn that changes data redraws the 3D view (110-200 ms with
@@ -361,7 +362,8 @@ class KFI_OT_bake(bpy.types.Operator):
 
     def invoke(self, context, event):
         """From the UI: read and check the scene once (`bake.collect`), then bake in the
-        background while the modal handler polls (ESC cancels)."""
+        background while the modal handler polls (ESC cancels; `diagnostics.current`, when
+        set, measures the polling)."""
         if context.window is None:
             return self.execute(context)
         preview.turn_off(context.scene)
@@ -370,7 +372,7 @@ class KFI_OT_bake(bpy.types.Operator):
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self._job = bake.BakeJob(inputs, poll_step=TIMER_STEP)
+        self._job = bake.BakeJob(inputs, diagnostics=diagnostics.current)
         running.append(self._job)
         self._job.start()
         wm = context.window_manager

@@ -37,7 +37,16 @@ writes with ``foreach_set``); F-curves go through `fcurves`. `write_steps`
 does the writing a piece at a time, so the modal bake gives the main loop a
 turn between pieces. If anything fails half way, or the writing is stopped,
 every data-block created here is removed again, so the scene is as before.
+
+What the output object keeps of its bake, as custom properties, is what the add-on reads
+back: its tags (`OUTPUT_TAG`, `SEQUENCE_TAG`), its frames (``kfi_frames``, for the
+frame range), its kind (``kfi_output_kind``), the report the panel shows
+(``kfi_report``, ``kfi_report_details``) and the grids the report's figures are measured
+on (`STATS`, the Figures' first line, `grid_line`). Nothing else: no timings, no counts.
 """
+
+from collections.abc import Generator, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import bpy
 import numpy as np
@@ -46,10 +55,16 @@ from ..core.surface.meshdata import FRAME_ATTRIBUTE, MESH_SEQUENCE, SHAPE_KEYS, 
 from ..core.surface.quality import describe_worst, worst_frame
 from . import fcurves, features
 
+if TYPE_CHECKING:
+    from ..core.bake.animation import Animation
+
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
 SEQUENCE_TAG = "kfi_sequence"
 VOLUME_TAG = "kfi_volume"  # the output's OpenVDB Volume object (a child of the output)
+#: The output's figures of its bake's grids (`grid_figures`): resolution, motion_resolution
+#: (absent without a motion grid) and spacing, the grid cell the report's distances are in.
+STATS = "kfi_stats"
 #: Shape-key points written between two turns of the main loop (`frame_key_steps`).
 KEY_POINTS_PER_STEP = 1_000_000
 
@@ -274,6 +289,34 @@ def report_details(kind, frames, stats):
     return lines
 
 
+def grid_figures(animation: "Animation", resolution: int = 0) -> dict:
+    """The figures `STATS` keeps of ``animation``'s bake: its ``resolution`` (when given),
+    its motion grid's resolution (when it had one) and its grid ``spacing``."""
+    figures = {"resolution": int(resolution)} if resolution else {}
+    motion = (getattr(animation, "stats", {}) or {}).get("motion_resolution")
+    if motion is not None:
+        figures["motion_resolution"] = int(motion)
+    grid = getattr(animation, "grid", None)
+    if grid is not None:
+        figures["spacing"] = float(grid.spacing)
+    return figures
+
+
+def grid_line(figures: Mapping) -> str:
+    """The Figures' first line: the grids of the bake (`STATS`), whose cell is the unit of
+    the distances below it ("Grid: resolution 48, a cell 0.0521 across; motion grid
+    resolution 32")."""
+    parts = []
+    if "resolution" in figures:
+        parts.append(f"resolution {figures['resolution']}")
+    if "spacing" in figures:
+        parts.append(f"a cell {figures['spacing']:.3g} across")
+    line = "Grid: " + ", ".join(parts)
+    if "motion_resolution" in figures:
+        line += f"; motion grid resolution {figures['motion_resolution']}"
+    return line
+
+
 def _ensure_collection(scene, name):
     """The output collection, created/linked to the scene if missing: (collection, created, linked)."""
     coll = bpy.data.collections.get(name)
@@ -341,12 +384,16 @@ def retire_output(scene, settings, old):
             f"'{old.name}' instead of being replaced.")
 
 
-def write_animation(scene, settings, animation, *, material_names=(), stats=None, notes=None):
+def write_animation(scene: bpy.types.Scene, settings: bpy.types.PropertyGroup,
+                    animation: "Animation", *, resolution: int = 0,
+                    material_names: Sequence[str] = (), notes: list | None = None,
+                    ) -> bpy.types.Object:
     """Create the output object for ``animation`` and make it the setup's output.
 
     The output is shape keys or a mesh sequence (`resolve_output` with
-    ``settings.output_mode``); the choice and its reason are stored on the
-    object (``kfi_output_kind``, ``kfi_output_reason``). The previous output
+    ``settings.output_mode``); the choice is stored on the object
+    (``kfi_output_kind``) and its reason said in its report (``kfi_report``);
+    ``resolution``, the bake's, goes with its grid figures (`STATS`). The previous output
     (``settings.output_object``) is removed only once the new one is
     complete, and only if the setup no longer uses it (`retire_output`; its
     note, if any, is appended to ``notes``). On any error everything created
@@ -355,8 +402,8 @@ def write_animation(scene, settings, animation, *, material_names=(), stats=None
 
     Returns the new object. `write_steps` does the same a step at a time.
     """
-    return run_steps(write_steps(scene, settings, animation, material_names=material_names,
-                                 stats=stats, notes=notes))
+    return run_steps(write_steps(scene, settings, animation, resolution=resolution,
+                                 material_names=material_names, notes=notes))
 
 
 def run_steps(steps):
@@ -368,7 +415,10 @@ def run_steps(steps):
             return done.value
 
 
-def write_steps(scene, settings, animation, *, material_names=(), stats=None, notes=None):
+def write_steps(scene: bpy.types.Scene, settings: bpy.types.PropertyGroup,
+                animation: "Animation", *, resolution: int = 0,
+                material_names: Sequence[str] = (), notes: list | None = None,
+                ) -> Generator[None, None, bpy.types.Object]:
     """`write_animation` as a generator: it yields after each piece of work (a few copies
     into the mesh, a batch of shape keys, the object) and returns the new object, so the
     modal bake writes a large result over several turns of the main loop. Closed before
@@ -405,7 +455,7 @@ def write_steps(scene, settings, animation, *, material_names=(), stats=None, no
         yield
         coll, coll_created, coll_linked = _ensure_collection(scene, coll_name)
         coll.objects.link(obj)
-        _tag_output(obj, kind, reason, frames, animation, stats)
+        _tag_output(obj, kind, reason, frames, animation, resolution)
         old = settings.output_object
         if old is not None and old != obj:
             note = retire_output(scene, settings, old)
@@ -422,25 +472,16 @@ def write_steps(scene, settings, animation, *, material_names=(), stats=None, no
     return obj
 
 
-def _tag_output(obj, kind, reason, frames, animation, stats):
-    """What the output object says of itself: its tags, kind, report, spacing, figures."""
+def _tag_output(obj, kind, reason, frames, animation, resolution):
+    """What the output object says of itself (the module's list): its tag, frames, kind,
+    report and grid figures."""
     obj[OUTPUT_TAG] = True
     obj["kfi_frames"] = [frames[0], frames[-1]]
     obj["kfi_output_kind"] = kind
-    obj["kfi_output_reason"] = reason
     obj["kfi_report"] = bake_report(kind, reason, frames)
     obj["kfi_report_details"] = "\n".join(report_details(kind, frames,
                                                          getattr(animation, "stats", {})))
-    grid = getattr(animation, "grid", None)
-    if grid is not None:
-        obj["kfi_spacing"] = float(grid.spacing)
-    for k, v in (stats or {}).items():  # scalar figures only (timings, iterations, ...)
-        if isinstance(v, (bool, np.bool_)) or len(str(k)) > 58:
-            continue
-        if isinstance(v, (int, np.integer)):
-            obj[f"kfi_{k}"] = int(v)
-        elif isinstance(v, (float, np.floating)):
-            obj[f"kfi_{k}"] = float(v)
+    obj[STATS] = grid_figures(animation, resolution)
 
 
 def _sequence_blocks(obj):

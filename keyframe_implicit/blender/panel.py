@@ -10,7 +10,7 @@ width, measured with the UI font at the UI scale.
 
 import bpy
 
-from . import features, validate
+from . import features, output, validate
 
 # Width (px at UI scale 1) a sidebar label loses to the category tabs, the panel's and a
 # box's margins and the label's own padding (measured on a 4.3 window: 81 without a box),
@@ -107,6 +107,8 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
                 col.prop(settings, "show_report_details", emboss=False,
                          icon="DOWNARROW_HLT" if settings.show_report_details else "RIGHTARROW")
                 if settings.show_report_details:
+                    if out.get(output.STATS):  # the grids, whose cell the figures are in
+                        _wrapped(col, context, output.grid_line(out[output.STATS]), "BLANK1")
                     for line in out["kfi_report_details"].split("\n"):
                         _wrapped(col, context, line, "BLANK1")
             layout.prop(settings, "show_keyframes", icon="MOD_WIREFRAME")

@@ -17,17 +17,18 @@ When it updates:
 
 The main loop only ever polls: `tick`, a ``bpy.app.timers`` callback every `POLL`
 seconds, sends the due solve (reading the scene: `scene_io.read`) and takes the worker's
-answers. The longest time the add-on's own preview code held the main loop is
-`State.longest`. Turning the preview off, loading a file (load_pre) or pressing Bake ends
-the worker and removes the overlay. Failures (a refused setup, a crash of the worker)
-become `State.message`, shown in the panel; nothing raises into Blender.
+answers; times are read from `clock`. Turning the preview off, loading a file (load_pre)
+or pressing Bake ends the worker and removes the overlay. Failures (a refused setup, a
+crash of the worker) become `State.message`, shown in the panel; nothing raises into
+Blender. How long the preview's own code holds the main loop, and when solves and frames
+go out and come back, is measured only when asked for (`diagnostics.current`).
 """
 
 import time
 
 import bpy
 
-from . import features, overlay, scene_io, validate
+from . import diagnostics, features, overlay, scene_io, validate
 
 __all__ = ["State", "state", "start", "stop", "schedule", "tick", "active",
            "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post", "HANDLERS"]
@@ -36,6 +37,8 @@ __all__ = ["State", "state", "start", "stop", "schedule", "tick", "active",
 COALESCE = 0.15
 #: Seconds between the timer's polls of the worker.
 POLL = 0.03
+#: The preview's clock, in seconds: when a solve is due. Tests put a clock of their own here.
+clock = time.perf_counter
 
 
 class State:
@@ -47,9 +50,9 @@ class State:
         The worker process while the preview is on.
     handle : the draw handler's handle, or None.
     due : float or None
-        ``time.perf_counter()`` at which the scheduled solve is sent.
+        `clock` time at which the scheduled solve is sent.
     solve_id : int
-        Id of the last solve sent: answers to earlier ones are stale.
+        Id of the last solve sent (0: none yet): answers to earlier ones are stale.
     mesh : (frame, vertices, triangles) or None
         The preview shown: the last frame the worker answered.
     drawn : (shader, batch) or None
@@ -58,17 +61,6 @@ class State:
         Of the last solve (`core.bake.preview.Preview.figures`).
     message : str
         Why there is no preview ("" when there is one, or one is on its way).
-    solves, frames : list of float
-        When each solve and each frame request was sent (``time.perf_counter()``).
-    shown : list of (float, int)
-        When each answered frame became the preview, and its frame.
-    longest : float
-        The longest single call of the preview's own code on the main loop, in seconds.
-    longest_in : str
-        What that call did (the function's name and the last step it began).
-    longest_cpu : float
-        The most processor time one such call used (`time.thread_time`): ``longest`` also
-        counts the time the system gave the processor to other programs meanwhile.
     """
 
     def __init__(self):
@@ -77,11 +69,6 @@ class State:
         self.mesh = self.drawn = None
         self.figures = {}
         self.message = ""
-        self.solves, self.frames, self.shown = [], [], []
-        self.longest = 0.0
-        self.longest_in = ""
-        self.longest_cpu = 0.0
-        self.step = ""
 
 
 state = State()
@@ -92,28 +79,23 @@ def active():
     return state.worker is not None
 
 
-def _timed(fn):
-    """``fn`` with its time on the main loop counted in `State.longest`; whatever it
-    raises becomes `State.message` (nothing reaches Blender's handlers)."""
-    def timed(*args):
-        t0, cpu0 = time.perf_counter(), time.thread_time()
+def _guarded(fn):
+    """``fn`` with whatever it raises made `State.message` (nothing reaches Blender's
+    handlers and timers), timed as a call on the main loop when diagnostics were asked for
+    (`diagnostics.call`)."""
+    def guarded(*args):
         try:
-            return fn(*args)
+            with diagnostics.call(fn.__name__):
+                return fn(*args)
         except Exception as exc:  # shown in the panel; the preview must not break Blender
             state.message = f"Live preview: {type(exc).__name__}: {exc}"
             return None
-        finally:
-            took = time.perf_counter() - t0
-            state.longest_cpu = max(state.longest_cpu, time.thread_time() - cpu0)
-            if took > state.longest:
-                state.longest, state.longest_in = took, f"{fn.__name__}: {state.step}"
-            state.step = ""
 
-    timed.__name__, timed.__doc__ = fn.__name__, fn.__doc__
-    return timed
+    guarded.__name__, guarded.__doc__ = fn.__name__, fn.__doc__
+    return guarded
 
 
-def start():
+def start() -> None:
     """Start the worker, the draw handler and the timer, and schedule a first solve now."""
     from ..preview_worker import PreviewWorker
 
@@ -122,7 +104,7 @@ def start():
     state.__init__()
     state.worker = PreviewWorker()
     state.handle = bpy.types.SpaceView3D.draw_handler_add(_draw, (), "WINDOW", "POST_VIEW")
-    state.due = time.perf_counter()
+    state.due = clock()
     if not bpy.app.timers.is_registered(tick):
         bpy.app.timers.register(tick, first_interval=0.0)
 
@@ -147,10 +129,10 @@ def turn_off(scene):
         settings.live_preview = False
 
 
-def schedule():
+def schedule() -> None:
     """Ask for a solve `COALESCE` seconds from now (a later edit moves it on)."""
     if state.worker is not None:
-        state.due = time.perf_counter() + COALESCE
+        state.due = clock() + COALESCE
 
 
 def _watched(scene):
@@ -162,8 +144,8 @@ def _watched(scene):
 
 
 @bpy.app.handlers.persistent
-@_timed
-def on_depsgraph_update(scene, depsgraph):
+@_guarded
+def on_depsgraph_update(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
     """depsgraph_update_post: a keyframe object or a feature Empty moved or changed its
     mesh: `schedule` a solve."""
     if state.worker is None or _reading:
@@ -176,13 +158,13 @@ def on_depsgraph_update(scene, depsgraph):
 
 
 @bpy.app.handlers.persistent
-@_timed
-def on_frame_change(scene, depsgraph=None):
+@_guarded
+def on_frame_change(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None) -> None:
     """frame_change_post: ask for the new frame (once a solve has been asked for)."""
-    if state.worker is None or _reading or not state.solves:
+    if state.worker is None or _reading or not state.solve_id:
         return
     state.worker.frame(scene.frame_current)
-    state.frames.append(time.perf_counter())
+    diagnostics.mark("frames")
 
 
 @bpy.app.handlers.persistent
@@ -210,7 +192,7 @@ _reading = False  # the preview itself reads the scene (frame changes of `scene_
 def _send_solve(scene):
     """Read the scene (`scene_io.read`), check it and send the solve, or say what is wrong."""
     global _reading
-    state.step = "reading the scene"
+    diagnostics.step("reading the scene")
     _reading = True
     try:
         inputs = scene_io.read(scene, bpy.context.evaluated_depsgraph_get())
@@ -223,13 +205,13 @@ def _send_solve(scene):
         _redraw()
         return
     state.message = ""
-    state.step = "sending the solve"
+    diagnostics.step("sending the solve")
     arguments = dict(keyframes=inputs.keyframes, features=inputs.features,
                      resolution=inputs.resolution, weights=inputs.weights,
                      feature_names=inputs.feature_names or None,
                      key_interpolation=inputs.key_interpolation or None)
     state.solve_id = state.worker.solve(arguments, scene.frame_current)
-    state.solves.append(time.perf_counter())
+    diagnostics.mark("solves")
 
 
 def _take(answer):
@@ -249,17 +231,17 @@ def _take(answer):
     elif kind == "frame":
         frame, vertices, triangles = answer[2:]
         state.mesh = (frame, vertices, triangles)
-        state.step = f"the overlay of {len(triangles)} triangles"
+        diagnostics.step(f"the overlay of {len(triangles)} triangles")
         state.drawn = overlay.batch(vertices, triangles)
-        state.shown.append((time.perf_counter(), frame))
+        diagnostics.mark("shown", frame)
         _redraw()
     elif kind == "failed":
-        state.message = f"Live preview: {answer[3]}"
+        state.message = f"Live preview: {validate.with_menu_paths(answer[3])}"
         state.mesh = state.drawn = None
         _redraw()
 
 
-@_timed
+@_guarded
 def _turn(now):
     if state.worker is None:
         return
@@ -272,10 +254,10 @@ def _turn(now):
             break
 
 
-def tick(now=None):
+def tick() -> float | None:
     """The timer: send the due solve, take the worker's answers; returns the next interval
-    (None ends the timer once the preview is off). ``now`` replaces the clock (tests)."""
-    _turn(time.perf_counter() if now is None else now)
+    (None ends the timer once the preview is off)."""
+    _turn(clock())
     return POLL if state.worker is not None else None
 
 

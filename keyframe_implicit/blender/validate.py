@@ -12,20 +12,38 @@ The surface checks (`surface_problems`) judge each keyframe's evaluated mesh by 
 bake's own measure (`core.fields.measure.read_surface`: faces only, each part facing one
 way): a keyframe that encloses no volume (a plane) is refused, in the words the bake's own
 refusal uses; what the bake reads correctly as it is (faces facing inward, loose vertices,
-holes, non-manifold edges) is a warning that says so. The panel and the Bake button's poll
-ask on every redraw, so the readings are kept until a depsgraph update changes some
-geometry (`scene_io.cached_surface`). Keyframes are numbered from 1 in list order, as the
+holes, non-manifold edges) is a warning that says so. The core words what to fix in the
+mesh's own terms (`core.bake.checks.FIXES`); `with_menu_paths` adds where Blender does it,
+here and wherever the core's refusals and notes reach the artist. The panel and the Bake
+button's poll ask on every redraw, so the readings are kept until a depsgraph update
+changes some geometry (`scene_io.cached_surface`). Keyframes are numbered from 1 in list order, as the
 core's messages number them; repeated problems of one kind are one line with a count.
 """
 
 from dataclasses import dataclass
 
+from ..core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, THICKEN, no_volume_words
+from ..core.fields.mesh import Surface
 from . import scene_io
 
 ERROR = "ERROR"
 WARNING = "WARNING"
 
 MIN_PAIRS_HINT = 4
+
+#: Where Blender does each fix the core asks of a keyframe's mesh (`core.bake.checks.FIXES`).
+MENU_PATHS = {CLOSE_HOLES: "Mesh > Clean Up > Fill Holes",
+              THICKEN: "Solidify modifier",
+              FACE_OUTWARD: "Mesh > Normals > Recalculate Outside"}
+
+
+def with_menu_paths(message: str) -> str:
+    """``message``, a refusal or note in the core's words, with Blender's menu path after
+    each fix it asks for: "close its holes" becomes "close its holes (Mesh > Clean Up > Fill
+    Holes)". Applied once, where the core's words reach the artist."""
+    for fix, path in MENU_PATHS.items():
+        message = message.replace(fix, f"{fix} ({path})")
+    return message
 
 
 def count(n, noun, plural=None):
@@ -212,7 +230,7 @@ def _off_keyframe(seg, number, parent, empties, listed):
             f"'{listed[number - 1].name}' (Ctrl+P > Keep Transform).")
 
 
-def surface_problems(surface, modified=False):
+def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str, str]]:
     """``(level, message)`` of each problem of a keyframe's surface (none when it is sound).
 
     Parameters
@@ -226,23 +244,22 @@ def surface_problems(surface, modified=False):
     -------
     list of (str, str)
         A surface that encloses no volume, such as a plane, is the one `ERROR`, worded as
-        the bake's own refusal words it (`core.bake.checks.no_volume_words`). Faces facing
+        the bake's own refusal words it (`core.bake.checks.no_volume_words`, with Blender's
+        menu paths: `with_menu_paths`). Faces facing
         inward, loose vertices, holes and non-manifold edges the bake reads correctly as
         they are: `WARNING` s that say so and how to clean the mesh. Each message follows
         the keyframe's name ("Keyframe 2 'Plane' ...").
     """
-    from ..core.bake.checks import no_volume_words
-
     if surface.triangles == 0:
         after = " after its modifiers" if modified else ""
         return [(ERROR, f"has no faces{after}: a keyframe must be a closed surface.")]
     if not surface.encloses_volume:
-        return [(ERROR, no_volume_words(surface))]
+        return [(ERROR, with_menu_paths(no_volume_words(surface)))]
     out = []
     if surface.reoriented:
-        out.append((WARNING, f"has {count(surface.reoriented, 'triangle')} facing inward: the "
-                             "bake reads it correctly as it is; Mesh > Normals > Recalculate "
-                             "Outside fixes it."))
+        out.append((WARNING, with_menu_paths(
+            f"has {count(surface.reoriented, 'triangle')} facing inward: the bake reads it "
+            f"correctly as it is; to clean the mesh, {FACE_OUTWARD}.")))
     if surface.loose:
         where = (f"up to {surface.loose_reach:.3g} units outside its faces" if
                  surface.loose_reach > 0 else "among its faces")
@@ -251,8 +268,8 @@ def surface_problems(surface, modified=False):
                              f"{'it' if surface.loose == 1 else 'them'}; Select > Select All by "
                              f"Trait > Loose Geometry finds {'it' if surface.loose == 1 else 'them'}."))
     if surface.open_edges:
-        out.append((WARNING, f"has holes ({surface.open_edges} open edges): the bake fills small "
-                             "ones; to be sure, close them with Mesh > Clean Up > Fill Holes."))
+        out.append((WARNING, with_menu_paths(f"has holes ({surface.open_edges} open edges): the "
+                                             f"bake fills small ones; to be sure, {CLOSE_HOLES}.")))
     if surface.shared_edges:
         out.append((WARNING, f"is non-manifold ({surface.shared_edges} edges shared by 3 or more "
                              "faces): if its parts come out wrong, find them with Select > Select "

@@ -18,7 +18,7 @@ _SPEC.loader.exec_module(sc)
 def test_suzanne_keeps_uvs_materials_and_exact_keyframes(scene):
     a, b = sc.build(scene, resolution=16)
     obj = sc.bake(scene, "SHAPE_KEYS")
-    h = obj["kfi_spacing"]
+    h = obj["kfi_stats"]["spacing"]
     src_a, src_b = sc.evaluated(a, sc.FRAMES[0]), sc.evaluated(b, sc.FRAMES[1])
     first, last = sc.evaluated(obj, sc.FRAMES[0]), sc.evaluated(obj, sc.FRAMES[1])
     # the artist's own mesh: same polygons, UVs, slots and per-face materials

@@ -135,7 +135,7 @@ def test_asset_bakes_at_low_resolution(name):
     if out["kfi_output_kind"] == "shape_keys":
         blocks = out.data.shape_keys.key_blocks
         assert len(blocks) == 1 + frames[-1] - frames[0] + 1  # Basis + one per frame
-    h = float(out["kfi_spacing"])
+    h = float(out["kfi_stats"]["spacing"])
     dg = bpy.context.evaluated_depsgraph_get()
     for obj, f in zip(objs, frames):
         scene.frame_set(f)

@@ -41,7 +41,7 @@ def test_two_keyframes_bake_matches_keyframes_and_keeps_volume(scene, kfi):
     # keyframes untouched
     assert {o.name: kfi.mesh_hash(o.data) for o in objs} == before
 
-    h = out["kfi_spacing"]
+    h = out["kfi_stats"]["spacing"]
     vols = []
     for f in frames:
         scene.frame_set(f)
@@ -73,7 +73,7 @@ def test_three_keyframes_bake_into_one_object(scene, kfi):
     assert len(bpy.data.objects) == n_objects + 1
     out = scene.keyframe_implicit.output_object
     assert len(out.data.shape_keys.key_blocks) - 1 == 7
-    h = out["kfi_spacing"]
+    h = out["kfi_stats"]["spacing"]
     for name, center, radius, frame in specs:
         scene.frame_set(frame)
         assert _active_keys(out) == [output.frame_key_name(frame)]
@@ -156,8 +156,9 @@ def test_failing_core_leaves_scene_unchanged(scene, kfi, in_worker):
     """)
     with pytest.raises(RuntimeError) as err:
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
-    # the core's own text, as the core wrote it, without a type name in front
-    assert "Error: Keyframe 1 is not a closed surface: close its holes." in str(err.value)
+    # the core's own text, without a type name in front, with where Blender does the fix
+    assert ("Error: Keyframe 1 is not a closed surface: close its holes (Mesh > Clean Up > "
+            "Fill Holes).") in str(err.value)
     assert "ValueError" not in str(err.value)
     assert kfi.snapshot() == state
 

@@ -24,7 +24,7 @@ def test_cli_bakes_a_saved_scene(scene, kfi, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=str(out))
     result = bpy.context.scene.keyframe_implicit.output_object
     assert result is not None and len(result.data.shape_keys.key_blocks) == 5
-    assert result["kfi_resolution"] == kfi.RES
+    assert result["kfi_stats"]["resolution"] == kfi.RES
 
 
 def test_cli_main_reports_setup_errors(scene, tmp_path, capsys):

@@ -189,8 +189,8 @@ def test_open_plane_is_refused_before_any_work(scene, kfi, monkeypatch):
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)
     msg = str(err.value)
     # numbered as the list shows it, with what to do; nothing from the grid
-    assert "Keyframe 2 'Plane' is open (4 open edges) and encloses no volume: close it with " \
-           "Mesh > Clean Up > Fill Holes" in msg
+    assert "Keyframe 2 'Plane' is open (4 open edges) and encloses no volume: close its holes " \
+           "(Mesh > Clean Up > Fill Holes), or give it thickness (Solidify modifier)." in msg
     assert ".;" not in msg and "grid" not in msg and "resolution" not in msg
     assert not calls
     assert kfi.snapshot() == state
@@ -229,7 +229,7 @@ def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, 
     assert level == validate.WARNING and msg.startswith("has holes (8 open edges)"), msg
     [(level, msg)] = _surface_check(pillow, dg)
     assert level == validate.ERROR and msg.startswith("encloses no volume (it is flat"), msg
-    assert msg.endswith("give it thickness with a Solidify modifier.")
+    assert msg.endswith("give it thickness (Solidify modifier).")
     assert _surface_check(ball, dg) == []
     _keyframe(bow, 1)
     _keyframe(pillow, 9)

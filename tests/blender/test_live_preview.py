@@ -2,7 +2,9 @@
 frames are answered by the worker, and turning it off, loading a file or baking ends the
 worker and removes the overlay; nothing enters bpy.data.
 
-In background mode no timer runs: the tests call `preview.tick` with the times they choose.
+In background mode no timer runs: the tests call `preview.tick` themselves, on a clock they
+step (`preview.clock`), and count the solves and frames asked for with a `Diagnostics` on
+that clock.
 """
 
 import time
@@ -10,7 +12,8 @@ import time
 import bpy
 import pytest
 
-from keyframe_implicit.blender import overlay, preview
+from keyframe_implicit.blender import diagnostics, overlay, preview
+from keyframe_implicit.blender.diagnostics import Diagnostics
 from keyframe_implicit.core.bake.preview import PREVIEW_RESOLUTION
 
 TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
@@ -28,6 +31,21 @@ def _until(condition):
         time.sleep(0.01)
 
 
+class _Clock:
+    """Seconds that pass only when the test says so (``clock.now += ...``)."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def _solves():
+    """How many solves the preview has sent."""
+    return len(diagnostics.current.solves)
+
+
 def _feature_empty():
     return next(o for o in bpy.context.scene.objects if o.get("kfi_pair") and o.get("kfi_side") == "A")
 
@@ -38,19 +56,27 @@ def _move(obj, dx):
 
 
 @pytest.fixture
-def live(scene, kfi):
+def clock(monkeypatch):
+    """The preview's clock and the diagnostics' (asked for by these tests), stepped by hand."""
+    clock = _Clock()
+    monkeypatch.setattr(preview, "clock", clock)
+    monkeypatch.setattr(diagnostics, "current", Diagnostics(clock=clock))
+    return clock
+
+
+@pytest.fixture
+def live(scene, kfi, clock):
     kfi.build_spheres(TWO)
     settings = scene.keyframe_implicit
     settings.live_preview = True
-    now = time.perf_counter()
-    preview.tick(now)  # the first solve goes out at once
-    assert preview.active() and len(preview.state.solves) == 1
+    preview.tick()  # the first solve goes out at once
+    assert preview.active() and _solves() == 1
     yield settings
     bpy.context.scene.keyframe_implicit.live_preview = False  # ``settings`` may be a loaded-over file's
     preview.stop()
 
 
-def test_moving_an_empty_schedules_one_solve_and_the_frame_comes_back(live):
+def test_moving_an_empty_schedules_one_solve_and_the_frame_comes_back(live, clock):
     state = preview.state
     _until(lambda: state.mesh is not None)
     frame, vertices, triangles = state.mesh
@@ -68,40 +94,45 @@ def test_moving_an_empty_schedules_one_solve_and_the_frame_comes_back(live):
     _move(other, 0.3)
     assert state.due is None, "an unrelated object's move scheduled a solve"
 
-    t0 = time.perf_counter()
     _move(_feature_empty(), 0.05)
-    assert state.due is not None and state.due >= t0 + preview.COALESCE
-    preview.tick(state.due - 0.01)
-    assert len(state.solves) == 1, "the solve went out before the edits settled"
-    preview.tick(state.due)
-    assert len(state.solves) == 2
-    preview.tick(time.perf_counter() + 1.0)
-    assert len(state.solves) == 2, "one move asked for more than one solve"
+    assert state.due == clock.now + preview.COALESCE
+    clock.now = state.due - 0.01
+    preview.tick()
+    assert _solves() == 1, "the solve went out before the edits settled"
+    clock.now = state.due
+    preview.tick()
+    assert _solves() == 2
+    clock.now += 1.0
+    preview.tick()
+    assert _solves() == 2, "one move asked for more than one solve"
 
 
-def test_ten_moves_within_100_ms_coalesce_into_one_solve(live):
+def test_ten_moves_within_100_ms_coalesce_into_one_solve(live, clock):
     state = preview.state
     empty = _feature_empty()
-    t0 = time.perf_counter()
-    for _ in range(10):
+    t0 = clock.now
+    for _ in range(10):  # a move every 8 ms: the last 72 ms after the first
         _move(empty, 0.005)
         preview.tick()  # the timer's turns during the drag send nothing
-        time.sleep(0.008)
-    assert time.perf_counter() - t0 < 0.1 + 0.05 and len(state.solves) == 1
+        clock.now += 0.008
+    assert _solves() == 1
     last = state.due - preview.COALESCE
-    assert last > t0 + 0.05  # the due time followed the moves
-    preview.tick(t0 + preview.COALESCE + 0.01)  # 150 ms after the first move, not the last
-    assert len(state.solves) == 1
-    preview.tick(last + preview.COALESCE + 0.001)
-    preview.tick(last + 2.0)
-    assert len(state.solves) == 2
+    assert last == pytest.approx(t0 + 9 * 0.008)  # the due time followed the moves
+    clock.now = t0 + preview.COALESCE + 0.01  # 160 ms after the first move, not the last
+    preview.tick()
+    assert _solves() == 1
+    clock.now = last + preview.COALESCE + 0.001
+    preview.tick()
+    clock.now = last + 2.0
+    preview.tick()
+    assert _solves() == 2
 
 
 def test_frame_change_asks_for_that_frame(live):
     state = preview.state
     _until(lambda: state.mesh is not None)
     bpy.context.scene.frame_set(4)
-    assert len(state.frames) == 1
+    assert len(diagnostics.current.frames) == 1
     _until(lambda: state.mesh[0] == 4)
     assert state.message == ""
 
@@ -155,13 +186,14 @@ def test_no_data_block_is_created(scene, kfi):
     assert {name: len(getattr(bpy.data, name)) for name in counts} == counts
 
 
-def test_a_refused_setup_and_a_crash_become_messages(live):
+def test_a_refused_setup_and_a_crash_become_messages(live, clock):
     state = preview.state
     keyframes = live.keyframes
     keyframes[1].frame = keyframes[0].frame  # two keyframes on one frame
     preview.schedule()
-    preview.tick(time.perf_counter() + 1.0)
-    assert "frame" in state.message and state.mesh is None and len(state.solves) == 1
+    clock.now += 1.0
+    preview.tick()
+    assert "frame" in state.message and state.mesh is None and _solves() == 1
     keyframes[1].frame = 7
     state.worker.process.kill()
     _until(lambda: not preview.active())

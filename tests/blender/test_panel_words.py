@@ -99,6 +99,8 @@ def test_the_bake_after_baking_says_what_was_made_and_keeps_the_figures(scene, k
     scene.keyframe_implicit.show_report_details = True
     shown = " ".join(e[1] for e in _drawn_main(bpy.context) if e[0] == "label")
     assert "Surface area:" in shown and "Shape covered by the mesh:" in shown
+    # the grids the figures are measured on, read from the output (its one figures property)
+    assert f"Grid: resolution {kfi.RES}, a cell {out['kfi_stats']['spacing']:.3g} across" in shown
 
 
 def test_bake_tooltip_says_what_auto_makes():

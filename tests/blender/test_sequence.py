@@ -41,7 +41,7 @@ def test_mesh_sequence_plays_each_frames_surface_with_velocity_per_second(scene,
     assert out.data.shape_keys is None
     # every frame lives in the output's own mesh: no frame objects outside the scene
     assert set(bpy.data.objects) <= set(scene.objects)
-    h = float(out["kfi_spacing"])
+    h = float(out["kfi_stats"]["spacing"])
     centres = []
     for f in range(1, 10):
         scene.frame_set(f)

@@ -3,6 +3,7 @@ out-of-memory in the worker told clearly, the core's own errors kept, the same r
 the core in this process, and a main loop that is never held up by the bake."""
 
 import os
+import threading
 import time
 
 import bpy
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.blender import bake
+from keyframe_implicit.blender.diagnostics import Diagnostics
 from keyframe_implicit.core.bake import pipeline
 from keyframe_implicit.core import Animation
 from keyframe_implicit.core.surface.meshdata import resolve_output
@@ -22,12 +24,6 @@ TWO = [("KeyA", (0.0, 0.0, 0.0), 1.0, 1), ("KeyB", (1.5, 0.0, 0.0), 1.0, 7)]
 #: side by side on 2 cores: the bound leaves room for that and more, so that it fails on a
 #: cancel nobody looks at (a hang), not on a loaded machine.
 CANCEL_LATENCY = 5.0
-
-#: A main-loop gap this long is a stall a user notices: the bake in a thread of this process
-#: makes one of 0.75-1.1 s (HOLD_GIL, below); the worker's bake leaves gaps of 24-31 ms alone
-#: and 61 ms beside two busy processes on 2 cores (the main loop polls every 20 ms). The bound
-#: sits between the two with room on both sides for a loaded machine.
-STALL = 0.25
 
 #: In the worker: after the first progress report past AFTER, do ACTION once (the report's
 #: message is the stage the parent last heard of).
@@ -145,7 +141,12 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     kind, _ = resolve_output(scene.keyframe_implicit.output_mode, job.result.stats)
     assert list(job.result.prepared) == [kind]  # the output's mesh came made from the worker
     out = job.apply(scene)
-    assert "kfi_main_loop_stall" not in out  # nothing polled this job: no main loop to speak of
+    # the artist's object keeps what the add-on reads back, and no figure of the bake's running
+    assert set(out.keys()) == {"kfi_output", "kfi_frames", "kfi_output_kind", "kfi_report",
+                               "kfi_report_details", "kfi_stats"}
+    assert out["kfi_stats"].to_dict() == {"resolution": kfi.RES,
+                                          "motion_resolution": mine.stats["motion_resolution"],
+                                          "spacing": pytest.approx(mine.grid.spacing)}
     keys = out.data.shape_keys.key_blocks[1:]
     assert len(keys) == len(mine.frames)
     world = np.array(out.matrix_world)
@@ -156,10 +157,42 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
         np.testing.assert_allclose(co, expected, rtol=0, atol=1e-5)
 
 
-#: A core stage holding the GIL for a while, as a long C call does at high resolution (at
-#: the tests' resolution none lasts long enough to show): a bake in a thread of this process
-#: stops the main loop for that long, a bake in the worker process does not.
-HOLD_GIL = "sum(range(40_000_000))"
+#: Turns of the main loop (the modal operator's polls) a bake waits for in the middle of a
+#: stage (`GATE`): a bake that stops the main loop never gets them.
+TURNS = 5
+
+#: In the worker, or in this process: at the first progress report past 0.3, report "held"
+#: and hold the GIL in one C call (as the core's long numpy calls do; a ctypes.PyDLL call
+#: keeps it) until the test writes into the FIFO ``gate``, which it does once the main loop
+#: has polled `TURNS` times since "held", or until ``bound`` ms have passed (a bound for a
+#: hang, not a figure); then report "released" and go on, or fail when nothing came.
+GATE = """
+    import ctypes, os
+    from keyframe_implicit.core.bake import pipeline
+
+    _animate = pipeline.animate
+
+    class _PollFd(ctypes.Structure):
+        _fields_ = [("fd", ctypes.c_int), ("events", ctypes.c_short), ("revents", ctypes.c_short)]
+
+    def animate(*args, progress, **kwargs):
+        held = []
+
+        def report(fraction, message):
+            progress(fraction, message)
+            if fraction > 0.3 and not held:
+                held.append(message)
+                fd = os.open({gate!r}, os.O_RDONLY | os.O_NONBLOCK)  # open while "held" is shown
+                progress(fraction, "held")
+                released = ctypes.PyDLL(None).poll(ctypes.byref(_PollFd(fd, 1, 0)), 1, {bound}) > 0
+                progress(fraction, "released")
+                os.close(fd)
+                if not released:
+                    raise RuntimeError("the main loop did not turn while the bake held a stage")
+        return _animate(*args, progress=report, **kwargs)
+
+    pipeline.animate = animate
+"""
 
 
 class _InThreadJob(bake.BakeJob):
@@ -170,49 +203,76 @@ class _InThreadJob(bake.BakeJob):
 
 
 @pytest.mark.processes
-def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypatch):
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="the held stage waits on a POSIX FIFO")
+def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypatch, tmp_path):
+    """The worker's stage waits for the main loop's turns, and gets them; the same stage in a
+    thread of this process holds the main loop, which never gets one before the hold ends."""
     from test_bake import _drive, _modal_operator
 
     from keyframe_implicit.blender import ops
 
     kfi.build_spheres(TWO)
-    fault = FAULT.format(after=0.3, action=HOLD_GIL)
-    in_worker(fault)
-    gaps = {}
-    for kind in (bake.BakeJob, _InThreadJob):
-        if kind is _InThreadJob:  # the same stage, in this process's core
+    outcome = {}
+    for kind, bound in ((bake.BakeJob, 120_000), (_InThreadJob, 1_000)):
+        gate = str(tmp_path / f"gate_{kind.__name__}")
+        os.mkfifo(gate)
+        fault = GATE.format(gate=gate, bound=bound)
+        if kind is bake.BakeJob:
+            in_worker(fault)
+        else:  # the same stage, in this process's core
             monkeypatch.setattr(pipeline, "animate", pipeline.animate)
-            exec(compile(__import__("textwrap").dedent(fault), "fault", "exec"), {})
+            exec(compile(__import__("textwrap").dedent(fault), "gate", "exec"), {})
+        turns = []
         job = kind(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+        real_poll = job.poll
+
+        def poll(job=job, gate=gate, turns=turns, real_poll=real_poll):
+            if job.status()[1] == "held":  # a turn of the main loop while the stage is held
+                turns.append(1)
+                if len(turns) == TURNS:  # release it
+                    fd = os.open(gate, os.O_WRONLY | os.O_NONBLOCK)
+                    os.write(fd, b"go")
+                    os.close(fd)
+            return real_poll()
+
+        job.poll = poll
         me, ctx, reports = _modal_operator(job, scene)
         job.start()
-        assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}, reports
-        gaps[kind.__name__] = job.max_poll_gap
-    print("largest gap between the modal operator's polls (20 ms apart):",
-          ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in gaps.items()))
-    assert gaps["_InThreadJob"] > STALL  # the measurement sees a stalled main loop
-    assert gaps["BakeJob"] < STALL
+        _drive(ops.KFI_OT_bake, me, ctx)
+        outcome[kind.__name__] = (job.state, job.error_message(), len(turns))
+    print("turns of the main loop while the stage was held:", outcome)
+    state, error, turns = outcome["_InThreadJob"]  # the test sees a held main loop
+    assert state == bake.FAILED and "did not turn" in error and turns < TURNS, outcome
+    state, error, turns = outcome["BakeJob"]
+    assert state == bake.DONE and turns >= TURNS, outcome
 
 
-@pytest.mark.processes
-def test_main_loop_stall_is_the_longest_poll_gap_beyond_the_step(scene, kfi):
-    step, held = 0.1, 0.5
+def test_poll_never_waits_and_its_gaps_are_measured_on_request(scene, kfi):
+    """`BakeJob.poll` answers at once while the bake runs (here a bake held until the polls
+    are done: a poll that waited for it would see it finished), and the longest gap between
+    polls, counted from the start, is what a `Diagnostics` with a fake clock says."""
     kfi.build_spheres(TWO)
-    job = _job(scene, kfi, poll_step=step)
+    now = [100.0]
+    diagnostics = Diagnostics(clock=lambda: now[0])
+    release = threading.Event()
+
+    class Held(bake.BakeJob):
+        def _bake(self):
+            release.wait(60.0)  # a bound for a hang: a poll that waits fails below
+            return None
+
+    job = Held(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+               diagnostics=diagnostics)
     job.start()
-    time.sleep(held)  # the main loop held up right after the start (reading the inputs, ...)
-    while not job.poll():
-        time.sleep(step)
-    assert job.state == bake.DONE, job.error_message()
-    out = job.apply(scene)
-    print(f"held {held * 1000:.0f} ms: longest gap {job.max_poll_gap * 1000:.0f} ms, "
-          f"stall kept on the output {out['kfi_main_loop_stall'] * 1000:.0f} ms")
-    assert out["kfi_main_loop_stall"] == pytest.approx(job.max_poll_gap - step)
-    # the held gap less the step: a sleep never ends early, and overshoots by 1-11 ms here
-    # (alone or beside two busy processes on 2 cores); the upper bound leaves room for a
-    # loaded machine and still tells a gap counted from the wrong time or summed over the
-    # main loop's turns (the whole bake: 1.5 s alone)
-    assert held - step <= out["kfi_main_loop_stall"] < held + 0.25
+    answers = []
+    for step in (0.5, 0.1, 0.1, 0.3, 0.1):  # the main loop held 0.5 s right after the start
+        now[0] += step
+        answers.append(job.poll())
+    release.set()
+    job.join(60.0)
+    assert answers == [False] * 5 and job.state == bake.DONE
+    assert diagnostics.max_poll_gap == pytest.approx(0.5, abs=1e-12)
+    assert job.poll() and diagnostics.max_poll_gap == pytest.approx(0.5, abs=1e-12)
 
 
 def _descendants(pid):

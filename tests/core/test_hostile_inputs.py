@@ -13,6 +13,7 @@ import pytest
 
 from inbetween_cases import sphere_field
 from keyframe_implicit.core import Keyframe, animate
+from keyframe_implicit.core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, THICKEN
 from keyframe_implicit.shapes import icosphere
 
 RES = 16
@@ -112,7 +113,7 @@ def test_reoriented_faces_are_reported(processes, started_helper):
     helper = started_helper if processes == 2 else None
     anim = animate(kfs, [_features()], resolution=RES, processes=processes, helper=helper)
     notes = [n for n in anim.stats["notes"] if "Keyframe 2 ('Ball.001', frame 5)" in n]
-    assert len(notes) == 1 and "Recalculate Outside" in notes[0], anim.stats["notes"]
+    assert len(notes) == 1 and notes[0].endswith(f"read flipped; {FACE_OUTWARD}."), anim.stats["notes"]
     _check_result(anim, kfs)
 
 
@@ -141,8 +142,23 @@ def test_open_mesh_is_told_to_close_it():
     kfs = _spheres()
     sheet = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], float)
     kfs[0] = Keyframe(sheet, [[0, 1, 2, 3]], 1, "Sheet")  # a flat open square
-    with pytest.raises(ValueError, match="Keyframe 1 \\('Sheet', frame 1\\) is open \\(4 open edges\\).*close it"):
+    with pytest.raises(ValueError, match="Keyframe 1 \\('Sheet', frame 1\\) is open \\(4 open edges\\)") as err:
         animate(kfs, [tuple(np.zeros((0, 3)) for _ in range(2))], resolution=RES)
+    # what to fix in the mesh's own terms; where an application does it is the application's
+    assert str(err.value).endswith(f"encloses no volume: {CLOSE_HOLES}, or {THICKEN}.")
+
+
+def test_the_core_names_no_menu_of_blender():
+    """The bpy-free core words what is wrong and what to fix in geometry terms: no message of
+    it names a Blender menu ("Mesh > ...") or modifier; the Blender side adds those."""
+    import pathlib
+    import re
+
+    core = pathlib.Path(__file__).parents[2] / "keyframe_implicit" / "core"
+    menu = re.compile(r"""["'][^"'\n]*(\b[A-Z][a-z]+ > [A-Z]|Solidify|Edit Mode)""")
+    found = [f"{path.name}:{n}: {line.strip()}" for path in sorted(core.rglob("*.py"))
+             for n, line in enumerate(path.read_text().splitlines(), start=1) if menu.search(line)]
+    assert not found, "\n".join(found)
 
 
 def test_thin_mesh_whose_distance_grid_the_helper_makes_is_named_too(started_helper):

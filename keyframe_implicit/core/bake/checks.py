@@ -7,9 +7,24 @@ way (loose vertices ignored, faces reoriented).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes"]
+if TYPE_CHECKING:
+    from ..base.grid import Grid
+    from ..fields.mesh import Surface
+    from .pipeline import Keyframe
+
+__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes", "CLOSE_HOLES", "THICKEN", "FACE_OUTWARD", "FIXES"]
+
+#: What a refusal or a note asks the artist to do to a keyframe's mesh, in the mesh's own
+#: terms. Each is worded here only; an application adds where its tools do it (the Blender
+#: side, `blender.validate.with_menu_paths`, puts the menu path after these words).
+CLOSE_HOLES = "close its holes"
+THICKEN = "give it thickness"
+FACE_OUTWARD = "turn them to face outward"
+FIXES = (CLOSE_HOLES, THICKEN, FACE_OUTWARD)
 
 
 def keyframe_label(k, kf):
@@ -45,9 +60,9 @@ def surface_vertices(k, kf):
     return v, tris, surface.loose, v[used]
 
 
-def no_volume_words(surface):
-    """What is wrong with a surface that encloses no volume and what to do, after the
-    keyframe's name ("Keyframe 2 'Plane' is open and ...").
+def no_volume_words(surface: Surface) -> str:
+    """What is wrong with a surface that encloses no volume and what to do (`FIXES`), after
+    the keyframe's name ("Keyframe 2 'Plane' is open and ...").
 
     Parameters
     ----------
@@ -57,11 +72,10 @@ def no_volume_words(surface):
     if surface.triangles == 0:
         return "has only faces of zero area: a keyframe must be a closed surface."
     if surface.open_edges:
-        return (f"is open ({surface.open_edges} open edges) and encloses no volume: close it "
-                "with Mesh > Clean Up > Fill Holes, or give it thickness with a Solidify "
-                "modifier.")
+        return (f"is open ({surface.open_edges} open edges) and encloses no volume: "
+                f"{CLOSE_HOLES}, or {THICKEN}.")
     return ("encloses no volume (it is flat, or made of parts that cancel, such as a copy "
-            "turned inside out on top of it): give it thickness with a Solidify modifier.")
+            f"turned inside out on top of it): {THICKEN}.")
 
 
 def _feature_array(points, what):
@@ -197,8 +211,8 @@ def check_feature_spacing(features, h, feature_names, grid_name="grid", raise_wh
                 f"apart: move them apart or delete one of the pairs (or raise the {raise_what}).")
 
 
-def no_volume_message(k, kf, v, tris, grid):
-    """Why a keyframe has no inside node on the grid, with the advice that fits."""
+def no_volume_message(k: int, kf: Keyframe, v: np.ndarray, tris: np.ndarray, grid: Grid) -> str:
+    """Why a keyframe has no inside node on the grid, with the advice that fits (`FIXES`)."""
     label = keyframe_label(k, kf)
     cells = float(np.max(np.ptp(v[np.unique(tris)], axis=0))) / grid.spacing
     if cells < 3:
@@ -209,10 +223,10 @@ def no_volume_message(k, kf, v, tris, grid):
 
     open_edges = read_surface(v, tris).open_edges
     if open_edges:
-        return (f"{label} encloses no volume: its surface has {open_edges} open edges. Close the "
-                "mesh (e.g. Mesh > Clean Up > Fill Holes).")
+        return (f"{label} encloses no volume: its surface has {open_edges} open edges; "
+                f"{CLOSE_HOLES}.")
     return (f"{label} encloses no volume on a grid of cell size {grid.spacing:.3g}: it is thinner "
-            "than a cell. Raise the resolution or give it thickness (Solidify modifier).")
+            f"than a cell. Raise the resolution or {THICKEN}.")
 
 
 def check_result(chain, grid, keyframes):
@@ -230,8 +244,9 @@ def check_result(chain, grid, keyframes):
                      "each pair joins matching points, and delete pairs that cross each other.")
 
 
-def notes(keyframes, loose, sdf_stats):
-    """What the user should know about a bake that succeeded (plain sentences)."""
+def notes(keyframes: list[Keyframe], loose: list[int], sdf_stats: list[dict]) -> list[str]:
+    """What the user should know about a bake that succeeded (plain sentences; what to
+    fix in the words of `FIXES`)."""
     notes = []
     for k, (kf, n_loose, st) in enumerate(zip(keyframes, loose, sdf_stats)):
         label = keyframe_label(k, kf)
@@ -239,7 +254,7 @@ def notes(keyframes, loose, sdf_stats):
             notes.append(f"{label}: ignored {n_loose} loose vertices (not part of any face).")
         if st.get("reoriented_faces"):
             notes.append(f"{label}: {st['reoriented_faces']} triangles faced the wrong way and were "
-                         "read flipped; fix them with Mesh > Normals > Recalculate Outside.")
+                         f"read flipped; {FACE_OUTWARD}.")
         if st.get("non_orientable_faces"):
             notes.append(f"{label}: {st['non_orientable_faces']} triangles cannot be given a consistent "
                          "inside and outside (a twisted or non-manifold surface); the result there "
