@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from .pipeline import Keyframe
 
     #: Per segment, per feature pair, the two Empties' names (on keyframe A, on B).
-    FeatureNames = Sequence[Sequence[Sequence[str]]]
+    FeatureNames = Sequence[Sequence[tuple[str, str]]]
+
 
 __all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes"]
 
