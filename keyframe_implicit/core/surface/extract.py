@@ -13,13 +13,15 @@ clockwise around holes.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
 from ..base.grid import Grid
 
 if TYPE_CHECKING:
+    from typing import Literal
+
     from numpy.typing import ArrayLike
 
 __all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area"]
@@ -35,7 +37,16 @@ def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
+@overload
+def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: Literal[False] = False) -> float: ...
+
+
+@overload
+def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: Literal[True]) -> np.ndarray: ...
+
+
 def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: bool = False) -> np.ndarray | float:
+
     """Total (or per-face) area of a triangle mesh."""
     v = np.asarray(vertices, dtype=float)
     f = np.asarray(faces, dtype=np.int64)
