@@ -33,6 +33,7 @@ for ``polygon_to_sdf`` and the 2D core.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,6 +41,11 @@ from .core.bake.pipeline import Keyframe
 from .core.surface.extract import loop_area, mesh_volume
 from .shapes import (capsule_sdf, match_volume, mesh_of, rigid_motion, rotation, round_box_sdf,
                      round_cylinder_sdf, smooth_union, sphere_sdf)
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "Example",
@@ -73,18 +79,18 @@ class Example:
     """
 
     name: str
-    keyframes: list
-    features: list
-    feature_names: list
+    keyframes: list[Keyframe]
+    features: list[tuple[np.ndarray, np.ndarray]]
+    feature_names: list[list[str]]
     description: str = ""
 
     @property
-    def frames(self):
+    def frames(self) -> list[int]:
         """Timeline frames of the keyframes."""
         return [k.frame for k in self.keyframes]
 
     @property
-    def volumes(self):
+    def volumes(self) -> list[float]:
         """Enclosed volume of each keyframe mesh."""
         return [mesh_volume(k.vertices, k.faces) for k in self.keyframes]
 
@@ -103,19 +109,19 @@ class Example2D:
     """
 
     name: str
-    shapes: list
-    frames: list
-    features: list = field(default_factory=list)
+    shapes: list[list[np.ndarray]]
+    frames: list[int]
+    features: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
     @property
-    def areas(self):
+    def areas(self) -> list[float]:
         """Enclosed area of each keyframe (sum over its polygons)."""
         return [sum(loop_area(p) for p in polys) for polys in self.shapes]
 
 
 # --------------------------------------------------------------------------- geometry
 # --------------------------------------------------------------------------- 3D examples
-def rigid():
+def rigid() -> Example:
     """An L-shaped block with a knob turns 90 degrees about z, rises and slides (fig. 4.1).
 
     The block has no mirror symmetry (the knob sits off the L's plane) so a viewer can
@@ -159,7 +165,7 @@ def rigid():
     )
 
 
-def merge():
+def merge() -> Example:
     """Two blobs join into one blob of the same volume (fig. 4.2).
 
     Keyframe A: two spheres of radius 0.6, 2.2 apart. Keyframe B: one rounded blob (a fat
@@ -203,7 +209,7 @@ def merge():
     )
 
 
-def bend():
+def bend() -> Example:
     """A rod bends 90 degrees at a joint: two rigid parts (fig. 4.3).
 
     Keyframe A: a straight capsule from x = -1.5 to 1.5 (radius 0.3) with a knuckle at the
@@ -247,7 +253,7 @@ def bend():
     )
 
 
-def splash():
+def splash() -> Example:
     """A droplet falls into a pool: four keyframes (fig. 4.4).
 
     1. a droplet (radius 0.35) above a round pool (radius 1.6, depth 0.4, surface z = 0);
@@ -329,7 +335,7 @@ def splash():
 _BUILDERS = {"rigid": rigid, "merge": merge, "bend": bend, "splash": splash}
 
 
-def example(name):
+def example(name: str) -> Example:
     """The 3D example called `name` (one of `NAMES`)."""
     if name not in _BUILDERS:
         raise ValueError(f"unknown example {name!r}: choose one of {', '.join(NAMES)}")
@@ -337,12 +343,12 @@ def example(name):
 
 
 # --------------------------------------------------------------------------- 2D examples
-def _circle(centre, radius, n=48):
+def _circle(centre: Sequence[float], radius: float, n: int = 48) -> np.ndarray:
     t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
     return np.stack([centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)], axis=1)
 
 
-def _stadium(a, b, radius, n=64):
+def _stadium(a: ArrayLike, b: ArrayLike, radius: float, n: int = 64) -> np.ndarray:
     """Counter-clockwise outline of a 2D capsule around segment a-b."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     d = (b - a) / np.linalg.norm(b - a)
@@ -355,7 +361,8 @@ def _stadium(a, b, radius, n=64):
     return np.vstack([cap_b, cap_a])
 
 
-def _rounded_rect(x0, y0, x1, y1, radius, n=12):
+def _rounded_rect(x0: float, y0: float, x1: float, y1: float, radius: float,
+                  n: int = 12) -> np.ndarray:
     """Counter-clockwise rounded rectangle."""
     corners = [((x1 - radius, y0 + radius), -np.pi / 2), ((x1 - radius, y1 - radius), 0.0),
                ((x0 + radius, y1 - radius), np.pi / 2), ((x0 + radius, y0 + radius), np.pi)]
@@ -366,7 +373,9 @@ def _rounded_rect(x0, y0, x1, y1, radius, n=12):
     return np.vstack(pts)
 
 
-def _bend_2d_outline(angle_deg, r=0.3, length=1.5, n=24):
+def _bend_2d_outline(angle_deg: float, r: float = 0.3, length: float = 1.5,
+                     n: int = 24) -> np.ndarray:
+
     """Outline of a rod bent at the origin: fixed part along -x, moving part at `angle_deg`."""
     ang = np.radians(angle_deg)
     d = np.array([np.cos(ang), np.sin(ang)])
@@ -391,7 +400,8 @@ def _bend_2d_outline(angle_deg, r=0.3, length=1.5, n=24):
     return np.vstack(pts)
 
 
-def example_2d(name):
+def example_2d(name: str) -> Example2D:
+
     """The 2D version of a thesis example (one of `NAMES_2D`), as polygons + feature points.
 
     merge: two discs join into one capsule of equal area (fig. 4.2); bend: a rod bends 90
@@ -450,7 +460,7 @@ def example_2d(name):
     raise ValueError(f"unknown 2D example {name!r}: choose one of {', '.join(NAMES_2D)}")
 
 
-def _pool_with_bump(W, depth, bw, bh, n=40):
+def _pool_with_bump(W: float, depth: float, bw: float, bh: float, n: int = 40) -> np.ndarray:
     """Pool outline whose flat top carries a half-ellipse bump (width 2 bw, height bh)."""
     base = _rounded_rect(-W, -depth, W, 0.0, 0.1)
     # the rounded rect's vertices run counter-clockwise starting on the right side;
@@ -461,7 +471,8 @@ def _pool_with_bump(W, depth, bw, bh, n=40):
     return np.vstack([base[: 2 * k], bump, base[2 * k:]])
 
 
-def _union_outline(pool, circle):
+def _union_outline(pool: np.ndarray, circle: np.ndarray) -> np.ndarray:
+
     """Outline of pool (top edge at y = 0) united with a circle dipping just below y = 0."""
     k = len(pool) // 4
     above = circle[circle[:, 1] > 0.0]

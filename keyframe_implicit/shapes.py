@@ -7,9 +7,16 @@ the search that gives a mesh a target volume (`match_volume`).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .core.surface.extract import mesh_volume
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["MESH_STEP", "icosphere", "uv_sphere", "rotation", "rigid_motion", "sphere_sdf",
            "capsule_sdf", "round_box_sdf", "round_cylinder_sdf", "smooth_union", "mesh_of",
@@ -19,7 +26,8 @@ __all__ = ["MESH_STEP", "icosphere", "uv_sphere", "rotation", "rigid_motion", "s
 MESH_STEP = 0.09
 
 
-def icosphere(n_sub, radius=1.0, center=(0.0, 0.0, 0.0)):
+def icosphere(n_sub: int, radius: float = 1.0,
+              center: ArrayLike = (0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """Icosahedron subdivided n_sub times, projected on the sphere, outward faces."""
     t = (1 + 5 ** 0.5) / 2
     v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
@@ -42,7 +50,10 @@ def icosphere(n_sub, radius=1.0, center=(0.0, 0.0, 0.0)):
     return v * radius + np.asarray(center), f
 
 
-def uv_sphere(n_lat, radius=1.0, bump=None):
+def uv_sphere(n_lat: int, radius: float = 1.0,
+              bump: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+              ) -> tuple[np.ndarray, list[list[np.int64]]]:
+
     """A UV sphere: quads, and triangle fans at the poles; ``bump(theta, phi)`` adds to r.
 
     Returns vertices (V, 3) and polygons (a list of index lists, quads first).
@@ -62,7 +73,7 @@ def uv_sphere(n_lat, radius=1.0, bump=None):
     return v, [list(q) for q in quads] + [list(t) for t in top] + [list(t) for t in bottom]
 
 
-def rotation(axis, degrees):
+def rotation(axis: ArrayLike, degrees: float) -> np.ndarray:
     """3x3 rotation matrix about `axis` (any non-zero 3-vector) by `degrees` (right hand)."""
     axis = np.asarray(axis, dtype=float)
     axis = axis / np.linalg.norm(axis)
@@ -72,12 +83,12 @@ def rotation(axis, degrees):
 
 
 # signed distance primitives (negative inside); p is (..., 3)
-def sphere_sdf(p, centre, radius):
+def sphere_sdf(p: np.ndarray, centre: ArrayLike, radius: float) -> np.ndarray:
     """Signed distance to a sphere."""
     return np.linalg.norm(p - np.asarray(centre, float), axis=-1) - radius
 
 
-def capsule_sdf(p, a, b, radius):
+def capsule_sdf(p: np.ndarray, a: ArrayLike, b: ArrayLike, radius: float) -> np.ndarray:
     """Signed distance to a capsule: the segment a-b grown by ``radius``."""
     a = np.asarray(a, float)
     b = np.asarray(b, float)
@@ -86,7 +97,7 @@ def capsule_sdf(p, a, b, radius):
     return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1) - radius
 
 
-def round_box_sdf(p, centre, half, radius):
+def round_box_sdf(p: np.ndarray, centre: ArrayLike, half: ArrayLike, radius: float) -> np.ndarray:
     """Signed distance to a box of half extents ``half`` with edges rounded by ``radius``."""
     q = np.abs(p - np.asarray(centre, float)) - (np.asarray(half, float) - radius)
     outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
@@ -94,7 +105,8 @@ def round_box_sdf(p, centre, half, radius):
     return outside + inside - radius
 
 
-def round_cylinder_sdf(p, centre, radius, half_height, rounding):
+def round_cylinder_sdf(p: np.ndarray, centre: ArrayLike, radius: float, half_height: float,
+                       rounding: float) -> np.ndarray:
     """Vertical (z) cylinder with rounded rims."""
     d = p - np.asarray(centre, float)
     q = np.stack([np.hypot(d[..., 0], d[..., 1]) - (radius - rounding),
@@ -103,13 +115,14 @@ def round_cylinder_sdf(p, centre, radius, half_height, rounding):
             - rounding)
 
 
-def smooth_union(d1, d2, k):
+def smooth_union(d1: np.ndarray, d2: np.ndarray, k: float) -> np.ndarray:
     """Polynomial smooth minimum: blends two distance fields over a band of width k."""
     h = np.clip(0.5 + 0.5 * (d2 - d1) / k, 0.0, 1.0)
     return d2 * (1.0 - h) + d1 * h - k * h * (1.0 - h)
 
 
-def mesh_of(sdf, lo, hi, step=MESH_STEP):
+def mesh_of(sdf: Callable[[np.ndarray], np.ndarray], lo: ArrayLike, hi: ArrayLike,
+            step: float = MESH_STEP) -> tuple[np.ndarray, np.ndarray]:
     """Mesh the zero level set of `sdf` inside the box [lo, hi] by marching cubes.
 
     Returns closed, outward-wound (V, 3) float64 vertices and (F, 3) int64 faces. The box is
@@ -133,7 +146,9 @@ def mesh_of(sdf, lo, hi, step=MESH_STEP):
     return verts, faces
 
 
-def match_volume(make, target, p0, p1, tol=1e-4, iterations=12):
+def match_volume(make: Callable[[float], tuple[np.ndarray, np.ndarray]], target: float,
+                 p0: float, p1: float, tol: float = 1e-4,
+                 iterations: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """Secant search on a scalar shape parameter so the mesh made by `make(p)` has volume `target`.
 
     `make(p)` returns (vertices, faces). Stops at relative volume error `tol`.
@@ -151,7 +166,9 @@ def match_volume(make, target, p0, p1, tol=1e-4, iterations=12):
     return mesh
 
 
-def rigid_motion(points, rot, centre, move):
+def rigid_motion(points: ArrayLike, rot: np.ndarray, centre: ArrayLike,
+                 move: ArrayLike) -> np.ndarray:
+
     """Rotate `points` by `rot` about `centre`, then translate by `move`."""
     centre = np.asarray(centre, float)
     return (np.asarray(points, float) - centre) @ rot.T + centre + np.asarray(move, float)

@@ -9,7 +9,14 @@ for the first slot, 5.0 removed it. Everything here goes through
 running Blender, so callers never branch on the version.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import bpy
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
 __all__ = [
     "uses_slotted_actions",
@@ -20,19 +27,21 @@ __all__ = [
 ]
 
 
-def uses_slotted_actions():
+def uses_slotted_actions() -> bool:
     """True on Blender 4.4+ (actions with slots, layers, strips and channelbags)."""
     return "action_slot" in bpy.types.AnimData.bl_rna.properties
 
 
-def _action_for(id_data, action_name):
+def _action_for(id_data: bpy.types.ID,
+                action_name: str | None) -> tuple[bpy.types.AnimData, bpy.types.Action]:
     anim = id_data.animation_data or id_data.animation_data_create()
     if anim.action is None:
         anim.action = bpy.data.actions.new(action_name or f"{id_data.name}Action")
     return anim, anim.action
 
 
-def channels_for(id_data, action_name=None):
+def channels_for(id_data: bpy.types.ID, action_name: str | None = None,
+                 ) -> bpy.types.Action | bpy.types.ActionChannelbag:
     """Return the container of ``id_data``'s F-curves (it has ``.fcurves``), creating it.
 
     Parameters
@@ -58,7 +67,10 @@ def channels_for(id_data, action_name=None):
     return strip.channelbag(slot, ensure=True)
 
 
-def ensure_fcurve(id_data, data_path, index=0, *, action_name=None, channels=None):
+def ensure_fcurve(id_data: bpy.types.ID, data_path: str, index: int = 0, *,
+                  action_name: str | None = None,
+                  channels: bpy.types.Action | bpy.types.ActionChannelbag | None = None,
+                  ) -> bpy.types.FCurve:
     """The F-curve of ``id_data`` for ``data_path[index]``, created if missing.
 
     Pass ``channels`` (from `channels_for`) when creating many curves on one ID.
@@ -71,7 +83,7 @@ def ensure_fcurve(id_data, data_path, index=0, *, action_name=None, channels=Non
     return fc
 
 
-def fcurves_for(id_data):
+def fcurves_for(id_data: bpy.types.ID) -> list[bpy.types.FCurve]:
     """All F-curves animating ``id_data`` through its assigned action (and slot); [] if none."""
     anim = id_data.animation_data
     if anim is None or anim.action is None:
@@ -91,11 +103,13 @@ def fcurves_for(id_data):
     return curves
 
 
-def _interpolation_value(name):
+def _interpolation_value(name: str) -> int:
     return bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items[name].value
 
 
-def set_keyframes(fcurve, frames, values, interpolation="LINEAR"):
+def set_keyframes(fcurve: bpy.types.FCurve, frames: Iterable[float], values: Iterable[float],
+                  interpolation: str = "LINEAR") -> bpy.types.FCurve:
+
     """Replace ``fcurve``'s keys by (frames[i], values[i]) with one interpolation, via foreach_set."""
     frames = [float(f) for f in frames]
     values = [float(v) for v in values]

@@ -14,12 +14,21 @@ in the outliner and the viewport. Plain functions only; the operators in
 `ops` are thin wrappers.
 """
 
+from __future__ import annotations
+
 import colorsys
 import zlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
 
 import bpy
 from mathutils import Matrix, Vector
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator, Sequence
+
+    from .props import KFI_Settings
 
 PAIR = "kfi_pair"
 SEGMENT = "kfi_segment"
@@ -33,27 +42,27 @@ class Pair:
 
     pair_id: str
     segment: int
-    a: object = None
-    b: object = None
+    a: bpy.types.Object | None = None
+    b: bpy.types.Object | None = None
     label: str = ""
 
     @property
-    def complete(self):
+    def complete(self) -> bool:
         """Whether both sides have their Empty: only a complete pair guides the bake."""
         return self.a is not None and self.b is not None
 
 
-def is_feature(obj):
+def is_feature(obj: bpy.types.Object | None) -> bool:
     """True for an Empty that is one side of a feature pair."""
     return obj is not None and obj.type == "EMPTY" and PAIR in obj.keys()
 
 
-def feature_objects(scene):
+def feature_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """All feature Empties of ``scene``, sorted by name."""
     return sorted((o for o in scene.objects if is_feature(o)), key=lambda o: o.name)
 
 
-def pairs(scene):
+def pairs(scene: bpy.types.Scene) -> dict[str, Pair]:
     """Dict pair id -> `Pair`, sorted by segment then pair number.
 
     An Empty whose side is neither "A" nor "B", or whose side is already taken
@@ -78,21 +87,21 @@ def pairs(scene):
     return dict(sorted(found.items(), key=lambda kv: (kv[1].segment, _pair_number(kv[0]), kv[0])))
 
 
-def _int(value, default):
+def _int(value: Any, default: int) -> int:
     try:
         return int(value)
     except (TypeError, ValueError):
         return default
 
 
-def _pair_number(pid):
+def _pair_number(pid: str) -> int:
     try:
         return int(str(pid).split("#")[0].split(".")[1])
     except (IndexError, ValueError):
         return 1 << 30
 
 
-def new_pair_id(scene, segment):
+def new_pair_id(scene: bpy.types.Scene, segment: int) -> str:
     """The next free id "<segment>.<n>" of a segment."""
     used = {_pair_number(p.pair_id) for p in pairs(scene).values() if p.segment == segment}
     n = 0
@@ -101,7 +110,7 @@ def new_pair_id(scene, segment):
     return f"{segment}.{n}"
 
 
-def pair_color(pair_id):
+def pair_color(pair_id: str) -> tuple[float, float, float, float]:
     """A distinct RGBA colour per pair (golden-angle hues), the same for both sides."""
     n = _pair_number(pair_id)
     if n >= (1 << 30):  # not "<segment>.<n>": a stable number from the id itself
@@ -112,12 +121,12 @@ def pair_color(pair_id):
     return (r, g, b, 1.0)
 
 
-def object_name(pair_id, side, label=""):
+def object_name(pair_id: str, side: str, label: str = "") -> str:
     """"KFI 0.3 A" or, with a label, "KFI 0.3 nose A"."""
     return f"KFI {pair_id} {label} {side}" if label else f"KFI {pair_id} {side}"
 
 
-def display_size(keyframe_object):
+def display_size(keyframe_object: bpy.types.Object | None) -> float:
     """Empty size: a small share of the keyframe object's largest dimension, so that the
     Empties mark points on it without hiding its surface."""
     dims = keyframe_object.dimensions if keyframe_object is not None else (0.0, 0.0, 0.0)
@@ -125,7 +134,8 @@ def display_size(keyframe_object):
     return size if size > 0 else 0.03
 
 
-def tag(empty, pair_id, segment, side, label="", keyframe_object=None):
+def tag(empty: bpy.types.Object, pair_id: str, segment: int, side: str, label: str = "",
+        keyframe_object: bpy.types.Object | None = None) -> None:
     """Make ``empty`` side ``side`` of pair ``pair_id``: properties, name, colour, look, parent."""
     empty[PAIR] = str(pair_id)
     empty[SEGMENT] = int(segment)
@@ -141,7 +151,7 @@ def tag(empty, pair_id, segment, side, label="", keyframe_object=None):
         parent_keep_world(empty, keyframe_object)
 
 
-def parent_keep_world(child, parent):
+def parent_keep_world(child: bpy.types.Object, parent: bpy.types.Object) -> None:
     """Parent ``child`` to ``parent`` without moving it in world space."""
     world = child.matrix_world.copy()
     child.parent = parent
@@ -150,7 +160,8 @@ def parent_keep_world(child, parent):
     child.matrix_basis = world
 
 
-def create_pair(scene, settings, segment, location_a, location_b, label=""):
+def create_pair(scene: bpy.types.Scene, settings: KFI_Settings, segment: int,
+                location_a: Sequence[float], location_b: Sequence[float], label: str = "") -> str:
     """Create the two Empties of a new pair between keyframe ``segment`` and ``segment + 1``.
 
     Raises ValueError (with what to do) when the segment has no keyframe objects.
@@ -173,7 +184,8 @@ def create_pair(scene, settings, segment, location_a, location_b, label=""):
     return pid
 
 
-def segment_objects(settings, segment):
+def segment_objects(settings: KFI_Settings,
+                    segment: int) -> tuple[bpy.types.Object, bpy.types.Object]:
     """The keyframe objects (A, B) of segment ``segment``; ValueError saying what to fix."""
     n = len(settings.keyframes)
     if n < 2:
@@ -190,7 +202,8 @@ def segment_objects(settings, segment):
     return a, b
 
 
-def _link_like(scene, obj, like):
+def _link_like(scene: bpy.types.Scene, obj: bpy.types.Object,
+               like: bpy.types.Object | None) -> None:
     """Link ``obj`` into the first collection of ``like`` that is in the scene (else the scene's)."""
     target = scene.collection
     if like is not None:
@@ -202,7 +215,7 @@ def _link_like(scene, obj, like):
     target.objects.link(obj)
 
 
-def scene_collections(scene):
+def scene_collections(scene: bpy.types.Scene) -> Iterator[bpy.types.Collection]:
     """Every collection in ``scene``'s tree, its master collection first.
 
     Linking an object into a collection puts it in the scene only when that collection is
@@ -215,7 +228,7 @@ def scene_collections(scene):
         stack.extend(coll.children)
 
 
-def remove_pair(scene, pair_id):
+def remove_pair(scene: bpy.types.Scene, pair_id: str) -> int:
     """Delete both Empties of ``pair_id``; returns how many were removed."""
     removed = 0
     for obj in feature_objects(scene):
@@ -225,12 +238,13 @@ def remove_pair(scene, pair_id):
     return removed
 
 
-def keyframe_indices(settings, obj):
+def keyframe_indices(settings: KFI_Settings, obj: bpy.types.Object | None) -> list[int]:
     """Indices of the keyframes that use ``obj``."""
     return [i for i, kf in enumerate(settings.keyframes) if kf.object is not None and kf.object == obj]
 
 
-def pair_empties(scene, settings, first, second, segment=-1):
+def pair_empties(scene: bpy.types.Scene, settings: KFI_Settings, first: bpy.types.Object | None,
+                 second: bpy.types.Object | None, segment: int = -1) -> str:
     """Turn two plain (or re-used) Empties into one pair.
 
     The side of each Empty comes from its parent when both are parented to the
@@ -268,7 +282,7 @@ def pair_empties(scene, settings, first, second, segment=-1):
     return pid
 
 
-def on_keyframe_removed(scene, index):
+def on_keyframe_removed(scene: bpy.types.Scene, index: int) -> int:
     """Keep pairs consistent after keyframe ``index`` was removed from the list.
 
     Pairs touching that keyframe (segments index-1 and index) lose one side, so
@@ -290,7 +304,9 @@ def on_keyframe_removed(scene, index):
     return gone
 
 
-def select_pair(view_layer, scene, pair_id):
+def select_pair(view_layer: bpy.types.ViewLayer, scene: bpy.types.Scene,
+                pair_id: str) -> list[bpy.types.Object]:
+
     """Select both Empties of ``pair_id`` (B active); returns them."""
     found = [o for o in feature_objects(scene) if str(o[PAIR]) == pair_id]
     if not found:

@@ -7,6 +7,8 @@ and ``use_nodes`` is deprecated (reading or setting it warns; it goes away in
 ``use_nodes`` only where it still means something.
 """
 
+from __future__ import annotations
+
 import bpy
 
 __all__ = ["NODES_ALWAYS", "shader_node_tree"]
@@ -15,7 +17,8 @@ __all__ = ["NODES_ALWAYS", "shader_node_tree"]
 NODES_ALWAYS = (5, 0, 0)
 
 
-def shader_node_tree(material):
+def shader_node_tree(material: bpy.types.Material) -> bpy.types.ShaderNodeTree:
+
     """``material``'s shader node tree, its nodes switched on where Blender has that switch.
 
     Parameters

@@ -2,6 +2,7 @@
 
 import os
 import time
+from typing import TYPE_CHECKING
 
 import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
@@ -9,23 +10,28 @@ from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProp
 from ..core.base.progress import Cancelled
 from . import bake, diagnostics, features, preview, result_view, validate
 
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from .props import KFI_Settings
+
 _OPTS = {"REGISTER", "UNDO"}
 # Redo-panel ("Adjust Last Operation") hygiene: a property the panel fills in itself is not
 # remembered for the next run (SKIP_SAVE) and, when it means nothing to the artist, not shown.
 _INTERNAL = {"HIDDEN", "SKIP_SAVE"}
 
 
-def _settings(context):
+def _settings(context: bpy.types.Context) -> "KFI_Settings":
     return context.scene.keyframe_implicit
 
 
-def _search_meshes(_op, context, text):
+def _search_meshes(_op: bpy.types.Operator, context: bpy.types.Context, text: str) -> list[str]:
     """Search list of Add Keyframe's Object field: the scene's mesh objects."""
     text = text.lower()
     return [o.name for o in context.scene.objects if o.type == "MESH" and text in o.name.lower()]
 
 
-def _kind(obj):
+def _kind(obj: bpy.types.Object) -> str:
     """"a Curve object", "an Empty": the object's type as the Add menu names it, with its article."""
     kind = obj.bl_rna.properties["type"].enum_items[obj.type].name
     return f"{'an' if kind[0] in 'AEIOU' else 'a'} {kind}"
@@ -44,7 +50,7 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
     frame: IntProperty(name="Frame", default=1, options={"SKIP_SAVE"},
                        description="Timeline frame, negative ones included (not set: the current frame)")
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Add the named (or active) mesh object as a keyframe on the frame given."""
         settings = _settings(context)
         name = self.object_name or (context.active_object.name if context.active_object else "")
@@ -89,7 +95,7 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
     index: IntProperty(name="Index", default=-1, options=_INTERNAL,
                        description="Keyframe to remove, from 0 (-1: the active one)")
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Remove a keyframe from the list (its object stays in the scene)."""
         settings = _settings(context)
         n = len(settings.keyframes)
@@ -118,7 +124,7 @@ class KFI_OT_move_keyframe(bpy.types.Operator):
                        description="Keyframe to move, from 0 (-1: the active one)")
     direction: EnumProperty(name="Direction", items=(("UP", "Up", ""), ("DOWN", "Down", "")))
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Move a keyframe up or down the list."""
         settings = _settings(context)
         n = len(settings.keyframes)
@@ -150,7 +156,7 @@ class KFI_OT_add_feature_pair(bpy.types.Operator):
                                     description="World position on keyframe i+1 (default: 3D cursor)")
     name: StringProperty(name="Name", default="", description="Optional label shown in the names")
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Create a feature pair's two Empties on the segment's keyframes."""
         cursor = tuple(context.scene.cursor.location)
         for prop in ("location_a", "location_b"):
@@ -178,7 +184,7 @@ class KFI_OT_pair_selected(bpy.types.Operator):
                          description="Segment when the Empties are not parented to keyframe objects "
                                      "(-1: from their parents)")
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Make the two selected Empties a feature pair."""
         chosen = [o for o in context.selected_objects if o.type == "EMPTY"]
         if len(chosen) != 2:
@@ -204,7 +210,7 @@ class _OnePair:
 
     pair: StringProperty(name="Pair", default="", description="Pair id, e.g. 0.3")
 
-    def invoke(self, context, event):
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         """Take the active feature Empty's pair, or ask for the id."""
         if not _resolve_pair(self, context):
             return context.window_manager.invoke_props_dialog(self)
@@ -217,7 +223,7 @@ class KFI_OT_remove_feature_pair(_OnePair, bpy.types.Operator):
     bl_idname = "keyframe_implicit.remove_feature_pair"
     bl_label = "Remove Feature Pair"
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Delete the pair's Empties; report if there is no such pair."""
         _resolve_pair(self, context)
         n = features.remove_pair(context.scene, self.pair)
@@ -234,7 +240,7 @@ class KFI_OT_select_pair(_OnePair, bpy.types.Operator):
     bl_idname = "keyframe_implicit.select_pair"
     bl_label = "Select Pair"
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Select the pair's two Empties."""
         _resolve_pair(self, context)
         try:
@@ -245,13 +251,14 @@ class KFI_OT_select_pair(_OnePair, bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _failed(what, detail):
+def _failed(what: str, detail: str) -> str:
     """One sentence for a failed bake: the detail's own full stop is not doubled."""
     detail = detail.strip().rstrip(".;")
     return f"{what}: {detail}. The scene is unchanged."
 
 
-def _resolve_pair(op, context):
+def _resolve_pair(op: _OnePair, context: bpy.types.Context) -> bool:
+
     """No pair id given (menu, F3, script): take the active feature Empty's pair."""
     if not op.pair and features.is_feature(context.active_object):
         op.pair = str(context.active_object[features.PAIR])
@@ -264,7 +271,7 @@ class KFI_MT_menu(bpy.types.Menu):
     bl_idname = "KFI_MT_menu"
     bl_label = "Keyframe Implicit"
 
-    def draw(self, context):
+    def draw(self, context: bpy.types.Context) -> None:
         """Every operator of the add-on, the bake last."""
         layout = self.layout
         layout.operator("keyframe_implicit.add_keyframe")
@@ -281,7 +288,7 @@ class KFI_MT_menu(bpy.types.Menu):
         layout.operator("keyframe_implicit.export_farm_job", icon="NETWORK_DRIVE")
 
 
-def menu_func(self, context):
+def menu_func(self: bpy.types.Menu, context: bpy.types.Context) -> None:
     """Object > Keyframe Implicit: the add-on's menu in the Object menu."""
     self.layout.menu(KFI_MT_menu.bl_idname)
 
@@ -319,7 +326,7 @@ class KFI_OT_bake(bpy.types.Operator):
     _write_budget = WRITE_BUDGET
 
     @classmethod
-    def poll(cls, context):
+    def poll(cls, context: bpy.types.Context) -> bool:
         """Bake only one at a time, and only a setup without blocking problems (the panel's
         list, `validate.problems`: read without the meshes, cheap on every redraw); the
         button's tooltip says why not."""
@@ -335,14 +342,14 @@ class KFI_OT_bake(bpy.types.Operator):
             return False
         return True
 
-    def _hints(self, context, notes=()):
+    def _hints(self, context: bpy.types.Context, notes: "Iterable[str]" = ()) -> None:
         for p in validate.problems(context.scene):
             if p.level == validate.WARNING:
                 self.report({"WARNING"}, p.message)
         for note in notes:
             self.report({"WARNING"}, note)
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         """Blocking bake (scripts, ``blender -b``, no window): `bake.bake_scene`."""
         preview.turn_off(context.scene)
         notes = []
@@ -360,7 +367,7 @@ class KFI_OT_bake(bpy.types.Operator):
             return {"CANCELLED"}
         return self._done(context, obj, notes=notes)
 
-    def invoke(self, context, event):
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         """From the UI: read and check the scene once (`bake.collect`), then bake in the
         background while the modal handler polls (ESC cancels; `diagnostics.current`, when
         set, measures the polling)."""
@@ -382,7 +389,7 @@ class KFI_OT_bake(bpy.types.Operator):
         self._status(context, "Baking: starting (ESC to cancel)")
         return {"RUNNING_MODAL"}
 
-    def _status(self, context, text):
+    def _status(self, context: bpy.types.Context, text: str | None) -> None:
         """Show ``text`` (None: nothing) in the status bar and in the panel, where the sidebars
         of the 3D views draw it; only these are redrawn, and only when the text changes."""
         if text == self._shown:
@@ -396,7 +403,7 @@ class KFI_OT_bake(bpy.types.Operator):
                     if region.type == "UI":
                         region.tag_redraw()
 
-    def _finish(self, context):
+    def _finish(self, context: bpy.types.Context) -> None:
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
@@ -406,7 +413,7 @@ class KFI_OT_bake(bpy.types.Operator):
         if self._job in running:
             running.remove(self._job)
 
-    def modal(self, context, event):
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         """Each turn of the main loop: ESC cancels; a timer event polls the job, shows its
         progress and, once it is done, writes the result a piece at a time."""
         job = self._job
@@ -438,7 +445,7 @@ class KFI_OT_bake(bpy.types.Operator):
             self._status(context, "Baking: writing the result (ESC to cancel)")
         return self._write_step(context)
 
-    def _write_step(self, context):
+    def _write_step(self, context: bpy.types.Context) -> set[str]:
         """Pieces of writing the result (`BakeJob.apply_steps`) until `WRITE_BUDGET` is spent,
         then the main loop's turn."""
         t0 = time.perf_counter()
@@ -456,13 +463,14 @@ class KFI_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, _failed("Writing the result failed", str(exc)))
             return {"CANCELLED"}
 
-    def _stop_writing(self, context):
+    def _stop_writing(self, context: bpy.types.Context) -> set[str]:
         self._writer.close()  # removes what it wrote
         self._finish(context)
         self.report({"WARNING"}, "Bake cancelled; the scene is unchanged.")
         return {"CANCELLED"}
 
-    def _done(self, context, obj, seconds=None, notes=()):
+    def _done(self, context: bpy.types.Context, obj: bpy.types.Object,
+              seconds: float | None = None, notes: "Iterable[str]" = ()) -> set[str]:
         """Show the result (selected, keyframes hidden, frame range) and say what was made where;
         ``notes`` (faces reoriented, loose vertices ignored, ...) come as warnings."""
         shown = result_view.present(context.scene, context.view_layer, _settings(context), obj)
@@ -475,7 +483,8 @@ class KFI_OT_bake(bpy.types.Operator):
                               + "; ".join(shown) + ". " + obj.get("kfi_report", ""))  # has frames
         return {"FINISHED"}
 
-    def cancel(self, context):
+    def cancel(self, context: bpy.types.Context) -> None:
+
         """Blender ends the operator (window closed, file loaded) while it runs: stop the job
         and take out what was written."""
         if self._job is not None:
@@ -493,7 +502,7 @@ class KFI_OT_export_farm_job(bpy.types.Operator):
     bl_options = set()  # writes files only: no undo step, the scene is unchanged
 
     @classmethod
-    def poll(cls, context):
+    def poll(cls, context: bpy.types.Context) -> bool:
         """Only a setup the Bake button accepts, in a saved file: the job is written beside
         it and bakes a copy of it."""
         if not bpy.data.filepath:
@@ -501,7 +510,7 @@ class KFI_OT_export_farm_job(bpy.types.Operator):
             return False
         return KFI_OT_bake.poll(context)
 
-    def execute(self, context):
+    def execute(self, context: bpy.types.Context) -> set[str]:
         from . import farm
 
         try:

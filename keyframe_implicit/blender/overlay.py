@@ -8,7 +8,15 @@ The same calls work on every supported Blender (4.2 .. 5.3). Where drawing is un
 preview keeps only the mesh: `available` says which.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    import gpu
+    from numpy.typing import ArrayLike
 
 __all__ = ["available", "batch", "draw", "COLOR"]
 
@@ -19,7 +27,7 @@ COLOR = (1.0, 0.45, 0.1, 0.55)
 _LIGHT = np.array([0.3, -0.5, 0.8])
 
 
-def _shader():
+def _shader() -> gpu.types.GPUShader | None:
     """The builtin shader, or None where drawing is unavailable."""
     import gpu
 
@@ -29,12 +37,12 @@ def _shader():
         return None
 
 
-def available():
+def available() -> bool:
     """Whether this Blender can draw (a GPU context exists)."""
     return _shader() is not None
 
 
-def vertex_colors(vertices, triangles):
+def vertex_colors(vertices: ArrayLike, triangles: ArrayLike) -> np.ndarray:
     """(V, 4) float32 colours: `COLOR` lit by `_LIGHT` along each vertex's normal (the
     area-weighted sum of its triangles' normals), both sides lit alike."""
     v = np.asarray(vertices, dtype=np.float64)
@@ -53,7 +61,8 @@ def vertex_colors(vertices, triangles):
     return colors
 
 
-def batch(vertices, triangles):
+def batch(vertices: np.ndarray, triangles: np.ndarray,
+          ) -> tuple[gpu.types.GPUShader, gpu.types.GPUBatch] | None:
     """(shader, batch) drawing the mesh, or None where drawing is unavailable."""
     shader = _shader()
     if shader is None or len(triangles) == 0:
@@ -65,7 +74,8 @@ def batch(vertices, triangles):
                                     indices=triangles)
 
 
-def draw(shader_batch):
+def draw(shader_batch: tuple[gpu.types.GPUShader, gpu.types.GPUBatch]) -> None:
+
     """Draw a `batch` in the current view (a ``POST_VIEW`` draw handler)."""
     import gpu
 

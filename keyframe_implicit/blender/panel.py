@@ -8,9 +8,18 @@ The sidebar does not wrap labels: `wrap` breaks messages at the region's real
 width, measured with the UI font at the UI scale.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import bpy
 
 from . import features, output, validate
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from .props import KFI_Keyframe, KFI_Settings
 
 # Width (px at UI scale 1) a sidebar label loses to the category tabs, the panel's and a
 # box's margins and the label's own padding (measured on a 4.3 window: 81 without a box),
@@ -26,7 +35,10 @@ class KFI_UL_keyframes(bpy.types.UIList):
     bl_idname = "KFI_UL_keyframes"
     NAME_SHARE = 0.72  # the frame number keeps the rest beside the interpolation's icon
 
-    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+    def draw_item(self, context: bpy.types.Context, layout: bpy.types.UILayout,
+                  data: bpy.types.AnyType, item: KFI_Keyframe, icon: int,
+                  active_data: bpy.types.AnyType, active_propname: str,
+                  index: int = 0) -> None:
         """One keyframe: its object's name, its frame and its interpolation."""
         if self.layout_type == "GRID":
             layout.label(text=item.object.name if item.object else "?")
@@ -53,8 +65,9 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
     bl_idname = "KFI_PT_main"
     bl_label = "Keyframe Implicit"
 
-    def draw(self, context):
+    def draw(self, context: bpy.types.Context) -> None:
         """The keyframe list, the problems found, the output and the Bake button."""
+
         layout = self.layout
         scene = context.scene
         settings = scene.keyframe_implicit
@@ -121,7 +134,7 @@ class KFI_PT_features(_Sidebar, bpy.types.Panel):
     bl_label = "Feature Pairs"
     bl_parent_id = "KFI_PT_main"
 
-    def draw(self, context):
+    def draw(self, context: bpy.types.Context) -> None:
         """The pairs of the active keyframe's segment, with their tools."""
         layout = self.layout
         scene = context.scene
@@ -168,7 +181,7 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
     bl_parent_id = "KFI_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
 
-    def draw(self, context):
+    def draw(self, context: bpy.types.Context) -> None:
         """The weights of eq. 2.6, the output kind and the volume export."""
         settings = context.scene.keyframe_implicit
         col = self.layout.column(align=True)
@@ -179,7 +192,8 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         self.layout.prop(settings, "motion_resolution")
 
 
-def _live_preview(layout, context, settings):
+def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context,
+                  settings: KFI_Settings) -> None:
     """The Live Preview toggle; while it is on, its grids or why it shows nothing."""
     from . import preview
 
@@ -202,7 +216,8 @@ def _live_preview(layout, context, settings):
 SHOWN_PROBLEMS = 2
 
 
-def _problems(layout, context, settings, found):
+def _problems(layout: bpy.types.UILayout, context: bpy.types.Context, settings: KFI_Settings,
+              found: Sequence[validate.Problem]) -> None:
     """The problems found, errors first; past `SHOWN_PROBLEMS` behind a disclosure."""
     if not found:
         return
@@ -217,12 +232,12 @@ def _problems(layout, context, settings, found):
                  icon="DOWNARROW_HLT" if settings.show_all_problems else "RIGHTARROW")
 
 
-def ui_scale(context):
+def ui_scale(context: bpy.types.Context) -> float:
     """The UI scale factor (1 in background mode, where it reads 0)."""
     return context.preferences.system.ui_scale or 1.0
 
 
-def text_width(text, scale):
+def text_width(text: str, scale: float) -> float:
     """Width in pixels of ``text`` in the UI font at ``scale`` (blf measures it)."""
     import blf
 
@@ -230,7 +245,7 @@ def text_width(text, scale):
     return blf.dimensions(0, text)[0]
 
 
-def wrap(text, width, scale=1.0):
+def wrap(text: str, width: float, scale: float = 1.0) -> list[str]:
     """Lines of ``text`` (broken at spaces) that each fit ``width`` pixels of label text.
 
     Greedy, like a text editor: each line takes as many words as fit. A word
@@ -249,7 +264,7 @@ def wrap(text, width, scale=1.0):
     return lines
 
 
-def label_width(context):
+def label_width(context: bpy.types.Context) -> float:
     """Pixels of text a sidebar label with an icon has, in a box, in this region."""
     scale = ui_scale(context)
     region = context.region
@@ -257,7 +272,9 @@ def label_width(context):
     return max(width - (LABEL_MARGIN + ICON_WIDTH) * scale, 60 * scale)
 
 
-def _wrapped(layout, context, text, icon):
+def _wrapped(layout: bpy.types.UILayout, context: bpy.types.Context, text: str,
+             icon: str) -> None:
+
     """A message as labels wrapped to the region's width; the icon on the first line."""
     col = layout.column(align=True)
     for i, line in enumerate(wrap(text, label_width(context), ui_scale(context))):

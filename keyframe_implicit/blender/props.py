@@ -22,11 +22,11 @@ from bpy.props import (
 from ..core.map.solver import DEFAULT_WEIGHTS
 
 
-def _is_mesh(_self, obj):
+def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
     return obj is not None and obj.type == "MESH"
 
 
-def _live_preview_changed(settings, _context):
+def _live_preview_changed(settings: "KFI_Settings", _context: bpy.types.Context) -> None:
     from . import preview
 
     if settings.live_preview:
@@ -35,7 +35,7 @@ def _live_preview_changed(settings, _context):
         preview.stop()
 
 
-def _show_keyframes_changed(settings, context):
+def _show_keyframes_changed(settings: "KFI_Settings", context: bpy.types.Context) -> None:
     from . import result_view
 
     result_view.show_keyframes(settings, context.view_layer, settings.show_keyframes)
@@ -170,11 +170,11 @@ class KFI_Settings(bpy.types.PropertyGroup):
         description="The figures behind the bake report, each explained",
     )
 
-    def motion(self):
+    def motion(self) -> int | None:
         """The Motion Resolution as the core expects it: None for automatic."""
         return int(self.motion_resolution) or None
 
-    def weights(self):
+    def weights(self) -> dict[str, float]:
         """The weights as the core expects them (``animate(weights=...)``)."""
         return {
             "volume": float(self.volume_weight),
@@ -186,11 +186,12 @@ class KFI_Settings(bpy.types.PropertyGroup):
 classes = (KFI_Keyframe, KFI_Settings)
 
 
-def register_properties():
+def register_properties() -> None:
     """Give every scene its ``keyframe_implicit`` settings."""
     bpy.types.Scene.keyframe_implicit = PointerProperty(type=KFI_Settings)
 
 
-def unregister_properties():
+def unregister_properties() -> None:
+
     """Remove the scenes' ``keyframe_implicit`` settings."""
     del bpy.types.Scene.keyframe_implicit

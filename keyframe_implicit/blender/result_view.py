@@ -11,10 +11,19 @@ when they are hidden again. Everything here is ordinary scene state, so one
 undo step of the bake brings it all back.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from . import features
 
+if TYPE_CHECKING:
+    import bpy
 
-def keyframe_objects(settings):
+    from .props import KFI_Settings
+
+
+def keyframe_objects(settings: KFI_Settings) -> list[bpy.types.Object]:
     """The distinct objects of the keyframe list, in list order."""
     seen = []
     for item in settings.keyframes:
@@ -23,14 +32,14 @@ def keyframe_objects(settings):
     return seen
 
 
-def _set_hidden(obj, view_layer, hidden):
+def _set_hidden(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer, hidden: bool) -> None:
     try:
         obj.hide_set(hidden, view_layer=view_layer)
     except RuntimeError:  # not in this view layer: nothing to show or hide there
         pass
 
 
-def show_keyframes(settings, view_layer, show):
+def show_keyframes(settings: KFI_Settings, view_layer: bpy.types.ViewLayer, show: bool) -> None:
     """Show the keyframes as wireframes, or hide them (with their feature Empties).
 
     They stay out of renders either way. The first call remembers each
@@ -54,7 +63,7 @@ def show_keyframes(settings, view_layer, show):
             _set_hidden(empty, view_layer, True)
 
 
-def cover_frames(scene, first, last):
+def cover_frames(scene: bpy.types.Scene, first: int, last: int) -> tuple[int, int] | None:
     """Widen the scene's frame range to include first..last; returns the old range if changed."""
     old = (scene.frame_start, scene.frame_end)
     if first >= old[0] and last <= old[1]:
@@ -67,7 +76,9 @@ def cover_frames(scene, first, last):
     return old
 
 
-def present(scene, view_layer, settings, obj):
+def present(scene: bpy.types.Scene, view_layer: bpy.types.ViewLayer, settings: KFI_Settings,
+            obj: bpy.types.Object) -> list[str]:
+
     """Select ``obj``, hide the keyframes, cover its frames; returns notes for the report."""
     for other in view_layer.objects.selected:
         if other is not None:  # (the replaced output, removed a moment ago)

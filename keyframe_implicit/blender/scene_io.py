@@ -21,8 +21,11 @@ keyframes read without a frame change"). Evaluated meshes come from
 ``bpy.data``) and are read with ``foreach_get``.
 """
 
+from __future__ import annotations
+
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
@@ -31,6 +34,14 @@ from ..core.bake.pipeline import Keyframe
 from ..core.fields.measure import Surface
 from ..core.fields.measure import read_surface as measure_surface
 from . import features, volumes
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable, Iterator, Sequence
+    from typing import Literal
+
+    import bpy
+
+    from .props import KFI_Keyframe
 
 
 @dataclass(frozen=True)
@@ -62,7 +73,7 @@ class ListedKeyframe:
     modified: bool = False
 
     @property
-    def readable(self):
+    def readable(self) -> bool:
         """Whether its mesh can be read for a bake: a mesh object in the scene."""
         return self.kind == "MESH" and self.in_scene
 
@@ -89,10 +100,10 @@ class ListedPair:
     segment: int
     a: str | None = None
     b: str | None = None
-    unparented: tuple = ()
+    unparented: tuple[tuple[str, str | None], ...] = ()
 
     @property
-    def complete(self):
+    def complete(self) -> bool:
         """Whether both sides have an Empty."""
         return self.a is not None and self.b is not None
 
@@ -141,35 +152,37 @@ class BakeInput:
         Why the OpenVDB export asked for cannot run ("" when it can, `volumes.problem`).
     """
 
-    keyframes: list
-    features: list
+    keyframes: list[Keyframe]
+    features: list[tuple[np.ndarray, np.ndarray]]
     resolution: int
-    weights: dict
+    weights: dict[str, float]
     motion_resolution: int | None = None
-    material_names: list = field(default_factory=list)
-    pair_ids: list = field(default_factory=list)
-    feature_names: list = field(default_factory=list)
+    material_names: list[str] = field(default_factory=list)
+    pair_ids: list[list[str]] = field(default_factory=list)
+    feature_names: list[list[tuple[str, str]]] = field(default_factory=list)
     levelsets: bool = False
     output_mode: str = "AUTO"
-    key_interpolation: list = field(default_factory=list)
-    listed_keyframes: list = field(default_factory=list)
-    listed_pairs: list = field(default_factory=list)
-    scene_frames: tuple = (1, 250)
+    key_interpolation: list[str] = field(default_factory=list)
+    listed_keyframes: list[ListedKeyframe] = field(default_factory=list)
+    listed_pairs: list[ListedPair] = field(default_factory=list)
+    scene_frames: tuple[int, int] = (1, 250)
     volume_problem: str = ""
 
     @property
-    def frames(self):
+    def frames(self) -> list[int]:
         """The frames of the keyframes read, in list order."""
         return [k.frame for k in self.keyframes]
 
 
-def _get(collection, prop, n, dtype, width=1):
+def _get(collection: bpy.types.bpy_prop_collection, prop: str, n: int, dtype: type,
+         width: int = 1) -> np.ndarray:
     out = np.empty(n * width, dtype=dtype)
     collection.foreach_get(prop, out)
     return out.reshape(-1, width) if width > 1 else out
 
 
-def mesh_attributes(obj, mesh, matrix):
+def mesh_attributes(obj: bpy.types.Object, mesh: bpy.types.Mesh,
+                    matrix: np.ndarray) -> MeshAttributes:
     """`MeshAttributes` of an evaluated mesh: polygons, UV maps (active first), colour
     attributes, the object's material slots with per-face indices, smooth flags, sharp and
     seam edges, custom split normals (world space) when the mesh has them."""
@@ -201,7 +214,19 @@ def mesh_attributes(obj, mesh, matrix):
     return attrs
 
 
-def mesh_arrays(obj, depsgraph, attributes=False):
+@overload
+def mesh_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
+                attributes: Literal[False] = False) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@overload
+def mesh_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
+                attributes: Literal[True]) -> tuple[np.ndarray, np.ndarray, MeshAttributes]: ...
+
+
+def mesh_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, attributes: bool = False,
+                ) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, MeshAttributes]:
+
     """World-space vertices (V, 3) float64 and triangles (T, 3) int64 of ``obj`` evaluated;
     with ``attributes``, also its `MeshAttributes` (`mesh_attributes`)."""
     ob_eval = obj.evaluated_get(depsgraph)
@@ -220,7 +245,7 @@ def mesh_arrays(obj, depsgraph, attributes=False):
     return verts, tris.astype(np.int64)
 
 
-def read_surface(obj, depsgraph):
+def read_surface(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Surface:
     """``obj``'s evaluated mesh in world space as the bake reads it: faces only, each part
     facing one way (`core.fields.measure.read_surface`, the measure the bake's own check uses).
 
@@ -244,10 +269,10 @@ def read_surface(obj, depsgraph):
         return Surface(triangles=0)
 
 
-_surfaces = {}  # cheap state of a keyframe object -> read_surface's answer
+_surfaces: dict[tuple, Surface] = {}  # cheap state of a keyframe object -> read_surface's answer
 
 
-def cached_surface(obj, depsgraph):
+def cached_surface(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Surface:
     """`read_surface`, kept per cheap state of ``obj`` (its mesh, counts and modifiers)
     and its world transform (the measure is in world units).
 
@@ -263,7 +288,8 @@ def cached_surface(obj, depsgraph):
     return _surfaces[key]
 
 
-def forget_surfaces(scene=None, depsgraph=None):
+def forget_surfaces(scene: bpy.types.Scene | None = None,
+                    depsgraph: bpy.types.Depsgraph | None = None) -> None:
     """Drop the kept surface readings: after a geometry update, a file load, re-registering.
 
     Parameters
@@ -278,11 +304,11 @@ def forget_surfaces(scene=None, depsgraph=None):
         _surfaces.clear()
 
 
-def _world(obj, depsgraph):
+def _world(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> tuple[float, ...]:
     return tuple(obj.evaluated_get(depsgraph).matrix_world.translation)
 
 
-def _animated(id_data):
+def _animated(id_data: bpy.types.ID | None) -> bool:
     """Whether an ID block (or None) carries an action, NLA strips or drivers."""
     ad = getattr(id_data, "animation_data", None)
     return ad is not None and (ad.action is not None or len(ad.drivers) > 0
@@ -295,12 +321,12 @@ _TIMELESS_MODIFIERS = frozenset(("SUBSURF", "TRIANGULATE", "WELD", "SOLIDIFY", "
                                  "EDGE_SPLIT", "WEIGHTED_NORMAL"))
 
 
-def _timeless(modifier):
+def _timeless(modifier: bpy.types.Modifier) -> bool:
     return modifier.type in _TIMELESS_MODIFIERS or (
         modifier.type == "MIRROR" and modifier.mirror_object is None)
 
 
-def frame_dependent(obj):
+def frame_dependent(obj: bpy.types.Object | None) -> bool:
     """Whether ``obj`` may evaluate differently on another frame (conservative).
 
     True when the object or one of its parents has animation (an action, NLA strips or
@@ -323,13 +349,13 @@ def frame_dependent(obj):
 
 
 @contextmanager
-def _on_frames(scene):
+def _on_frames(scene: bpy.types.Scene) -> Iterator[Callable[[int], None]]:
     """A function ``go(frame)`` that evaluates ``scene`` on ``frame`` (unless it is there
     already); afterwards the scene is back on the frame it was on, if it left it."""
     start = (scene.frame_current, scene.frame_subframe)
     moved = []
 
-    def go(frame):
+    def go(frame: int) -> None:
         if (scene.frame_current, scene.frame_subframe) != (frame, 0.0):
             scene.frame_set(frame)
             moved.append(frame)
@@ -340,7 +366,9 @@ def _on_frames(scene):
             scene.frame_set(start[0], subframe=start[1])
 
 
-def _read_on_frames(scene, kfs, rows, depsgraph):
+def _read_on_frames(scene: bpy.types.Scene, kfs: Sequence[KFI_Keyframe],
+                    rows: Sequence[Sequence[features.Pair]], depsgraph: bpy.types.Depsgraph,
+                    ) -> tuple[list[Keyframe], list[tuple[np.ndarray, np.ndarray]]]:
     """The keyframes' meshes and the feature points, each on its keyframe's frame (on the
     current frame where nothing read there depends on the frame: `frame_dependent`).
 
@@ -370,7 +398,7 @@ def _read_on_frames(scene, kfs, rows, depsgraph):
     return keyframes, feats
 
 
-def _segment_rows(found, n_seg):
+def _segment_rows(found: Iterable[features.Pair], n_seg: int) -> list[list[features.Pair]]:
     """The complete feature pairs (`features.Pair`) of each segment, in order."""
     rows = [[] for _ in range(n_seg)]
     for pair in found:
@@ -379,7 +407,8 @@ def _segment_rows(found, n_seg):
     return rows
 
 
-def _listed_keyframe(scene, kf, depsgraph):
+def _listed_keyframe(scene: bpy.types.Scene, kf: KFI_Keyframe,
+                     depsgraph: bpy.types.Depsgraph) -> ListedKeyframe:
     """A `ListedKeyframe` of one entry of the keyframe list."""
     obj = kf.object
     if obj is None:
@@ -390,7 +419,8 @@ def _listed_keyframe(scene, kf, depsgraph):
                           len(obj.modifiers) > 0)
 
 
-def _listed_pair(pair, objects):
+def _listed_pair(pair: features.Pair,
+                 objects: Sequence[bpy.types.Object | None]) -> ListedPair:
     """A `ListedPair` of a `features.Pair`; ``objects`` are the keyframe list's objects."""
     unparented = ()
     if pair.complete and 0 <= pair.segment < len(objects) - 1:
@@ -401,7 +431,7 @@ def _listed_pair(pair, objects):
                       pair.b.name if pair.b is not None else None, unparented)
 
 
-def _material_names(objects):
+def _material_names(objects: Iterable[bpy.types.Object]) -> list[str]:
     """The keyframe objects' active materials' names, first use first."""
     names = []
     for obj in objects:
@@ -411,7 +441,9 @@ def _material_names(objects):
     return names
 
 
-def read(scene, depsgraph=None, resolution=0, meshes=True):
+def read(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
+         resolution: int = 0, meshes: bool = True) -> BakeInput:
+
     """Read the bake ``scene``'s settings describe, once, into a `BakeInput`.
 
     The one reading of a bake's setup: `validate.check` checks what it returns and

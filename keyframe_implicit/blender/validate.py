@@ -20,11 +20,20 @@ changes some geometry (`scene_io.cached_surface`). Keyframes are numbered from 1
 core's messages number them; repeated problems of one kind are one line with a count.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ..core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, THICKEN, no_volume_words
-from ..core.fields.mesh import Surface
+from ..core.fields.measure import Surface
 from . import scene_io
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Sequence
+
+    import bpy
+
 
 ERROR = "ERROR"
 WARNING = "WARNING"
@@ -46,7 +55,7 @@ def with_menu_paths(message: str) -> str:
     return message
 
 
-def count(n, noun, plural=None):
+def count(n: int, noun: str, plural: str | None = None) -> str:
     """``n`` ``noun``s in words: "no feature pairs", "1 feature pair", "3 feature pairs";
     ``plural`` where it is not ``noun`` + "s" ("loose vertices")."""
     return f"{n or 'no'} {noun if n == 1 else plural or noun + 's'}"
@@ -71,12 +80,13 @@ class Problem:
     segment: int = -1
 
     @property
-    def icon(self):
+    def icon(self) -> str:
         """The panel's icon for its level."""
         return "ERROR" if self.level == ERROR else "INFO"
 
 
-def problems(scene, depsgraph=None):
+def problems(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
+             ) -> list[Problem]:
     """All problems of ``scene``'s keyframe_implicit setup, errors first.
 
     Reads the setup without the keyframes' meshes (`scene_io.read` with
@@ -97,7 +107,7 @@ def problems(scene, depsgraph=None):
     return check(scene_io.read(scene, depsgraph, meshes=False))
 
 
-def check(inputs):
+def check(inputs: scene_io.BakeInput) -> list[Problem]:
     """All problems of a bake's description, errors first.
 
     Parameters
@@ -122,7 +132,7 @@ def check(inputs):
     return out
 
 
-def _motion_problems(motion_resolution, resolution):
+def _motion_problems(motion_resolution: int | None, resolution: int) -> list[Problem]:
     """The core's own refusal of a Motion Resolution it cannot use (one measure)."""
     from ..core.bake.checks import check_motion_resolution
 
@@ -133,7 +143,7 @@ def _motion_problems(motion_resolution, resolution):
     return []
 
 
-def _keyframe_problems(listed):
+def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe]) -> list[Problem]:
     """Too few keyframes; entries without a mesh object in the scene; unsound surfaces."""
     out = []
     if len(listed) < 2:
@@ -156,10 +166,10 @@ def _keyframe_problems(listed):
     return out
 
 
-def _frame_problems(frames, scene_frames):
+def _frame_problems(frames: Sequence[int], scene_frames: tuple[int, int]) -> list[Problem]:
     """Two keyframes on one frame; a list out of frame order; frames outside the scene's."""
     out = []
-    seen = {}
+    seen: dict[int, int] = {}
     for i, f in enumerate(frames, start=1):
         if f in seen:
             out.append(Problem(ERROR, f"Keyframes {seen[f]} and {i} are both on frame {f}: give "
@@ -179,12 +189,14 @@ def _frame_problems(frames, scene_frames):
     return out
 
 
-def _pair_problems(pairs, listed):
+def _pair_problems(pairs: Iterable[scene_io.ListedPair],
+                   listed: Sequence[scene_io.ListedKeyframe]) -> list[Problem]:
     """Pairs of missing segments, lone Empties, Empties off their keyframe objects (one line
     per segment, side and parent), and segments with few pairs."""
     out = []
     counts = [0] * max(len(listed) - 1, 0)
-    off = {}  # (segment, keyframe number, parent) -> names of the Empties parented there
+    # (segment, keyframe number, parent) -> names of the Empties parented there
+    off: dict[tuple[int, int, str | None], list[str]] = {}
     for pair in pairs:
         name = pair.a if pair.a is not None else pair.b
         if not 0 <= pair.segment < len(counts):
@@ -210,7 +222,8 @@ def _pair_problems(pairs, listed):
     return out
 
 
-def _off_keyframe(seg, number, parent, empties, listed):
+def _off_keyframe(seg: int, number: int, parent: str | None, empties: Sequence[str],
+                  listed: Sequence[scene_io.ListedKeyframe]) -> str:
     """One line for the feature Empties of segment ``seg`` meant to sit on keyframe ``number``
     but parented to ``parent`` (an object name, or None), with the advice that fits."""
     target = f"keyframe {number} '{listed[number - 1].name}'"
@@ -255,7 +268,7 @@ def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str
         return [(ERROR, f"has no faces{after}: a keyframe must be a closed surface.")]
     if not surface.encloses_volume:
         return [(ERROR, with_menu_paths(no_volume_words(surface)))]
-    out = []
+    out: list[tuple[str, str]] = []
     if surface.reoriented:
         out.append((WARNING, with_menu_paths(
             f"has {count(surface.reoriented, 'triangle')} facing inward: the bake reads it "
@@ -277,12 +290,13 @@ def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str
     return out
 
 
-def errors(found):
+def errors(found: Iterable[Problem]) -> list[Problem]:
     """The `ERROR` problems among ``found`` (those that block a bake), in order."""
     return [p for p in found if p.level == ERROR]
 
 
-def raise_on_errors(inputs):
+def raise_on_errors(inputs: scene_io.BakeInput) -> None:
+
     """Refuse to bake a description with blocking problems.
 
     Parameters

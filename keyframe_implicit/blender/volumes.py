@@ -11,15 +11,29 @@ exposes it after ``bpy.utils.expose_bundled_modules()``. Where it does not
 exist (e.g. bpy 4.2) `openvdb_module` says so and nothing is written.
 """
 
+from __future__ import annotations
+
 import os
+from typing import TYPE_CHECKING
 
 import bpy
 import numpy as np
 
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Sequence
+    from types import ModuleType
+
+
+    from numpy.typing import ArrayLike
+
+    from ..core.bake.animation import Animation
+    from ..core.base.grid import Grid
+    from .props import KFI_Settings
+
 GRID_NAME = "level_set"
 
 
-def openvdb_module():
+def openvdb_module() -> tuple[ModuleType, str] | tuple[None, str]:
     """(module, "") or (None, reason) for the OpenVDB Python module Blender ships."""
     expose = getattr(bpy.utils, "expose_bundled_modules", None)
     if expose is not None:
@@ -32,12 +46,13 @@ def openvdb_module():
     return openvdb, ""
 
 
-def frame_path(directory, name, frame):
+def frame_path(directory: str, name: str, frame: int) -> str:
     """The .vdb file of one frame: ``<name>_0001.vdb`` in ``directory``."""
     return os.path.join(directory, f"{name}_{int(frame):04d}.vdb")
 
 
-def write_levelset(vdb, path, levelset, grid, background):
+def write_levelset(vdb: ModuleType, path: str, levelset: ArrayLike, grid: Grid,
+                   background: float) -> None:
     """One level set (grid.shape float array) as a float grid in a .vdb file."""
     out = vdb.FloatGrid(float(background))
     out.copyFromArray(np.ascontiguousarray(levelset, dtype=np.float32), ijk=(0, 0, 0),
@@ -51,7 +66,8 @@ def write_levelset(vdb, path, levelset, grid, background):
     vdb.write(path, grids=[out])
 
 
-def write_sequence(directory, name, frames, levelsets, grid):
+def write_sequence(directory: str, name: str, frames: Iterable[int],
+                   levelsets: Sequence[np.ndarray], grid: Grid) -> list[str]:
     """Write every frame's level set; returns the paths (raises RuntimeError without openvdb)."""
     vdb, reason = openvdb_module()
     if vdb is None:
@@ -65,7 +81,8 @@ def write_sequence(directory, name, frames, levelsets, grid):
     return paths
 
 
-def add_volume_object(output_obj, paths, first_frame):
+def add_volume_object(output_obj: bpy.types.Object, paths: Sequence[str],
+                      first_frame: int) -> bpy.types.Object:
     """A Volume object that plays the .vdb sequence from ``first_frame``, in the output's
     collection and parented to it, so that removing the output removes it too."""
     from .output import VOLUME_TAG
@@ -85,12 +102,12 @@ def add_volume_object(output_obj, paths, first_frame):
     return obj
 
 
-def directory(settings):
+def directory(settings: KFI_Settings) -> str:
     """The absolute folder the settings name for the .vdb files."""
     return bpy.path.abspath(settings.volume_directory or "//kfi_volumes/")
 
 
-def problem(settings):
+def problem(settings: KFI_Settings) -> str:
     """Why the volume export asked for in ``settings`` cannot run ("" when it can): no
     OpenVDB module, or a folder relative to a .blend that was never saved."""
     if not settings.volume_export:
@@ -104,7 +121,8 @@ def problem(settings):
     return ""
 
 
-def write_result(settings, animation):
+def write_result(settings: KFI_Settings, animation: Animation) -> list[str]:
+
     """Write a bake's level sets where ``settings`` say; returns the paths. The files are
     written before anything enters the scene, so a full disk leaves the scene unchanged."""
     levelsets = getattr(animation, "levelsets", None) or []

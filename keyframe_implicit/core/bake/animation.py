@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..base.grid import Grid
+    from ..surface.attributes import MeshAttributes
+    from ..surface.meshdata import MeshData
 
 __all__ = ["Animation"]
 
@@ -44,16 +50,16 @@ class Animation:
     frames: np.ndarray
     vertices: np.ndarray
     faces: np.ndarray
-    grid: object
-    stats: dict = field(default_factory=dict)
-    surfaces: list = field(default_factory=list)
-    velocities: list = field(default_factory=list)
-    levelsets: list = field(default_factory=list)
-    attributes: object = None
-    keyframe_attributes: dict = field(default_factory=dict)
-    prepared: dict = field(default_factory=dict)
+    grid: Grid
+    stats: dict[str, Any] = field(default_factory=dict)
+    surfaces: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    velocities: list[np.ndarray] = field(default_factory=list)
+    levelsets: list[np.ndarray] = field(default_factory=list)
+    attributes: MeshAttributes | None = None
+    keyframe_attributes: dict[int, MeshAttributes] = field(default_factory=dict)
+    prepared: dict[str, MeshData] = field(default_factory=dict)
 
-    def output_mesh(self, kind):
+    def output_mesh(self, kind: str) -> MeshData:
         """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),
         made once (`meshdata.output_mesh`) and kept in ``prepared``."""
         if kind not in self.prepared:
@@ -62,7 +68,8 @@ class Animation:
             self.prepared[kind] = output_mesh(self, kind)
         return self.prepared[kind]
 
-    def surface_attributes(self, i):
+    def surface_attributes(self, i: int) -> MeshAttributes | None:
+
         """`attributes.MeshAttributes` of frame i's own surface (``surfaces[i]``), or None.
 
         Each surface vertex's source is its closest point on the tracked template of the

@@ -7,14 +7,23 @@ way (loose vertices ignored, faces reoriented).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 if TYPE_CHECKING:
+    from collections.abc import Iterable, Mapping, Sequence
+
+    from numpy.typing import ArrayLike
+
     from ..base.grid import Grid
-    from ..fields.mesh import Surface
+    from ..fields.measure import Surface
+    from .animation import Animation
     from .pipeline import Keyframe
+
+    #: Per segment, per feature pair, the two Empties' names (on keyframe A, on B).
+    FeatureNames = Sequence[Sequence[tuple[str, str]]]
+
 
 __all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes", "CLOSE_HOLES", "THICKEN", "FACE_OUTWARD", "FIXES"]
 
@@ -27,19 +36,19 @@ FACE_OUTWARD = "turn them to face outward"
 FIXES = (CLOSE_HOLES, THICKEN, FACE_OUTWARD)
 
 
-def keyframe_label(k, kf):
+def keyframe_label(k: int, kf: Keyframe) -> str:
     """"Keyframe 1 ('Ball', frame 1)" for keyframes[0]: numbered from 1, as in the panel."""
     name = getattr(kf, "name", "")
     n = k + 1
     return f"Keyframe {n} ('{name}', frame {kf.frame})" if name else f"Keyframe {n} (frame {kf.frame})"
 
 
-def _segment_label(i):
+def _segment_label(i: int) -> str:
     """"keyframes 1 → 2" for segment 0 (keyframes[0] -> keyframes[1]), as in the panel."""
     return f"keyframes {i + 1} → {i + 2}"
 
 
-def surface_vertices(k, kf):
+def surface_vertices(k: int, kf: Keyframe) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """(vertices (V, 3), triangles, loose, face vertices) of a keyframe; loose counts vertices
     of no face. Refuses, before any grid work, a keyframe that encloses no volume
     (`fields.measure.read_surface`, the measure the Blender panel judges it by too)."""
@@ -78,7 +87,7 @@ def no_volume_words(surface: Surface) -> str:
             f"turned inside out on top of it): {THICKEN}.")
 
 
-def _feature_array(points, what):
+def _feature_array(points: ArrayLike, what: str) -> np.ndarray:
     """A feature array as (N, 3) float; ValueError for any other shape (never reshaped)."""
     try:
         a = np.asarray(points, dtype=float)
@@ -92,7 +101,7 @@ def _feature_array(points, what):
     return a
 
 
-def _feature_label(names, i, j, side):
+def _feature_label(names: FeatureNames | None, i: int, j: int, side: int) -> str:
     """'KFI 0.3 A' (the Empty) when names are known, else "feature point 1 of keyframes 1 → 2
     (on keyframe 1)" for row 0 of segment 0's side 0."""
     if names is not None and i < len(names) and j < len(names[i]):
@@ -100,7 +109,9 @@ def _feature_label(names, i, j, side):
     return f"feature point {j + 1} of {_segment_label(i)} (on keyframe {i + side + 1})"
 
 
-def check_inputs(keyframes, features, feature_names=None):
+def check_inputs(keyframes: Iterable[Keyframe], features: Iterable[tuple[ArrayLike, ArrayLike]],
+                 feature_names: FeatureNames | None = None,
+                 ) -> tuple[list[Keyframe], list[tuple[np.ndarray, np.ndarray]]]:
     """Keyframes and (N, 3) feature arrays, every problem named before any work."""
     keyframes = list(keyframes)
     if len(keyframes) < 2:
@@ -115,7 +126,7 @@ def check_inputs(keyframes, features, feature_names=None):
     if len(features) != len(keyframes) - 1:
         raise ValueError(f"{len(keyframes)} keyframes need {len(keyframes) - 1} sets of feature "
                          f"pairs (one per segment), got {len(features)}.")
-    clean = []
+    clean: list[tuple[np.ndarray, np.ndarray]] = []
     for i, pair in enumerate(features):
         try:
             pa, pb = pair
@@ -136,7 +147,8 @@ def check_inputs(keyframes, features, feature_names=None):
     return keyframes, clean
 
 
-def check_feature_reach(features, lo, hi, feature_names):
+def check_feature_reach(features: Sequence[tuple[np.ndarray, np.ndarray]], lo: np.ndarray,
+                        hi: np.ndarray, feature_names: FeatureNames | None) -> None:
     """Refuse feature points farther outside the keyframes' box than the box's size.
 
     Such a point (an Empty left far away) would stretch the grid around
@@ -156,7 +168,8 @@ def check_feature_reach(features, lo, hi, feature_names):
                     f"{i + side + 1}, or delete the pair.")
 
 
-def rigid_sweep(points, features, steps=8, most=2048):
+def rigid_sweep(points: Sequence[np.ndarray], features: Iterable[tuple[ArrayLike, ArrayLike]],
+                steps: int = 8, most: int = 2048) -> list[np.ndarray]:
     """Points along each segment's rigid part of the motion, for the grid to hold.
 
     A body turning between two keyframes sweeps past both keyframes' boxes (a square's
@@ -169,7 +182,7 @@ def rigid_sweep(points, features, steps=8, most=2048):
     """
     from ..base.rotations import rigid_fit, rotation_exp, rotation_log
 
-    out = []
+    out: list[np.ndarray] = []
     for k, (fa, fb) in enumerate(features):
         fa, fb = np.asarray(fa, dtype=float), np.asarray(fb, dtype=float)
         if len(fa) < 3 or np.linalg.matrix_rank(fa - fa.mean(axis=0)) < 2:
@@ -185,7 +198,9 @@ def rigid_sweep(points, features, steps=8, most=2048):
     return out
 
 
-def check_feature_spacing(features, h, feature_names, grid_name="grid", raise_what="resolution"):
+def check_feature_spacing(features: Sequence[tuple[np.ndarray, np.ndarray]], h: float,
+                          feature_names: FeatureNames | None, grid_name: str = "grid",
+                          raise_what: str = "resolution") -> None:
     """Refuse two feature points closer than one cell of the ``grid_name`` (spacing ``h``)
     whose partners are farther apart.
 
@@ -229,7 +244,7 @@ def no_volume_message(k: int, kf: Keyframe, v: np.ndarray, tris: np.ndarray, gri
             f"than a cell. Raise the resolution or {THICKEN}.")
 
 
-def check_result(chain, grid, keyframes):
+def check_result(chain: Animation, grid: Grid, keyframes: Sequence[Keyframe]) -> None:
     """Last guard: every frame's vertices finite and on the grid (where the shapes live)."""
     verts = np.asarray(chain.vertices)
     ok = np.all(np.isfinite(verts), axis=-1) & grid.contains(verts, margin=-grid.spacing)
@@ -244,7 +259,8 @@ def check_result(chain, grid, keyframes):
                      "each pair joins matching points, and delete pairs that cross each other.")
 
 
-def notes(keyframes: list[Keyframe], loose: list[int], sdf_stats: list[dict]) -> list[str]:
+def notes(keyframes: Sequence[Keyframe], loose: Sequence[int],
+          sdf_stats: Sequence[Mapping[str, Any]]) -> list[str]:
     """What the user should know about a bake that succeeded (plain sentences; what to
     fix in the words of `FIXES`)."""
     notes = []
@@ -262,7 +278,8 @@ def notes(keyframes: list[Keyframe], loose: list[int], sdf_stats: list[dict]) ->
     return notes
 
 
-def check_motion_resolution(motion_resolution, resolution):
+def check_motion_resolution(motion_resolution: float | None, resolution: int) -> None:
+
     """Refuse a Motion Resolution the bake cannot use, before any work: it is None
     (automatic) or a whole number from `gridfit.MIN_MOTION_RESOLUTION` to ``resolution``."""
     from .gridfit import MIN_MOTION_RESOLUTION as least

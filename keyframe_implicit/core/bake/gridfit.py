@@ -12,15 +12,24 @@ starts, naming the largest resolution that would (`memory`).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..base.grid import Grid
 from .memory import MemoryLimitError, estimate_memory, largest_fitting, megabytes
 
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from numpy.typing import ArrayLike
+
+
 __all__ = ["fit_grid", "auto_motion_resolution", "motion_grid", "MIN_MOTION_RESOLUTION"]
 
 
-def _points(vertex_arrays, extra_points):
+def _points(vertex_arrays: np.ndarray | Iterable[ArrayLike],
+            extra_points: ArrayLike | None) -> np.ndarray:
     if isinstance(vertex_arrays, np.ndarray) and vertex_arrays.dtype != object and vertex_arrays.ndim == 2:
         vertex_arrays = [vertex_arrays]
     arrays = []
@@ -45,7 +54,7 @@ def _points(vertex_arrays, extra_points):
     return pts
 
 
-def _grid_for(lo, hi, resolution, padding_cells):
+def _grid_for(lo: np.ndarray, hi: np.ndarray, resolution: int, padding_cells: int) -> Grid:
     extent = hi - lo
     h = float(extent.max()) / resolution
     cells = np.ceil(extent / h - 1e-9).astype(int)
@@ -55,8 +64,9 @@ def _grid_for(lo, hi, resolution, padding_cells):
     return Grid(origin, h, tuple(int(c) + 1 for c in cells))
 
 
-def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, max_bytes=None,
-             **memory_options):
+def fit_grid(vertex_arrays: np.ndarray | Iterable[ArrayLike], resolution: int, *,
+             padding_cells: int = 4, extra_points: ArrayLike | None = None,
+             max_bytes: int | None = None, **memory_options: Any) -> Grid:
     """Grid holding all keyframes (and extra points), with cubic cells and padding.
 
     Parameters
@@ -105,14 +115,14 @@ def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, m
     return grid
 
 
-def _box_fraction(lo, hi, grid):
+def _box_fraction(lo: np.ndarray, hi: np.ndarray, grid: Grid) -> float:
     """Material fraction guessed before any SDF exists: half the points' box (a blob
     fills about half its bounding box), relative to the grid box."""
     ext = np.maximum(hi - lo, grid.spacing)
     return float(min(1.0, 0.5 * np.prod(ext) / np.prod(grid.upper - grid.origin)))
 
 
-def _refusal(grid, resolution, need, limit, fits):
+def _refusal(grid: Grid, resolution: int, need: int, limit: int, fits: int | None) -> str:
     """`fit_grid`'s refusal: what the resolution needs, and the largest that fits."""
     shape = "x".join(str(n) for n in grid.shape)
     msg = (f"resolution {resolution} ({shape} grid) needs about {megabytes(need)} but the limit is "
@@ -134,7 +144,7 @@ MAX_COARSENING = 2
 MIN_AUTO_MOTION = 24
 
 
-def auto_motion_resolution(resolution, material_fraction, grid):
+def auto_motion_resolution(resolution: int, material_fraction: float, grid: Grid) -> int:
     """The Motion Resolution the bake picks: the one whose motion grid holds about
     `MOTION_NODES` nodes of the largest keyframe (``material_fraction`` of ``grid``'s box),
     but no coarser than ``resolution / MAX_COARSENING`` or `MIN_AUTO_MOTION`, and no finer
@@ -145,7 +155,9 @@ def auto_motion_resolution(resolution, material_fraction, grid):
     return int(min(resolution, max(least, r)))
 
 
-def motion_grid(grid, resolution, motion_resolution, padding_cells=2):
+def motion_grid(grid: Grid, resolution: int, motion_resolution: int,
+                padding_cells: int = 2) -> Grid | None:
+
     """The motion grid of a bake on ``grid`` (``resolution`` cells along the longest side
     of the keyframes' box): cells ``resolution / motion_resolution`` times as large, centred
     on ``grid``'s box and covering it with ``padding_cells`` more cells on every side. None

@@ -8,9 +8,14 @@ model is spelled out in its docstring; its constants are fitted to the peaks
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..base.grid import Grid
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = ["MemoryLimitError", "estimate_memory", "active_nodes", "check_memory", "largest_fitting",
            "megabytes"]
@@ -30,7 +35,8 @@ class MemoryLimitError(ValueError):
         the smallest does not.
     """
 
-    def __init__(self, message, required, limit, max_resolution):
+    def __init__(self, message: str, required: int, limit: int,
+                 max_resolution: int | None) -> None:
         super().__init__(message)
         self.required = int(required)
         self.limit = int(limit)
@@ -56,8 +62,8 @@ _MOTION_BYTES = {2: 1892.8 * 36 / 243, 3: 1892.8}
 _REGION_BYTES = {2: 751.8 * 36 / 243, 3: 751.8}
 
 
-def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
-                    motion_grid=None):
+def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_keyframes: int = 2,
+                    margin_cells: float = 3, motion_grid: Grid | None = None) -> dict[str, int]:
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
     Model (N surface grid nodes; M the motion grid's active nodes, R the surface grid's):
@@ -115,7 +121,8 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
     return out
 
 
-def active_nodes(grid, material_fraction, margin_cells=3, motion_grid=None):
+def active_nodes(grid: Grid, material_fraction: float, margin_cells: float = 3,
+                 motion_grid: Grid | None = None) -> tuple[float, float]:
     """(M, R): the nodes the model counts on the motion grid (the maps' and trajectories'
     active nodes) and on the surface grid (the transports' regions): a compact blob
     filling ``material_fraction`` of ``grid``'s box, and a margin of ``margin_cells``
@@ -127,18 +134,18 @@ def active_nodes(grid, material_fraction, margin_cells=3, motion_grid=None):
     return _blob_nodes(motion_grid, share, margin_cells), R
 
 
-def _box(grid):
+def _box(grid: Grid) -> float:
     """The volume (area) of a grid's box."""
     return float(np.prod(grid.upper - grid.origin))
 
 
-def _blob_nodes(grid, fraction, margin_cells):
+def _blob_nodes(grid: Grid, fraction: float, margin_cells: float) -> float:
     N, d = grid.size, grid.dim
     surface = (fraction * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
     return min(N, fraction * N + 2 * margin_cells * surface)
 
 
-def check_memory(grid: Grid, max_bytes, **memory_options):
+def check_memory(grid: Grid, max_bytes: int, **memory_options: Any) -> dict[str, int]:
     """Raise `MemoryLimitError` if `estimate_memory` (grid) exceeds ``max_bytes``.
 
     The message names the largest grid of the same box (resolution counted along
@@ -150,7 +157,7 @@ def check_memory(grid: Grid, max_bytes, **memory_options):
     if est["peak"] > max_bytes:
         longest = max(grid.shape)
 
-        def shrunk(m):  # the grid shrunk uniformly to m nodes along its longest axis
+        def shrunk(m: int) -> Grid:  # the grid shrunk uniformly to m nodes along its longest axis
             s = m / longest
             return Grid(grid.origin, grid.spacing / s,
                         tuple(max(2, int(round(n * s))) for n in grid.shape))
@@ -164,7 +171,9 @@ def check_memory(grid: Grid, max_bytes, **memory_options):
     return est
 
 
-def largest_fitting(grid_of, low, high, max_bytes, motion_of=None, **memory_options):
+def largest_fitting(grid_of: Callable[[int], Grid], low: int, high: int, max_bytes: int,
+                    motion_of: Callable[[int, Grid], Grid | None] | None = None,
+                    **memory_options: Any) -> int | None:
     """The largest size m in [low, high] whose grid ``grid_of(m)`` fits in ``max_bytes``
     (`estimate_memory`, with the motion grid ``motion_of(m, grid)`` when given), or None:
     a binary search, the estimate growing with m."""
@@ -181,6 +190,7 @@ def largest_fitting(grid_of, low, high, max_bytes, motion_of=None, **memory_opti
     return fits
 
 
-def megabytes(x):
+def megabytes(x: float) -> str:
+
     """``x`` bytes as the messages say them: "1,234 MB"."""
     return f"{x / 2 ** 20:,.0f} MB"

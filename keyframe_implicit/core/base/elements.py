@@ -25,8 +25,14 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .grid import Grid
 
 __all__ = ["corners", "corner_views", "cells_within", "gradient_operator", "Quadrature",
            "quadrature", "deformation_gradient", "determinant", "cofactor", "inverse", "gram"]
@@ -37,7 +43,7 @@ def corners(d: int) -> np.ndarray:
     return np.array(list(itertools.product((0, 1), repeat=d)), dtype=np.int64)
 
 
-def corner_views(values: np.ndarray, d: int | None = None) -> list:
+def corner_views(values: np.ndarray, d: int | None = None) -> list[np.ndarray]:
     """A node array seen from the cells: one view per corner offset c (`corners` order).
 
     ``views[k][i]`` is the value at node ``i + corners(d)[k]`` of cell ``i`` (its lowest
@@ -55,7 +61,7 @@ def corner_views(values: np.ndarray, d: int | None = None) -> list:
     return [values[tuple(slice(o, o + m - 1) for o, m in zip(c, n))] for c in corners(d)]
 
 
-def cells_within(grid, region):
+def cells_within(grid: Grid, region: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cells whose 2**d corners all lie in ``region`` (bool over the grid's nodes).
 
     Returns
@@ -78,7 +84,7 @@ def cells_within(grid, region):
     return lower, nodes, local
 
 
-def gradient_operator(d: int, xi, h: float) -> np.ndarray:
+def gradient_operator(d: int, xi: ArrayLike, h: float) -> np.ndarray:
     """World-space gradients of the multilinear shape functions at local point ``xi``.
 
     Parameters
@@ -153,7 +159,7 @@ def deformation_gradient(Y: np.ndarray, G: np.ndarray) -> np.ndarray:
     return (Y.reshape(E, K * d) @ _corner_operator(G)).reshape(E, len(G), d, d)
 
 
-def _corner_operator(G):
+def _corner_operator(G: np.ndarray) -> np.ndarray:
     """The (2**d d, Q d d) matrix W with F[e, (q, i, a)] = sum Y[e, (k, j)] W[(k, j), (q, i, a)],
     W = G[q, a, k] delta(i, j); made once per operator ``G`` (Q, d, 2**d)."""
     G = np.ascontiguousarray(G, dtype=float)
@@ -168,7 +174,8 @@ def _corner_operator(G):
     return W
 
 
-_OPERATORS = {}
+_OPERATORS: dict[tuple[tuple[int, ...], bytes], np.ndarray] = {}
+
 
 
 def determinant(F: np.ndarray) -> np.ndarray:

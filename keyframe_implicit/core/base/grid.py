@@ -9,8 +9,12 @@ map y(x) lives on its nodes. Node ``(i, j[, k])`` sits at
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["Grid"]
 
@@ -31,9 +35,9 @@ class Grid:
 
     origin: np.ndarray
     spacing: float
-    shape: tuple
+    shape: tuple[int, ...]
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         origin = np.asarray(self.origin, dtype=float).reshape(-1)
         shape = tuple(int(n) for n in self.shape)
         spacing = float(self.spacing)
@@ -80,7 +84,7 @@ class Grid:
         """h**d, the measure of one cell."""
         return self.spacing ** self.dim
 
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         return (
             isinstance(other, Grid)
             and self.shape == other.shape
@@ -88,15 +92,15 @@ class Grid:
             and np.array_equal(self.origin, other.origin)
         )
 
-    def __hash__(self):
+    def __hash__(self) -> int:
         return hash((self.shape, self.spacing, tuple(self.origin)))
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         o = ", ".join(f"{v:.6g}" for v in self.origin)
         return f"Grid(origin=({o}), spacing={self.spacing:.6g}, shape={self.shape})"
 
     # -- coordinates ---------------------------------------------------------
-    def axes(self):
+    def axes(self) -> list[np.ndarray]:
         """World coordinates of the nodes along each axis (list of 1-D arrays)."""
         return [self.origin[a] + self.spacing * np.arange(n) for a, n in enumerate(self.shape)]
 
@@ -104,11 +108,11 @@ class Grid:
         """World position of every node, array of shape ``shape + (d,)``."""
         return np.stack(np.meshgrid(*self.axes(), indexing="ij"), axis=-1)
 
-    def node_points(self, nodes) -> np.ndarray:
+    def node_points(self, nodes: ArrayLike) -> np.ndarray:
         """World position of the nodes with the given flat indices, array (len(nodes), d)."""
         return self.to_world(np.stack(np.unravel_index(nodes, self.shape), axis=-1))
 
-    def unique_nodes(self, flat):
+    def unique_nodes(self, flat: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """The distinct nodes among flat node indices, sorted, and where each entry of
         ``flat`` is among them: ``np.unique(flat, return_inverse=True)``, by marking the
         span of nodes ``flat`` reaches instead of sorting (the nodes of points' cells
@@ -131,20 +135,21 @@ class Grid:
         position[found] = np.arange(found.size, dtype=np.int32)
         return found + lo, position[rel]
 
-    def to_index(self, points) -> np.ndarray:
+    def to_index(self, points: ArrayLike) -> np.ndarray:
         """Continuous (fractional) node index of world ``points`` (..., d)."""
         return (np.asarray(points, dtype=float) - self.origin) / self.spacing
 
-    def to_world(self, index) -> np.ndarray:
+    def to_world(self, index: ArrayLike) -> np.ndarray:
         """World position of (fractional) node ``index`` (..., d)."""
         return self.origin + self.spacing * np.asarray(index, dtype=float)
 
-    def contains(self, points, margin: float = 0.0) -> np.ndarray:
+    def contains(self, points: ArrayLike, margin: float = 0.0) -> np.ndarray:
         """True for world ``points`` inside the grid box shrunk by ``margin`` (world units)."""
         p = np.asarray(points, dtype=float)
         return np.all((p >= self.origin + margin) & (p <= self.upper - margin), axis=-1)
 
-    def check_field(self, field, name: str = "field") -> np.ndarray:
+    def check_field(self, field: ArrayLike, name: str = "field") -> np.ndarray:
+
         """Return ``field`` as a float array, or raise ValueError naming what is wrong and
         what to do about it."""
         arr = np.asarray(field, dtype=float)

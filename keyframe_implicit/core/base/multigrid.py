@@ -25,17 +25,25 @@ straight path).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["BlockMultigrid", "block_pcg"]
 
 
-def _no_check():
+def _no_check() -> None:
     return None
 
 
-def _largest_eigenvalue(A, dinv, iterations=12, seed=0):
+def _largest_eigenvalue(A: sp.csr_matrix, dinv: np.ndarray, iterations: int = 12,
+                        seed: int = 0) -> float:
     """Estimate of the largest eigenvalue of D^-1 A by power iteration (a safe upper guess)."""
     v = np.random.default_rng(seed).standard_normal(A.shape[0])
     v /= max(np.linalg.norm(v), 1e-300)
@@ -47,7 +55,7 @@ def _largest_eigenvalue(A, dinv, iterations=12, seed=0):
     return 1.1 * lam
 
 
-def aggregate_blocks(coords, side=2):
+def aggregate_blocks(coords: np.ndarray, side: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """The block of side^d grid nodes each node (grid index ``coords`` (n, d)) falls in:
     (aggregate index per node, the aggregates' block coordinates, sorted by flat index)."""
     block = coords // side
@@ -81,10 +89,13 @@ class BlockMultigrid:
         Called between levels of the setup (cancellation).
     """
 
-    def __init__(self, A, coords, *, coarse_size=800, sweeps=2, coarse_sweeps=1, check=None):
+    def __init__(self, A: sp.spmatrix | sp.sparray, coords: ArrayLike, *, coarse_size: int = 800,
+                 sweeps: int = 2, coarse_sweeps: int = 1,
+                 check: Callable[[], None] | None = None) -> None:
         check = check or _no_check
         self.sweeps, self.coarse_sweeps = int(sweeps), int(coarse_sweeps)
-        self.levels = []  # (A, damped inverse diagonal, P) per fine level
+        # (A, damped inverse diagonal, P) per fine level
+        self.levels: list[tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix]] = []
         A = sp.csr_matrix(A)
         coords = np.asarray(coords, dtype=np.int64)
         while A.shape[0] > coarse_size:
@@ -107,22 +118,22 @@ class BlockMultigrid:
         self.coarse = np.linalg.pinv(A.toarray(), rcond=1e-10, hermitian=True)
         self.sizes = [lv[0].shape[0] for lv in self.levels] + [A.shape[0]]
 
-    def __call__(self, r):
+    def __call__(self, r: np.ndarray) -> np.ndarray:
         """Apply one V-cycle to the residual r ((n,) or (n, k)): an approximation of A^+ r."""
         return self._cycle(0, r)
 
-    def _cycle(self, k, r):
+    def _cycle(self, k: int, r: np.ndarray) -> np.ndarray:
         if k == len(self.levels):
             return self.coarse @ r
         A, wd, P = self.levels[k]
         wd = wd if r.ndim == 1 else wd[:, None]
         sweeps = self.sweeps if k == 0 else self.coarse_sweeps
 
-        def residual(x):  # r - A x, in the product's own array
+        def residual(x: np.ndarray) -> np.ndarray:  # r - A x, in the product's own array
             t = A @ x
             return np.subtract(r, t, out=t)
 
-        def smooth(x):  # one damped Jacobi sweep, in place
+        def smooth(x: np.ndarray) -> None:  # one damped Jacobi sweep, in place
             t = residual(x)
             t *= wd
             x += t
@@ -136,7 +147,11 @@ class BlockMultigrid:
         return x
 
 
-def block_pcg(A, b, precond, x0=None, *, tol=1e-9, maxiter=500, check=None):
+def block_pcg(A: sp.spmatrix | sp.sparray, b: np.ndarray,
+              precond: Callable[[np.ndarray], np.ndarray], x0: ArrayLike | None = None, *,
+              tol: float = 1e-9, maxiter: int = 500,
+              check: Callable[[], None] | None = None) -> tuple[np.ndarray, int]:
+
     """Preconditioned CG on every column of b at once (independent systems, one matrix).
 
     Parameters

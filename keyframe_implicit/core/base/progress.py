@@ -13,6 +13,11 @@ turned True.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
 __all__ = ["Cancelled", "Reporter"]
 
 
@@ -31,25 +36,28 @@ class Reporter:
         The slice [start, stop] of the caller's progress range this reporter covers.
     """
 
-    def __init__(self, progress=None, cancel=None, start=0.0, stop=1.0):
+    def __init__(self, progress: Callable[[float, str], object] | None = None,
+                 cancel: Callable[[], bool] | None = None, start: float = 0.0,
+                 stop: float = 1.0) -> None:
         self._progress = progress
         self._cancel = cancel
         self.start = float(start)
         self.stop = float(stop)
 
-    def __call__(self, fraction, message=""):
+    def __call__(self, fraction: float, message: str = "") -> None:
         """Report ``fraction`` of this stage done, then check for cancellation."""
         if self._progress is not None:
             f = min(max(float(fraction), 0.0), 1.0)
             self._progress(self.start + f * (self.stop - self.start), message)
         self.check()
 
-    def check(self):
+    def check(self) -> None:
         """Raise `Cancelled` if the caller asked to stop."""
         if self._cancel is not None and self._cancel():
             raise Cancelled("cancelled by the user")
 
-    def sub(self, start, stop):
+    def sub(self, start: float, stop: float) -> Reporter:
+
         """A reporter for the slice [start, stop] (fractions of this stage)."""
         span = self.stop - self.start
         return Reporter(self._progress, self._cancel,

@@ -9,14 +9,19 @@ the template tracker and the bake's feature checks use the same routines.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .elements import cofactor
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 __all__ = ["polar", "rotation_log", "rotation_exp", "rigid_fit"]
 
 
-def polar(F):
+def polar(F: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Polar decomposition F = R S of a batch of d x d matrices (d = 2 or 3).
 
     R is a proper rotation (det R = +1) and S = R^T F is symmetric. For
@@ -54,14 +59,15 @@ def polar(F):
 _NEWTON_MIN_DET = 1e-6
 
 
-def _svd_rotation(F):
+def _svd_rotation(F: np.ndarray) -> np.ndarray:
     """The closest rotation (M, d, d) to each matrix of F (M, d, d), by the SVD."""
     U, _, Vt = np.linalg.svd(F)
     U[..., :, -1] *= np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)[..., None]
     return U @ Vt
 
 
-def _newton_rotation(F, iterations=30, tol=1e-14):
+def _newton_rotation(F: np.ndarray, iterations: int = 30,
+                     tol: float = 1e-14) -> tuple[np.ndarray, np.ndarray]:
     """Rotation factors (M, 3, 3) of 3 x 3 matrices with det F > 0 by the scaled Newton
     iteration X <- (g X + X^-T / g) / 2 (Higham; g the Frobenius-norm scaling for the
     first steps), and whether each converged to ``tol``. Elementwise on arrays of the
@@ -85,13 +91,13 @@ def _newton_rotation(F, iterations=30, tol=1e-14):
     return np.moveaxis(X, -1, 0), change < tol
 
 
-def _inverse_transpose_3(X):
+def _inverse_transpose_3(X: np.ndarray) -> np.ndarray:
     """X^-T (3, 3, M) of 3 x 3 matrices (3, 3, M): their cofactors over their determinants."""
     cof = cofactor(X, batch_last=True)
     return cof / np.einsum("jm,jm->m", X[0], cof[0])
 
 
-def rotation_log(R):
+def rotation_log(R: ArrayLike) -> np.ndarray:
     """Rotation vector (3D: axis * angle, (..., 3)) or angle (2D: (...,)) of rotations R.
 
     The angle lies in [0, pi]; at exactly pi the axis sign is arbitrary.
@@ -107,7 +113,7 @@ def rotation_log(R):
     return Rotation.from_matrix(flat).as_rotvec().reshape(R.shape[:-2] + (3,))
 
 
-def rotation_exp(v, d):
+def rotation_exp(v: ArrayLike, d: int) -> np.ndarray:
     """Rotation matrices (..., d, d) from rotation vectors (3D) or angles (2D)."""
     v = np.asarray(v, dtype=float)
     if d == 2:
@@ -121,7 +127,8 @@ def rotation_exp(v, d):
     return Rotation.from_rotvec(flat).as_matrix().reshape(v.shape[:-1] + (3, 3))
 
 
-def rigid_fit(x, y):
+def rigid_fit(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
     """Centroids and best rotation (Kabsch / Horn, thesis appendix A) mapping points x onto y.
 
     Returns ``(x_bar, y_bar, R)`` with R the proper rotation minimising

@@ -12,16 +12,21 @@ exact for fields that are linear in the cell, and the weights are the
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .elements import corners
 from .grid import Grid
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 __all__ = ["cell_weights", "central_differences", "multilinear_in_cells", "sample",
            "sample_with_gradient"]
 
 
-def cell_weights(grid: Grid, points):
+def cell_weights(grid: Grid, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Corner nodes and multilinear weights of the cell holding each point.
 
     Points outside the grid are clamped onto its boundary first.
@@ -38,12 +43,12 @@ def cell_weights(grid: Grid, points):
     return _corner_nodes(grid, idx), _corner_products(1.0 - frac, frac)
 
 
-def _corner_nodes(grid, idx):
+def _corner_nodes(grid: Grid, idx: np.ndarray) -> np.ndarray:
     """Flat node index (P, 2**d) of every corner of the cells whose lowest corner is ``idx``."""
     return (idx @ grid.strides)[:, None] + (corners(grid.dim) @ grid.strides)[None, :]
 
 
-def _corner_products(lo, hi):
+def _corner_products(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Per point, the product over the axes of ``lo`` or ``hi`` (P, d) picked by each corner
     bit: (P, 2**d), corners in ``itertools.product((0, 1), repeat=d)`` order (first axis
     slowest), built as an outer product one axis at a time."""
@@ -54,7 +59,8 @@ def _corner_products(lo, hi):
     return out
 
 
-def multilinear_in_cells(values, corner_index, cell, local):
+def multilinear_in_cells(values: np.ndarray, corner_index: np.ndarray, cell: np.ndarray,
+                         local: np.ndarray) -> np.ndarray:
     """Multilinear interpolation of node values at points given by their cells.
 
     Parameters
@@ -80,7 +86,7 @@ def multilinear_in_cells(values, corner_index, cell, local):
     return out
 
 
-def _locate(grid: Grid, points):
+def _locate(grid: Grid, points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lowest corner (P, d) of each point's cell, its place in that cell (P, d, in [0, 1]) and
     its unclamped index coordinates (P, d); points outside the grid are clamped onto it."""
     p = np.asarray(points, dtype=float).reshape(-1, grid.dim)
@@ -91,7 +97,7 @@ def _locate(grid: Grid, points):
     return idx, uc - idx, u
 
 
-def sample(field, grid: Grid, points, outside: str = "clamp"):
+def sample(field: ArrayLike, grid: Grid, points: ArrayLike, outside: str = "clamp") -> np.ndarray:
     """Multilinear value of ``field`` at world ``points``.
 
     Parameters
@@ -110,7 +116,8 @@ def sample(field, grid: Grid, points, outside: str = "clamp"):
     return _sample(field, grid, points, outside, gradient=False)
 
 
-def sample_with_gradient(field, grid: Grid, points, outside: str = "clamp"):
+def sample_with_gradient(field: ArrayLike, grid: Grid, points: ArrayLike,
+                         outside: str = "clamp") -> tuple[np.ndarray, np.ndarray]:
     """Value and spatial gradient (world units) of a scalar ``field`` at ``points``.
 
     The gradient is that of the multilinear interpolant (zero across the
@@ -120,7 +127,8 @@ def sample_with_gradient(field, grid: Grid, points, outside: str = "clamp"):
     return _sample(field, grid, points, outside, gradient=True)
 
 
-def central_differences(field, grid: Grid, points, outside: str = "clamp"):
+def central_differences(field: ArrayLike, grid: Grid, points: ArrayLike,
+                        outside: str = "clamp") -> np.ndarray:
     """Central differences over one cell of the multilinear interpolant of a scalar
     ``field`` at ``points``: (f(p + h e_a) - f(p - h e_a)) / 2h for each axis a, (P, d).
 
@@ -153,7 +161,8 @@ def central_differences(field, grid: Grid, points, outside: str = "clamp"):
     return out
 
 
-def _sample(field, grid, points, outside, gradient):
+def _sample(field: ArrayLike, grid: Grid, points: ArrayLike, outside: str, gradient: bool):
+
     field = np.asarray(field, dtype=float)
     pts = np.asarray(points, dtype=float)
     lead = pts.shape[:-1]

@@ -4,11 +4,18 @@ non-zero rule."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..base.grid import Grid
 from .mesh import check_vertices
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["polygon_to_sdf"]
 
@@ -16,7 +23,8 @@ _CHUNK = 1 << 14  # nodes per vectorised chunk (bounds temporary memory)
 _WORKERS = -1  # cKDTree query threads (all cores)
 
 
-def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
+def polygon_to_sdf(loops: np.ndarray | Iterable[ArrayLike], grid: Grid, *,
+                   rule: str = "evenodd") -> np.ndarray:
     """Signed distance grid of one or more closed 2D loops (holes allowed).
 
     Parameters
@@ -63,7 +71,7 @@ def polygon_to_sdf(loops, grid: Grid, *, rule="evenodd"):
     return np.where(inside, -dist, dist).reshape(grid.shape)
 
 
-def _segments_distance(grid, A, B):
+def _segments_distance(grid: Grid, A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Exact distance from every 2D grid node to the nearest segment (A_s, B_s).
 
     Same scheme as the 3D shell (module step 2) on all nodes: each segment is cut
@@ -116,7 +124,8 @@ def _segments_distance(grid, A, B):
     return out
 
 
-def _crossing_rule(grid, A, B, rule):
+def _crossing_rule(grid: Grid, A: np.ndarray, B: np.ndarray, rule: str) -> np.ndarray:
+
     """Inside test of every 2D grid node by counting crossings of a ray towards -x.
 
     For each segment and each grid row it spans (half-open in y, so a shared corner

@@ -56,6 +56,7 @@ Overlaps (step 6)
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import ndimage
@@ -66,6 +67,11 @@ from ..base.progress import Reporter
 from .mesh import check_vertices, clean_triangles, orient_faces, triangulate
 from .triangles import Triangles, corner_radius
 from .winding import WindingTree
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["mesh_to_sdf"]
 
@@ -222,8 +228,10 @@ def _nearest_sample_distance(out, nodes, grid, v, tris, tri, keep_min=False):
         out[o] = np.minimum(out[o], d) if keep_min else d
 
 
-def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, cancel=None,
-                stats=None, beta=2.0):
+def mesh_to_sdf(vertices: ArrayLike, faces: ArrayLike | Sequence[Sequence[int]], grid: Grid, *,
+                exact_cells: float = 3, progress: Callable[[float, str], object] | None = None,
+                cancel: Callable[[], bool] | None = None, stats: dict[str, float] | None = None,
+                beta: float = 2.0) -> np.ndarray:
     """Signed distance grid of a (possibly open, self-intersecting) polygon mesh.
 
     Parameters
@@ -302,7 +310,7 @@ def mesh_to_sdf(vertices, faces, grid: Grid, *, exact_cells=3, progress=None, ca
     return np.where(inside, -unsigned, unsigned).reshape(grid.shape)
 
 
-def _exact_cells_option(grid, exact_cells):
+def _exact_cells_option(grid: Grid, exact_cells: float) -> float:
     """``exact_cells`` checked, with the grid it applies to."""
     if not isinstance(grid, Grid):
         raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
@@ -314,7 +322,8 @@ def _exact_cells_option(grid, exact_cells):
     return exact_cells
 
 
-def _lap(stats, key, since):
+def _lap(stats: dict[str, float], key: str, since: float) -> float:
+
     """stats[key] = seconds since ``since``; returns now."""
     now = time.perf_counter()
     stats[key] = now - since

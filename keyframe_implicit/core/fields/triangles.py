@@ -4,18 +4,25 @@ closest-point queries."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["Triangles", "corner_radius", "nearest_candidates", "point_triangle_distance",
            "proper", "row_dot"]
 
 
-def row_dot(a, b):
+def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot products of two (N, 3) arrays."""
     return np.einsum("ij,ij->i", a, b)
 
 
-def corner_radius(a, b, c):
+def corner_radius(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Per triangle (corners a, b, c, each (T, 3)), the largest corner distance from the
     centroid: the triangle lies in the disc of that radius around it."""
     cen = (a + b + c) / 3.0
@@ -26,7 +33,7 @@ def corner_radius(a, b, c):
 class Triangles:
     """Per-triangle constants for the vectorised distance kernel (component arrays)."""
 
-    def __init__(self, v, tris):
+    def __init__(self, v: np.ndarray, tris: np.ndarray) -> None:
         a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
         e0, e1 = b - a, c - a
         e2 = c - b
@@ -49,7 +56,7 @@ class Triangles:
         self.cen = [np.ascontiguousarray(cen[:, i]) for i in range(3)]
         self.rad = corner_radius(a, b, c)
 
-    def lower_bound(self, p, t):
+    def lower_bound(self, p: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Cheap lower bound of the distance from p (P, 3) to triangles t (P,).
 
         The triangle lies in its plane inside the disc of radius ``rad`` around its
@@ -64,16 +71,18 @@ class Triangles:
         lat = np.maximum(lat, 0.0)
         return np.sqrt(pn2 + lat * lat)
 
-    def distance(self, p, t):
+    def distance(self, p: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Exact distance from points p (P, 3) to triangles t (P,)."""
         return self._distance(p[:, 0], p[:, 1], p[:, 2], lambda q: q[t])
 
-    def box_distance(self, px, py, pz, triangles, counts):
+    def box_distance(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray,
+                     triangles: slice | np.ndarray, counts: np.ndarray) -> np.ndarray:
         """Exact distance of pairs ordered by triangle: ``counts[i]`` points (coordinate
         arrays px, py, pz) for each triangle of the slice ``triangles``."""
         return self._distance(px, py, pz, lambda q: np.repeat(q[triangles], counts))
 
-    def _distance(self, px, py, pz, per_pair):
+    def _distance(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray,
+                  per_pair: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Ericson-style regions: the projection onto the plane has barycentric
         coordinates (u, w) from the Gram system of the edges; inside the triangle the
         distance is the plane distance, outside it is the smallest distance to the three
@@ -102,7 +111,7 @@ class Triangles:
         dist2 = np.where(inside, pn * pn, dist2)
         return np.sqrt(np.maximum(dist2, 0.0))
 
-    def closest_point(self, p, t):
+    def closest_point(self, p: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Closest point on triangles t (P,) to points p (P, 3) (same regions as `distance`)."""
         a = np.stack([self.a[i][t] for i in range(3)], axis=1)
         e0 = np.stack([self.e0[i][t] for i in range(3)], axis=1)
@@ -126,7 +135,8 @@ class Triangles:
         return best
 
 
-def point_triangle_distance(p, a, b, c):
+def point_triangle_distance(p: ArrayLike, a: ArrayLike, b: ArrayLike,
+                            c: ArrayLike) -> np.ndarray:
     """Euclidean distance from points ``p`` to triangles ``(a, b, c)``, all (P, 3)."""
     p = np.asarray(p, dtype=float)
     v = np.concatenate([a, b, c])
@@ -135,14 +145,16 @@ def point_triangle_distance(p, a, b, c):
     return Triangles(v, tris).distance(p, np.arange(n))
 
 
-def proper(vertices, triangles):
+def proper(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Indices of the triangles (T, 3) of non-zero area: those a closest point can be on."""
     v, t = vertices, triangles
     return np.flatnonzero(np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]),
                                          axis=1) > 0)
 
 
-def nearest_candidates(points, vertices, triangles, candidates):
+def nearest_candidates(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray,
+                       candidates: int) -> np.ndarray:
+
     """Rows (P, k) into ``triangles`` of the k = min(candidates, T) triangles whose
     centroids lie nearest each point: where the exact kernel looks for the closest one."""
     from scipy.spatial import cKDTree

@@ -23,11 +23,18 @@ is small (at most ``unknowns``) and is factored directly, once per Hessian.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..base.multigrid import aggregate_blocks
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["CoarseSpace"]
 
@@ -49,7 +56,8 @@ class CoarseSpace:
         (at least 2 nodes) that gives no more.
     """
 
-    def __init__(self, coords, neighbours, free_nodes, unknowns):
+    def __init__(self, coords: np.ndarray, neighbours: np.ndarray, free_nodes: ArrayLike,
+                 unknowns: int) -> None:
         n, d = coords.shape
         self.d = d
         self.free_nodes = np.asarray(free_nodes)
@@ -87,7 +95,7 @@ class CoarseSpace:
         pos = np.minimum(np.searchsorted(keys, qkey), nc - 1)
         self._columns = np.where(inside & (keys[pos] == qkey), pos, -1)
 
-    def operator(self, Hs):
+    def operator(self, Hs: np.ndarray) -> sp.csc_matrix:
         """A_c = P^T H P from the stencil blocks ``Hs`` (n, S, d, d): CSC matrix (nc d, nc d)."""
         d, nc = self.d, self.n_aggregates
         flat = Hs.reshape(-1, d * d)
@@ -104,14 +112,15 @@ class CoarseSpace:
         return sp.csc_matrix((blocks[ok].reshape(-1), (rows.reshape(-1), cols.reshape(-1))),
                              shape=(nc * d, nc * d))
 
-    def correction(self, Hs):
+    def correction(self, Hs: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
         """The coarse correction r -> P A_c^-1 P^T r of the Hessian ``Hs``, on the free nodes'
         residuals (n_free, d) -> (n_free, d)."""
         d, nc = self.d, self.n_aggregates
         lu = splu(self.operator(Hs), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
         agg = self.agg_free
 
-        def apply(r):
+        def apply(r: np.ndarray) -> np.ndarray:
+
             rc = np.stack([np.bincount(agg, weights=r[:, k], minlength=nc) for k in range(d)], axis=1)
             return lu.solve(rc.reshape(-1)).reshape(nc, d)[agg]
 

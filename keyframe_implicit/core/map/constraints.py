@@ -39,12 +39,19 @@ scale as a whole -- see `keyframe_implicit.core.map.solver`).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..base.elements import inverse
 from ..base.grid import Grid
 from ..base.sampling import cell_weights
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["FeatureConstraints"]
 
@@ -97,7 +104,8 @@ class FeatureConstraints:
     Every node of each feature's cell must be in ``active``.
     """
 
-    def __init__(self, grid: Grid, active, features_a, features_b, radius: float):
+    def __init__(self, grid: Grid, active: np.ndarray, features_a: ArrayLike,
+                 features_b: ArrayLike, radius: float) -> None:
         d = grid.dim
         self.d = d
         self.n = len(active)
@@ -171,7 +179,7 @@ class FeatureConstraints:
         del d
         return y
 
-    def _fit_affine(self, y):
+    def _fit_affine(self, y: np.ndarray) -> np.ndarray:
         d = self.d
         A = np.empty((self.n_patch, d, d))
         dy = y[self.patch_nodes] - self.yb[self.patches][self.patch_id]
@@ -227,7 +235,7 @@ class FeatureConstraints:
         zf[self._hard_nodes] = zl
         return z
 
-    def block_preconditioner(self, diag: np.ndarray):
+    def block_preconditioner(self, diag: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
         """Block-Jacobi inverse in reduced coordinates from node diagonal blocks (n, d, d).
 
         Free nodes: inverse of their d x d block. Patch matrices A_i: inverse of
@@ -247,7 +255,8 @@ class FeatureConstraints:
             inv_patch = np.linalg.pinv(M)
         nf = self.n_free * d
 
-        def apply(z):
+        def apply(z: np.ndarray) -> np.ndarray:
+
             out = np.empty_like(z)
             out[:nf] = np.einsum("njk,nk->nj", inv_free, z[:nf].reshape(-1, d)).reshape(-1)
             if inv_patch is not None:

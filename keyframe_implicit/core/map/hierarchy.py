@@ -5,6 +5,8 @@ map on a coarser grid, and each level's correction carried to the next finer one
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
 
@@ -12,10 +14,16 @@ from ..base.grid import Grid
 from ..base.sampling import sample
 from .system import det_floor
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .options import MapOptions
+    from .system import MapSystem
+
 __all__ = ["coarse_to_fine", "fields_on", "start_map", "correction", "prolong", "extend"]
 
 
-def extend(full, known, passes):
+def extend(full: np.ndarray, known: np.ndarray, passes: int) -> np.ndarray:
     """Fill nodes where ``known`` is False smoothly from the known ones (nearest + smoothing)."""
     if np.all(known):
         return full
@@ -30,7 +38,7 @@ def extend(full, known, passes):
     return out
 
 
-def prolong(field, shape):
+def prolong(field: ArrayLike, shape: tuple[int, ...]) -> np.ndarray:
     """Multilinear prolongation from a level of spacing 2h onto the nested level of spacing h.
 
     Coarse node k sits on fine node 2k (same origin), so per axis fine 2k takes
@@ -57,7 +65,7 @@ def prolong(field, shape):
     return out
 
 
-def coarse_to_fine(grid: Grid, coarse_nodes: int):
+def coarse_to_fine(grid: Grid, coarse_nodes: int) -> list[Grid]:
     """The grids of the hierarchy, coarsest first, ending with ``grid``: each coarser one
     has twice the spacing and the same origin, while it keeps ``coarse_nodes`` per side."""
     grids = [grid]
@@ -70,14 +78,16 @@ def coarse_to_fine(grid: Grid, coarse_nodes: int):
     return grids[::-1]
 
 
-def fields_on(phi_a, phi_b, disp0, grid, g):
+def fields_on(phi_a: np.ndarray, phi_b: np.ndarray, disp0: np.ndarray, grid: Grid,
+              g: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The keyframes' fields and the start map on the coarse grid ``g``: (pa, pb, base)."""
     pts = g.points()
     return (sample(phi_a, grid, pts, outside="distance"), sample(phi_b, grid, pts, outside="distance"),
             pts + sample(disp0, grid, pts))
 
 
-def correction(system, y, y_start_full, base, passes):
+def correction(system: MapSystem, y: np.ndarray, y_start_full: np.ndarray, base: np.ndarray,
+               passes: int) -> np.ndarray:
     """The level's solution as a correction of its start map ``base`` on every node of
     its grid: solved on the active nodes, extended beyond them (`extend`)."""
     g, d = system.grid, system.d
@@ -89,7 +99,8 @@ def correction(system, y, y_start_full, base, passes):
     return extend(corr, known.reshape(g.shape), passes)
 
 
-def start_map(system, base, corr_prev, options):
+def start_map(system: MapSystem, base: np.ndarray, corr_prev: np.ndarray | None,
+              options: MapOptions) -> tuple[np.ndarray, np.ndarray]:
     """Start of one level: its base map plus as much of the coarser level's correction,
     prolonged onto this level (``corr_prev``, this level's shape; None: none), as keeps
     the material's det F at ``min_det`` (or at the base's own minimum, if lower).
@@ -100,7 +111,8 @@ def start_map(system, base, corr_prev, options):
     """
     d, chunk = system.d, int(options.chunk_elements)
 
-    def start(scale):
+    def start(scale: float) -> tuple[np.ndarray, np.ndarray]:
+
         full = base if scale == 0 else base + scale * corr_prev
         return full, system.cons.enforce(full.reshape(-1, d)[system.active])
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import functools
 import itertools
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import ndimage
@@ -46,6 +47,12 @@ from ..base import elements
 from ..base.grid import Grid
 from ..base.rotations import rigid_fit
 from ..base.sampling import sample
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
+    from scipy.interpolate import RBFInterpolator
 
 __all__ = ["InitialMap", "initial_map", "label_material", "rigid_alignment"]
 
@@ -62,17 +69,17 @@ class InitialMap:
 
     mapped: np.ndarray
     components: np.ndarray
-    methods: list = field(default_factory=list)
+    methods: list[str] = field(default_factory=list)
     feature_component: np.ndarray | None = None
 
 
-def label_material(phi):
+def label_material(phi: ArrayLike) -> tuple[np.ndarray, int]:
     """Connected components of ``phi < 0`` (face connectivity): (labels, count)."""
     labels, n = ndimage.label(np.asarray(phi) < 0)
     return labels, int(n)
 
 
-def _nearest_label(labels, grid: Grid, points):
+def _nearest_label(labels: np.ndarray, grid: Grid, points: np.ndarray) -> np.ndarray:
     """Label of the material node nearest to each world point (0 if no material)."""
     if labels.max() == 0:
         return np.zeros(len(points), dtype=np.int64)
@@ -83,7 +90,7 @@ def _nearest_label(labels, grid: Grid, points):
     return labels[near]
 
 
-def _affinely_independent(points, d):
+def _affinely_independent(points: np.ndarray, d: int) -> bool:
     """True if ``points`` (n, d) span a d-simplex (n >= d+1, not on a line/plane)."""
     if len(points) < d + 1:
         return False
@@ -92,7 +99,8 @@ def _affinely_independent(points, d):
     return s[-1] > 1e-6 * max(s[0], 1e-300)
 
 
-def _rbf_map(fa, fb, pts, grid: Grid, material):
+def _rbf_map(fa: np.ndarray, fb: np.ndarray, pts: np.ndarray, grid: Grid,
+             material: np.ndarray) -> np.ndarray | None:
     """y(x) = x + RBF displacement (eq. 2.1-2.5) at ``pts``, or None where it cannot be trusted.
 
     Guard on the map's conditioning and range: the interpolant is refused when
@@ -120,7 +128,7 @@ def _rbf_map(fa, fb, pts, grid: Grid, material):
     return best
 
 
-def min_det(mapped, grid: Grid, material):
+def min_det(mapped: ArrayLike, grid: Grid, material: ArrayLike) -> float:
     """Smallest det F of a map over the cells touching ``material`` (bool, flat).
 
     F is that of the multilinear cell (`elements`), at the cell centre and the
@@ -140,7 +148,8 @@ def min_det(mapped, grid: Grid, material):
     return float(elements.determinant(elements.deformation_gradient(Y, G)).min())
 
 
-def _guarded(build, grid: Grid, material):
+def _guarded(build: Callable[[], np.ndarray], grid: Grid,
+             material: np.ndarray) -> np.ndarray | None:
     """``build()`` if it succeeds with a finite map keeping ``material`` near the grid, else None.
 
     "Near": out of the grid box by at most a quarter of its size (the solver
@@ -156,7 +165,7 @@ def _guarded(build, grid: Grid, material):
     return y
 
 
-def _principal_frame(points):
+def _principal_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     c = points.mean(axis=0)
     cov = np.cov((points - c).T) if len(points) > 1 else np.eye(points.shape[1])
     vals, vecs = np.linalg.eigh(np.atleast_2d(cov))
@@ -164,7 +173,9 @@ def _principal_frame(points):
     return c, vecs[:, order], np.sqrt(np.maximum(vals[order], 0.0))
 
 
-def rigid_alignment(points_a, phi_b, grid: Grid, target_points, features_a=None, features_b=None):
+def rigid_alignment(points_a: np.ndarray, phi_b: np.ndarray, grid: Grid, target_points: np.ndarray,
+                    features_a: np.ndarray | None = None,
+                    features_b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Rigid motion (R, t) carrying a component of A onto a component of B.
 
     Parameters
@@ -223,7 +234,9 @@ def rigid_alignment(points_a, phi_b, grid: Grid, target_points, features_a=None,
     return best
 
 
-def _rigid_map(mask, fa, fb, phi_b, labels_b, centroids_b, grid, pts):
+def _rigid_map(mask: np.ndarray, fa: np.ndarray, fb: np.ndarray, phi_b: np.ndarray,
+               labels_b: np.ndarray, centroids_b: np.ndarray, grid: Grid,
+               pts: np.ndarray) -> np.ndarray:
     """The map of one component of A (``mask``) whose features cannot carry an RBF: the rigid
     motion onto the component of B its features (or, without any, its centroid) point at
     (`rigid_alignment`), plus a Gaussian RBF correction that lands the features exactly
@@ -253,7 +266,7 @@ def _rigid_map(mask, fa, fb, phi_b, labels_b, centroids_b, grid, pts):
     return y
 
 
-def _blend(maps, labels, pts):
+def _blend(maps: list[np.ndarray], labels: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """One map from the components' maps: each component's own map on its material, and
     between them the maps weighted by 1 / distance^4 to each component."""
     num = np.zeros_like(pts)
@@ -271,7 +284,8 @@ def _blend(maps, labels, pts):
     return out
 
 
-def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
+def initial_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, features_a: ArrayLike,
+                features_b: ArrayLike) -> InitialMap:
     """Initial map y(x) of every node (eq. 2.1-2.5 per component, rigid fallback).
 
     Parameters
@@ -318,7 +332,8 @@ def initial_map(phi_a, phi_b, grid: Grid, features_a, features_b) -> InitialMap:
     return InitialMap(out.reshape(shape), labels, methods, comp_of)
 
 
-def _rbf(*args, **kwargs):
+def _rbf(*args: Any, **kwargs: Any) -> RBFInterpolator:
+
     """``scipy.interpolate.RBFInterpolator``, imported when first used: a process that
     only builds trajectories from solved maps (a farm's later tasks) does not pay for
     scipy.interpolate."""

@@ -4,7 +4,7 @@ so that a process which only reads solved maps (a farm's later tasks) need not i
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,9 +40,10 @@ class MapResult:
     """
 
     mapped: np.ndarray
-    stats: dict
+    stats: dict[str, Any]
     grid: Grid
     region: np.ndarray
     material: np.ndarray
-    components: np.ndarray = field(default=None)
+    components: np.ndarray | None = field(default=None)
+
     tear: Tear | None = field(default=None)

@@ -18,6 +18,8 @@ and the volumes are B's, so det F = 1 can hold on every piece.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
 
@@ -25,6 +27,11 @@ from ..base import elements
 from ..base.sampling import sample
 from .hierarchy import extend, prolong
 from .terms import heaviside
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
 
 __all__ = ["Tear", "find_tear", "prolong_pieces"]
 
@@ -47,12 +54,13 @@ class Tear:
         ``pieces``, and ``crack_material``: the share of A's material cells in the crack.
     """
 
-    def __init__(self, piece, crack, target, crack_material):
+    def __init__(self, piece: np.ndarray, crack: np.ndarray, target: ArrayLike,
+                 crack_material: float) -> None:
         self.piece, self.crack, self.target = piece, crack, np.asarray(target)
         self.stats = {"pieces": int(len(self.target)), "crack_material": float(crack_material)}
 
 
-def find_tear(phi_a, phi_b, grid, mapped):
+def find_tear(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, mapped: np.ndarray) -> Tear | None:
     """The `Tear` of ``mapped`` (y(x) on every node of ``grid``), or None where no
     component of A (a face-connected piece of ``phi_a < 0``) reaches several components
     of B."""
@@ -71,7 +79,8 @@ def find_tear(phi_a, phi_b, grid, mapped):
                      for j in range(1, count_b + 1)], axis=1)  # (nodes, count_b)
     comp = components.reshape(-1)[nodes]
     piece = np.zeros(grid.size, np.int64)
-    targets = []
+    targets: list[int] = []
+
     for c in np.unique(comp):
         own = comp == c
         nearest = np.argmin(dist[own], axis=1)
@@ -91,7 +100,7 @@ def find_tear(phi_a, phi_b, grid, mapped):
     return Tear(piece, crack, targets, np.mean(crack[cells]))
 
 
-def _balanced(dist, weight, share, h):
+def _balanced(dist: np.ndarray, weight: np.ndarray, share: np.ndarray, h: float) -> np.ndarray:
     """Each node's piece, argmin_j (dist_j - c_j), with the offsets c_j fitted so that
     piece j holds the fraction ``share[j]`` of ``weight``: each sweep moves c_j by the
     gap between its share and the one wanted, in units of h, until they agree to 0.1 %."""
@@ -107,14 +116,14 @@ def _balanced(dist, weight, share, h):
     return which
 
 
-def _spread(piece, material):
+def _spread(piece: np.ndarray, material: np.ndarray) -> np.ndarray:
     """The pieces carried from the material to every node: each takes the piece of its
     nearest material node (0 where that is untorn)."""
     _, idx = ndimage.distance_transform_edt(~material, return_indices=True)
     return piece[tuple(idx)]
 
 
-def _crack(piece):
+def _crack(piece: np.ndarray) -> np.ndarray:
     """The cells with corners in two different pieces (0, untorn, joins any)."""
     views = elements.corner_views(piece)
     big = np.iinfo(np.int64).max
@@ -126,7 +135,8 @@ def _crack(piece):
     return (high > 0) & (low < high)
 
 
-def prolong_pieces(corr, coarse, fine, passes):
+def prolong_pieces(corr: np.ndarray, coarse: Tear, fine: Tear, passes: int) -> np.ndarray:
+
     """A coarse level's correction ``corr`` of a map torn as ``coarse``, prolonged onto
     the next finer level, torn as ``fine``: each node of a fine piece reads the
     correction of the coarse piece with the same component of B, extended beyond that

@@ -42,12 +42,18 @@ Rigid motions must cost nothing if the term is physical.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
+
 
 import numpy as np
 
 from ..base.elements import Quadrature, cofactor, deformation_gradient, determinant, gram
 from ..base.sampling import sample_with_gradient
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
 
 __all__ = ["TermValue", "ElementBatch", "NodeBatch", "Term", "TERMS", "heaviside",
            "heaviside_derivative", "volume_term", "rigidity_term", "levelset_term"]
@@ -93,7 +99,7 @@ class NodeBatch:
     weight: np.ndarray
     h_phi: np.ndarray
     psi: np.ndarray
-    grid: object
+    grid: Grid
     eps: float
 
 
@@ -105,18 +111,19 @@ class Term:
     name: str
     weight_option: str
     kind: str
-    function: Callable
+    function: Callable[..., TermValue]
+
     default: float = 0.0
 
 
-def heaviside(phi, eps):
+def heaviside(phi: ArrayLike, eps: float) -> np.ndarray:
     """Smeared Heaviside H of eq. 2.7 (0 inside below -eps, 1 outside above eps)."""
     phi = np.asarray(phi, dtype=float)
     mid = 0.5 + phi / (2 * eps) + np.sin(np.pi * phi / eps) / (2 * np.pi)
     return np.where(phi < -eps, 0.0, np.where(phi > eps, 1.0, mid))
 
 
-def heaviside_derivative(phi, eps):
+def heaviside_derivative(phi: ArrayLike, eps: float) -> np.ndarray:
     """dH/dphi of eq. 2.7: (1 + cos(pi phi / eps)) / (2 eps) on |phi| <= eps, else 0."""
     phi = np.asarray(phi, dtype=float)
     mid = (1.0 + np.cos(np.pi * phi / eps)) / (2 * eps)
@@ -206,7 +213,7 @@ def levelset_term(batch: NodeBatch, hessian: bool = True) -> TermValue:
     return TermValue(energy, grad, hess)
 
 
-def _sample_sdf(psi, grid, y):
+def _sample_sdf(psi: np.ndarray, grid: Grid, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Multilinear Psi and its gradient at y; outside the grid box Psi grows as the distance to it."""
     return sample_with_gradient(psi, grid, y, outside="distance")
 

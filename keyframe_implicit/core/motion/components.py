@@ -13,6 +13,8 @@ component_offsets` then gives each its own iso-value. docs/method.md, section 13
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
@@ -20,18 +22,22 @@ from scipy.spatial import cKDTree
 from ..base.grid import Grid
 from ..surface.extract import enclosed_volume
 
+if TYPE_CHECKING:
+    from .finepaths import FinePaths
+    from .trajectory import Trajectories
+
 __all__ = ["ComponentVolumes", "component_labels", "component_volumes", "sub_grid"]
 
 _SAMPLED_NODES = 200_000  # material nodes followed per keyframe (every k-th beyond that)
 
 
-def component_labels(field):
+def component_labels(field: np.ndarray) -> tuple[np.ndarray, int]:
     """Connected components of the material ``field < 0`` (faces connect nodes): (labels, count),
     labels 0 outside, 1..count inside (`scipy.ndimage.label`)."""
     return ndimage.label(field < 0)
 
 
-def sub_grid(grid: Grid, box):
+def sub_grid(grid: Grid, box: tuple[slice, ...]) -> Grid:
     """The component of ``grid`` that a tuple of slices ``box`` cuts out, as a Grid of its own."""
     start = np.array([b.start for b in box])
     shape = tuple(b.stop - b.start for b in box)
@@ -39,11 +45,12 @@ def sub_grid(grid: Grid, box):
                 shape=shape)
 
 
-def _padded(box, pad, shape):
+def _padded(box: tuple[slice, ...], pad: int, shape: tuple[int, ...]) -> tuple[slice, ...]:
     return tuple(slice(max(b.start - pad, 0), min(b.stop + pad, n)) for b, n in zip(box, shape))
 
 
-def component_volumes(field, grid: Grid, labels, count):
+def component_volumes(field: np.ndarray, grid: Grid, labels: np.ndarray,
+                      count: int) -> np.ndarray:
     """Volume of each labelled component's own surface, (count,) world units.
 
     Component k's volume is that of the surface marching cubes gives its field with every
@@ -65,7 +72,7 @@ class _Source:
     """A keyframe's components, their volumes and a sample of their material nodes, each
     node weighing its component's volume over that component's sampled nodes."""
 
-    def __init__(self, field, grid, paths):
+    def __init__(self, field: np.ndarray, grid: Grid, paths: Trajectories | FinePaths) -> None:
         labels, count = component_labels(field)
         self.grid, self.paths, self.count = grid, paths, count
         nodes = np.flatnonzero(labels.reshape(-1))
@@ -74,14 +81,15 @@ class _Source:
         volume = component_volumes(field, grid, labels, count)
         self.weight = (volume / np.bincount(self.component, minlength=count))[self.component]
 
-    def partners(self, other):
+    def partners(self, other: _Source) -> np.ndarray:
         """The component of ``other`` (the other keyframe) each sampled node's path ends in
         at t = 1: the component of the nearest of ``other``'s sampled nodes."""
         ends = self.paths.node_positions(1.0, self.nodes)
         _, nearest = cKDTree(self.grid.node_points(other.nodes)).query(ends, workers=-1)
         return other.component[nearest]
 
-    def arrivals(self, atom, atoms, labels, count, t):
+    def arrivals(self, atom: np.ndarray, atoms: int, labels: np.ndarray, count: int,
+                 t: float) -> np.ndarray:
         """Share of each atom's sampled nodes (on this side) that arrive in each of the
         ``count`` components ``labels`` marks when the paths are at time t: (atoms, count);
         nodes arriving in no component are left out, so each row sums to 1 or is 0."""
@@ -123,7 +131,8 @@ class ComponentVolumes:
         `finepaths.FinePaths`.
     """
 
-    def __init__(self, grid, phi_a, phi_b, paths_a, paths_b):
+    def __init__(self, grid: Grid, phi_a: np.ndarray, phi_b: np.ndarray,
+                 paths_a: Trajectories | FinePaths, paths_b: Trajectories | FinePaths) -> None:
         self.a = _Source(phi_a, grid, paths_a)
         self.b = _Source(phi_b, grid, paths_b)
         self.atoms = self.a.count * self.b.count
@@ -135,7 +144,7 @@ class ComponentVolumes:
             np.bincount(self.atom_b, self.b.weight, minlength=self.atoms) / self.volumes[1],
             (self.a.count, self.b.count))
 
-    def targets(self, labels, count, s):
+    def targets(self, labels: np.ndarray, count: int, s: float) -> np.ndarray:
         """V_p(s) of each of the ``count`` components ``labels`` marks (the in-between's
         own at time s, `component_labels`): (count,) world units; 0 for a component no
         atom arrives in.
@@ -152,7 +161,9 @@ class ComponentVolumes:
         return np.bincount(arrived.argmax(axis=1)[landed], held[landed], minlength=count)
 
 
-def _fitted_shares(from_a, from_b, counts, sweeps=200):
+def _fitted_shares(from_a: np.ndarray, from_b: np.ndarray, counts: tuple[int, int],
+                   sweeps: int = 200) -> np.ndarray:
+
     """Atom shares (atoms,) with row sums those of ``from_a`` (A's component fractions) and
     column sums those of ``from_b`` (B's), on the atoms either map joins, starting from
     their mean (iterative proportional fitting: on a tree of atoms, the only such shares)."""

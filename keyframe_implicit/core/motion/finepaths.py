@@ -19,11 +19,19 @@ map, so a feature point constrained on the motion grid lands exactly.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
 
 from ..base.grid import Grid
 from ..base.sampling import cell_weights, sample
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .spline import Bend
+    from .trajectory import Trajectories
 
 __all__ = ["FinePaths", "material_mass", "on_motion_grid", "same_width"]
 
@@ -31,13 +39,13 @@ _KEPT = 3  # node sets whose motion-cell weights `FinePaths` keeps
 _CHUNK = 1 << 18  # surface nodes read at once when the whole map is made
 
 
-def on_motion_grid(field, grid: Grid, motion_grid: Grid):
+def on_motion_grid(field: ArrayLike, grid: Grid, motion_grid: Grid) -> np.ndarray:
     """A surface-grid field read at the motion grid's nodes (multilinear; beyond the surface
     grid's box the distance to it is added, so a distance field stays outside)."""
     return sample(field, grid, motion_grid.points(), outside="distance")
 
 
-def same_width(cells, grid: Grid, motion_grid: Grid):
+def same_width(cells: float, grid: Grid, motion_grid: Grid) -> float:
     """A band ``cells`` of ``grid``'s cells wide, in cells of the ``motion_grid`` (at least
     one): the margins the solves add around the material keep their width in world units
     on the motion grid. A margin of motion cells is wider, and the empty gap of a merge
@@ -45,7 +53,7 @@ def same_width(cells, grid: Grid, motion_grid: Grid):
     return max(1.0, float(cells) * grid.spacing / motion_grid.spacing)
 
 
-def material_mass(material, grid: Grid, motion_grid: Grid):
+def material_mass(material: ArrayLike, grid: Grid, motion_grid: Grid) -> np.ndarray:
     """The surface grid's ``material`` (bool, grid.shape) restricted to the motion grid's
     nodes: each material node's multilinear weights added onto the corners of its motion
     cell. Multilinear weights reproduce linear functions, so a centroid weighted by this
@@ -74,25 +82,26 @@ class FinePaths:
         `trajectory.Trajectories` ``margin_cells``).
     """
 
-    def __init__(self, grid: Grid, coarse, material, margin_cells):
+    def __init__(self, grid: Grid, coarse: Trajectories, material: ArrayLike,
+                 margin_cells: float) -> None:
         self.grid, self.coarse, self.dim = grid, coarse, grid.dim
         self.stats = coarse.stats
         dist = ndimage.distance_transform_edt(~np.asarray(material, dtype=bool))
         self._region = (dist <= float(margin_cells)).reshape(-1)
-        self._weights = {}
-        self._mapped = None
+        self._weights: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._mapped: np.ndarray | None = None
 
     @property
-    def bend(self):
+    def bend(self) -> Bend | None:
         """The `spline.Bend` of the motion grid's paths, or None: these paths follow it."""
         return self.coarse.bend
 
-    def region_nodes(self):
+    def region_nodes(self) -> np.ndarray:
         """Flat bool mask of the region's surface nodes: the material and its margin."""
         return self._region
 
     @property
-    def mapped(self):
+    def mapped(self) -> np.ndarray:
         """The map y(x) on the surface grid, array of grid.shape + (d,) (made once, a chunk
         of nodes at a time: the weights of every node at once would be 8 times its size)."""
         if self._mapped is None:
@@ -105,7 +114,7 @@ class FinePaths:
             self._mapped = out.reshape(self.grid.shape + (d,))
         return self._mapped
 
-    def node_positions(self, s, nodes):
+    def node_positions(self, s: float, nodes: ArrayLike) -> np.ndarray:
         """Positions x(s) of the surface nodes with the given flat indices, (len(nodes), d)."""
         nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
         x = self.grid.node_points(nodes)
@@ -116,12 +125,14 @@ class FinePaths:
         disp = coarse.node_positions(s, cnodes) - coarse.grid.node_points(cnodes)
         return x + np.einsum("pk,pkd->pd", w, disp[inv])
 
-    def __call__(self, points, s):
+    def __call__(self, points: ArrayLike, s: float) -> np.ndarray:
         """Positions at time s of points given at time 0 ((P, d) -> (P, d)): the motion
         grid's trajectories read there directly."""
         return self.coarse(points, s)
 
-    def _cells_of(self, nodes, x):
+    def _cells_of(self, nodes: np.ndarray,
+                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
         """Motion-grid weights (P, 2**d), the motion nodes they use, and each weight's
         row among those nodes (P, 2**d); kept for the last few node sets, which every
         frame asks for again."""

@@ -19,6 +19,8 @@ from one surface per step.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from scipy import ndimage
@@ -28,12 +30,16 @@ from ..base.grid import Grid
 from ..surface.extract import enclosed_volume
 from .components import sub_grid
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 __all__ = ["volume_offset", "component_offsets"]
 
 _CHUNK = 1 << 18  # nodes per gradient chunk (bounds the index temporaries)
 
 
-def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cells=3.0):
+def volume_offset(field: ArrayLike, grid: Grid, target: float, *, rtol: float = 1e-3,
+                  max_steps: int = 3, max_cells: float = 3.0) -> tuple[float, float]:
     """Iso-value c with ``enclosed_volume(field - c) = target``.
 
     Parameters
@@ -76,7 +82,7 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
         ghn[part] = np.maximum(_gradient_norm(f, grid, near[part]), 0.05) * h
     inner = (np.count_nonzero(flat < 0) - np.count_nonzero(fn < 0)) * grid.cell_volume
 
-    def smooth(c):
+    def smooth(c: float) -> tuple[float, float]:
         """Smoothed-Heaviside volume of {f < c} and its derivative in c (both increasing)."""
         ramp = 0.5 - (fn - c) / ghn
         inside = (ramp > 0.0) & (ramp < 1.0)
@@ -104,8 +110,9 @@ def volume_offset(field, grid: Grid, target, *, rtol=1e-3, max_steps=3, max_cell
     return float(c), float(err)
 
 
-def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, passes=2,
-                      **keywords):
+def component_offsets(field: np.ndarray, grid: Grid, labels: np.ndarray, targets: np.ndarray, *,
+                      max_cells: float = 3.0, passes: int = 2,
+                      **keywords: Any) -> tuple[np.ndarray, np.ndarray]:
     """Shift each labelled component of ``field`` by its own iso-value, in place, so that
     its volume is its target (`components.ComponentVolumes.targets`).
 
@@ -169,7 +176,8 @@ def component_offsets(field, grid: Grid, labels, targets, *, max_cells=3.0, pass
     return c, err
 
 
-def _gradient_norm(f, grid, nodes):
+def _gradient_norm(f: np.ndarray, grid: Grid, nodes: np.ndarray) -> np.ndarray:
+
     """|grad f| at the flat indices ``nodes`` of the field ``f`` on ``grid``, with
     `numpy.gradient`'s differences: central inside, one-sided on the grid's faces. Only
     these nodes are read, so no gradient of the whole grid is made."""

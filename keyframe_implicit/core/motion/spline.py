@@ -53,9 +53,19 @@ blend has no seam.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..base.sampling import sample
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
+    from .trajectory import Trajectories
 
 __all__ = ["Bend", "KEY_INTERPOLATIONS", "check_key_interpolation", "start_velocity",
            "velocities_needed", "chain_bends", "bends_needed", "incompressible"]
@@ -67,7 +77,8 @@ KEY_INTERPOLATIONS = ("smooth", "linear", "ease")
 _START_STEP = 1.0 / 64.0  # s of the one-sided difference that gives a path's start velocity
 
 
-def check_key_interpolation(key_interpolation, nk):
+def check_key_interpolation(key_interpolation: str | Sequence[str] | None,
+                            nk: int) -> tuple[str, ...]:
     """Per keyframe its interpolation as a tuple of ``nk`` names (None: all "smooth"); a
     single name applies to every keyframe; ValueError saying what to fix."""
     if key_interpolation is None:
@@ -84,7 +95,7 @@ def check_key_interpolation(key_interpolation, nk):
     return out
 
 
-def bends_needed(key_interpolation):
+def bends_needed(key_interpolation: Sequence[str]) -> bool:
     """Whether any segment's paths bend: an inner keyframe that is not "linear", or an
     "ease" anywhere (two natural ends bend nothing)."""
     inner = key_interpolation[1:-1]
@@ -101,23 +112,23 @@ class Bend:
         a0 and a1 of every node, world units per unit s.
     """
 
-    def __init__(self, start, end):
+    def __init__(self, start: ArrayLike, end: ArrayLike) -> None:
         self.start = np.asarray(start, dtype=float)
         self.end = np.asarray(end, dtype=float)
 
-    def __call__(self, s, nodes):
+    def __call__(self, s: float, nodes: np.ndarray) -> np.ndarray:
         """The correction at time s of the nodes with the given flat indices, (len, d)."""
         s = float(s)
         a, b = s * (1.0 - s) ** 2, -s * s * (1.0 - s)
         return a * self.start[nodes] + b * self.end[nodes]
 
-    def reversed(self):
+    def reversed(self) -> Bend:
         """The same correction seen from the other end (time t = 1 - s): the slopes swap
         ends and change sign."""
         return Bend(-self.end, -self.start)
 
 
-def start_velocity(paths):
+def start_velocity(paths: Trajectories) -> np.ndarray:
     """dx/ds at s = 0 of every node of ``paths`` (`trajectory.Trajectories`), (size, d):
     second-order one-sided difference over two steps of `_START_STEP`."""
     nodes = np.arange(paths.grid.size)
@@ -127,13 +138,13 @@ def start_velocity(paths):
     return (4.0 * x1 - 3.0 * x0 - x2) / (2.0 * _START_STEP)
 
 
-def _sets_velocity(key_interpolation, k):
+def _sets_velocity(key_interpolation: Sequence[str], k: int) -> bool:
     """Whether keyframe ``k`` sets the velocity there: neither "linear" nor a natural end."""
     kind, last = key_interpolation[k], len(key_interpolation) - 1
     return kind == "ease" or (kind == "smooth" and 0 < k < last)
 
 
-def velocities_needed(key_interpolation):
+def velocities_needed(key_interpolation: Sequence[str]) -> list[tuple[int, str]]:
     """The paths whose `start_velocity` `chain_bends` reads: (segment, "forward") for the
     segment leaving a keyframe, (segment, "backward") for the one arriving at it, at
     every keyframe that sets its velocity."""
@@ -149,7 +160,9 @@ def velocities_needed(key_interpolation):
     return out
 
 
-def chain_bends(grid, frames, key_interpolation, forward, backward, velocities):
+def chain_bends(grid: Grid, frames: ArrayLike, key_interpolation: Sequence[str],
+                forward: Sequence[np.ndarray], backward: Sequence[np.ndarray],
+                velocities: dict[tuple[int, str], np.ndarray]) -> list[tuple[Bend, Bend] | None]:
     """Every segment's (forward, backward) `Bend` on the maps' ``grid``, or None for a
     segment that keeps its paths.
 
@@ -193,7 +206,8 @@ def chain_bends(grid, frames, key_interpolation, forward, backward, velocities):
             depart[k] = wanted - leaving[k]
         if k in arriving:
             reach[k] = wanted - arriving[k]
-    out = []
+    out: list[tuple[Bend, Bend] | None] = []
+
     for k in range(nk - 1):
         fw, bw = _read_at(forward[k], grid), _read_at(backward[k], grid)
         a0 = None if depart[k] is None else (depart[k] * gaps[k], bw(depart[k] * gaps[k]))
@@ -209,7 +223,7 @@ def chain_bends(grid, frames, key_interpolation, forward, backward, velocities):
     return out
 
 
-def incompressible(velocity, grid):
+def incompressible(velocity: ArrayLike, grid: Grid) -> np.ndarray:
     """The divergence-free part of a node velocity field (size, d) on ``grid``: v - grad p
     with lap p = div v inside the grid's box and p = 0 on its faces (Helmholtz projection).
 
@@ -248,11 +262,12 @@ def _ends(a0, a1, natural):
     return fill(a0, a1, natural[0]), fill(a1, a0, natural[1])
 
 
-def _read_at(mapped, grid):
+def _read_at(mapped: ArrayLike, grid: Grid) -> Callable[[np.ndarray], np.ndarray]:
     """A node field of the other end read where each node's map takes it: (size, d) ->
     (size, d), multilinear."""
     points = np.asarray(mapped, dtype=float).reshape(-1, grid.dim)
 
-    def read(field):
+    def read(field: np.ndarray) -> np.ndarray:
+
         return sample(field.reshape(grid.shape + (grid.dim,)), grid, points)
     return read

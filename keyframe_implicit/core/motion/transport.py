@@ -24,6 +24,8 @@ section 8); `Transport.carry` says how each treats material its map tears.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
 
@@ -33,6 +35,14 @@ from ..base.grid import Grid
 from ..base.progress import Reporter
 from ..base.sampling import multilinear_in_cells, sample
 
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
+
+    from .finepaths import FinePaths
+    from .trajectory import Trajectories
+
 __all__ = ["Transport", "inverse_lookup"]
 
 
@@ -41,8 +51,9 @@ _GUESS_SLACK = 0.35  # cells: the widest a candidate's affine guess may stray ou
 _ON_FACE = 1e-4  # cells: local coordinates this far outside the unit cell still count as in it
 
 
-def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
-                   max_candidates=65_536, check=None):
+def inverse_lookup(grid: Grid, corner_positions: np.ndarray, cells: np.ndarray, *,
+                   newton_steps: int = 6, tol: float = 1e-6, max_candidates: int = 65_536,
+                   check: Callable[[], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
     Every cell listed in ``cells`` is moved (its corners to
@@ -85,7 +96,8 @@ def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1
     return target, _index_coordinates(grid, cells, cell, local)
 
 
-def _index_coordinates(grid, cells, cell, local):
+def _index_coordinates(grid: Grid, cells: np.ndarray, cell: np.ndarray,
+                       local: np.ndarray) -> np.ndarray:
     """Source points (M, d) in continuous node-index coordinates from their cells (indices
     into ``cells``) and local coordinates about the cell centres (d, M)."""
     base = np.stack(np.unravel_index(cells[cell], grid.shape), axis=-1)
@@ -296,7 +308,7 @@ def _affine_slack(coef, Jinv):
     return _apply_small(np.abs(Jinv), bound)
 
 
-def _inverse_small(J, singular=1.0):
+def _inverse_small(J: np.ndarray, singular: float = 1.0) -> np.ndarray:
     """Inverses (d, d, M) of a batch of 2x2 / 3x3 matrices (d, d, M), by the adjugate;
     ``singular`` times the identity where a matrix is singular."""
     d = J.shape[0]
@@ -309,7 +321,7 @@ def _inverse_small(J, singular=1.0):
     return out
 
 
-def _apply_small(A, x):
+def _apply_small(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     """A x for a batch of small matrices (d, d, M) and vectors (d, M)."""
     return np.einsum("ijm,jm->im", A, x)
 
@@ -345,8 +357,10 @@ class Transport:
     truncation : float
     """
 
-    def __init__(self, field, trajectories, *, interpolation="cubic", newton_steps=6,
-                 truncation=None, cancel=None, torn=None):
+    def __init__(self, field: ArrayLike, trajectories: Trajectories | FinePaths, *,
+                 interpolation: str = "cubic", newton_steps: int = 6,
+                 truncation: float | None = None, cancel: Callable[[], bool] | None = None,
+                 torn: ArrayLike | None = None) -> None:
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
         grid = trajectories.grid
@@ -364,9 +378,10 @@ class Transport:
         self._torn = (np.zeros(len(self._cells), bool) if torn is None
                       else np.asarray(torn)[np.unravel_index(self._cells, grid.shape)])
         self.truncation = self.border_value if truncation is None else float(truncation)
-        self._corner_mapped = None  # the map at the corner nodes (`_mapped_at`)
+        # the map at the corner nodes (`_mapped_at`)
+        self._corner_mapped: np.ndarray | None = None
 
-    def read(self, field, u, coef=None):
+    def read(self, field: np.ndarray, u: np.ndarray, coef: np.ndarray | None = None) -> np.ndarray:
         """A field's value at continuous node-index coordinates u (M, d).
 
         Cubic B-spline (``coef`` its prefiltered coefficients) or multilinear;
@@ -382,22 +397,23 @@ class Transport:
             val = sample(field, self.grid, self.grid.to_world(uc))
         return val + extra
 
-    def sources(self, t):
+    def sources(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Inverse lookup at time t: (target node, source point in index coordinates) pairs."""
         target, cell, local = self._sources_in_cells(t)
         return target, _index_coordinates(self.grid, self._cells, cell, local)
 
-    def _sources_in_cells(self, t):
+    def _sources_in_cells(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`sources` as (target node, source cell, local coordinates (d, M)) (`_lookup_in_cells`)."""
         pos = self.trajectories.node_positions(t, self._corner_nodes)
         return _lookup_in_cells(self.grid, _corner_gather(self.grid, pos, self._cnodes_local),
                                 self._cells, newton_steps=self.newton_steps, check=self._check)
 
-    def value_at(self, points):
+    def value_at(self, points: ArrayLike) -> np.ndarray:
         """The keyframe's own field at world points (P, d)."""
         return self.read(self.field, self.grid.to_index(points), self._coef)
 
-    def carry(self, t, other=None, values=None):
+    def carry(self, t: float, other: Transport | None = None,
+              values: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
         """The field carried to time t, flat (grid.size,); NaN where no moved cell reaches.
 
         Each source point x carries its own keyframe's value f(x); with
@@ -438,7 +454,7 @@ class Transport:
         out[np.isinf(out)] = np.nan
         return out
 
-    def _mapped_at(self, cell, local):
+    def _mapped_at(self, cell: np.ndarray, local: np.ndarray) -> np.ndarray:
         """The map y(x) at source points given by their region cells and local coordinates:
         multilinear in the cell, as the trajectories read it (`Trajectories.__call__` at
         t = 1), from the map's values at the region's corner nodes, kept once made. The
@@ -448,7 +464,8 @@ class Transport:
             self._corner_mapped = self.trajectories.node_positions(1.0, self._corner_nodes)
         return multilinear_in_cells(self._corner_mapped, self._cnodes_local, cell, local)
 
-    def surface_motion(self, t, near, dt=1e-3):
+    def surface_motion(self, t: float, near: float,
+                       dt: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
         """The nodes within ``near`` (world units) of the keyframe's surface at time t:
         their positions (M, d) and velocities dx/dt (M, d).
 
@@ -461,7 +478,7 @@ class Transport:
         pos = paths.node_positions(t, nodes)
         dt = min(float(dt), 0.25)  # so that one of the one-sided triples fits in [0, 1]
 
-        def at(time):  # the ends exactly (i/n - 1/n is not always 0 in floating point)
+        def at(time: float) -> np.ndarray:  # the ends exactly (i/n - 1/n is not always 0)
             return paths.node_positions(min(max(round(time, 12), 0.0), 1.0), nodes)
         if t - dt >= 0.0 and t + dt <= 1.0:
             return pos, (at(t + dt) - at(t - dt)) / (2.0 * dt)
@@ -470,7 +487,9 @@ class Transport:
         return pos, (4.0 * one - 3.0 * pos - two) / (2.0 * step)
 
 
-def _region_cells(grid, region):
+def _region_cells(grid: Grid,
+                  region: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+
     """`elements.cells_within` of ``region``, and its border nodes: corners of some region
     cell that are not surrounded by region cells (fewer than 2**d region cells use them)."""
     cells, nodes, local = elements.cells_within(grid, region)

@@ -22,8 +22,14 @@ sec. 3.2). Two uses here:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Sequence
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["MeshAttributes", "closest_points", "barycentric", "transfer", "concatenate"]
 
@@ -47,10 +53,10 @@ class MeshAttributes:
     loop_start: np.ndarray
     loop_total: np.ndarray
     loop_vertices: np.ndarray
-    uv_maps: dict = field(default_factory=dict)
-    colors: dict = field(default_factory=dict)
+    uv_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    colors: dict[str, tuple[str, str, np.ndarray]] = field(default_factory=dict)
     material_index: np.ndarray | None = None
-    material_names: list = field(default_factory=list)
+    material_names: list[str] = field(default_factory=list)
     smooth: np.ndarray | None = None
     edges: np.ndarray | None = None
     sharp_edges: np.ndarray | None = None
@@ -58,22 +64,22 @@ class MeshAttributes:
     custom_normals: np.ndarray | None = None
 
     @classmethod
-    def from_triangles(cls, faces):
+    def from_triangles(cls, faces: ArrayLike) -> MeshAttributes:
         """Attributes of a plain triangle mesh: polygons only."""
         f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
         return cls(np.arange(0, f.size, 3), np.full(len(f), 3), f.reshape(-1))
 
     @property
-    def n_polygons(self):
+    def n_polygons(self) -> int:
         """How many polygons the mesh has."""
         return len(self.loop_start)
 
     @property
-    def n_loops(self):
+    def n_loops(self) -> int:
         """How many polygon corners (loops) the mesh has."""
         return len(self.loop_vertices)
 
-    def check(self, n_vertices):
+    def check(self, n_vertices: int) -> None:
         """ValueError naming the first inconsistency with a mesh of ``n_vertices`` vertices."""
         start = np.asarray(self.loop_start)
         total = np.asarray(self.loop_total)
@@ -102,7 +108,7 @@ class MeshAttributes:
         if self.custom_normals is not None and np.shape(self.custom_normals) != (len(loops), 3):
             raise ValueError(f"custom_normals must be ({len(loops)}, 3), one per loop.")
 
-    def triangle_loops(self):
+    def triangle_loops(self) -> tuple[np.ndarray, np.ndarray]:
         """(T, 3) loop indices of the polygons' fan triangles, and (T,) their polygon.
 
         Fans around each polygon's first corner, as `mesh.triangulate` makes them,
@@ -116,12 +122,13 @@ class MeshAttributes:
         k = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
         return np.stack([first, first + k + 1, first + k + 2], axis=1), poly
 
-    def triangles(self):
+    def triangles(self) -> np.ndarray:
         """(T, 3) vertex triangles of the polygons (fans)."""
         return np.asarray(self.loop_vertices, dtype=np.int64)[self.triangle_loops()[0]]
 
 
-def closest_points(points, vertices, triangles, candidates=16):
+def closest_points(points: ArrayLike, vertices: ArrayLike, triangles: ArrayLike,
+                   candidates: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closest points on a triangle mesh: (P, 3) points, (P,) triangle, (P, 3) barycentrics.
 
     Exact point-triangle closest points (`triangles.Triangles`) over the ``candidates``
@@ -149,13 +156,14 @@ def closest_points(points, vertices, triangles, candidates=16):
     return q, tri, barycentric(q, *(v[t[tri, i]] for i in range(3)))
 
 
-def barycentric(p, a, b, c):
+def barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Barycentric coordinates (P, 3) of points p in triangles (a, b, c), clipped to the triangle."""
     bary = np.clip(_plane_barycentric(p, a, b, c), 0.0, 1.0)
     return bary / np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
 
 
-def transfer(attributes, vertices, sources, faces):
+def transfer(attributes: MeshAttributes, vertices: ArrayLike, sources: ArrayLike,
+             faces: ArrayLike) -> MeshAttributes:
     """Attributes of a new triangle mesh read from a keyframe mesh at source points.
 
     Parameters
@@ -197,7 +205,7 @@ def transfer(attributes, vertices, sources, faces):
         ext = _plane_barycentric(corner_src.reshape(-1, 3, 3)[across].reshape(-1, 3), a, b, c)
         t_corner[across] = t_centre[across, None]
         b_corner[across] = ext.reshape(-1, 3, 3)
-    def corners(loop_values):
+    def corners(loop_values: np.ndarray) -> np.ndarray:
         """Per new corner (3F, k): the barycentric value at its source point."""
         own = np.einsum("fci,fcik->fck", b_corner, loop_values[tri_loops[t_corner]])
         return own.reshape(-1, own.shape[-1])
@@ -218,7 +226,7 @@ def transfer(attributes, vertices, sources, faces):
     return out
 
 
-def _uniform(attributes, faces):
+def _uniform(attributes: MeshAttributes, faces: np.ndarray) -> MeshAttributes | None:
     """The attributes of new triangles ``faces`` when the keyframe mesh has nothing that
     varies over its surface (no UVs or colours, one material, one shading): then no source
     point needs to be found. None otherwise."""
@@ -238,7 +246,7 @@ def _uniform(attributes, faces):
     return out
 
 
-def concatenate(parts, n_vertices):
+def concatenate(parts: Iterable[MeshAttributes], n_vertices: Sequence[int]) -> MeshAttributes:
     """The attributes of one mesh made of several laid end to end.
 
     Parameters
@@ -264,7 +272,8 @@ def concatenate(parts, n_vertices):
     v_off = np.concatenate([[0], np.cumsum(n_vertices, dtype=np.int64)[:-1]])
     l_off = np.concatenate([[0], np.cumsum(loops, dtype=np.int64)[:-1]])
 
-    def joined(values, rows, fill, dtype):
+    def joined(values: list[np.ndarray | None], rows: Sequence[int], fill: float | bool,
+               dtype: type) -> np.ndarray | None:
         """``values`` (one array or None per part) in one array; None -> ``fill`` rows."""
         if all(v is None for v in values):
             return None
@@ -304,7 +313,7 @@ def concatenate(parts, n_vertices):
     return out
 
 
-def _slots_in(part, names):
+def _slots_in(part: MeshAttributes, names: list[str]) -> np.ndarray | None:
     """``part.material_index`` renumbered into the slot list ``names`` (a part without slot
     names keeps its indices)."""
     if part.material_index is None or not part.material_names:
@@ -329,7 +338,8 @@ def _spans_seam(uv, tri_loops, t_corner, b_corner, v, tris, corners):
     return np.any(duv > 4.0 * scale * dx + 1e-6, axis=1)
 
 
-def _plane_barycentric(p, a, b, c):
+def _plane_barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+
     """Barycentric coordinates of p projected onto the planes of (a, b, c), not clipped."""
     e0, e1, w = b - a, c - a, p - a
     d00, d01, d11 = (np.einsum("ij,ij->i", x, y) for x, y in ((e0, e0), (e0, e1), (e1, e1)))

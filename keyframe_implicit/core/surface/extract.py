@@ -13,14 +13,21 @@ clockwise around holes.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, overload
+
 import numpy as np
 
 from ..base.grid import Grid
 
+if TYPE_CHECKING:
+    from typing import Literal
+
+    from numpy.typing import ArrayLike
+
 __all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area"]
 
 
-def mesh_volume(vertices, faces):
+def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
     """Signed volume enclosed by a closed triangle mesh (positive for outward normals)."""
     v = np.asarray(vertices, dtype=float)
     f = np.asarray(faces, dtype=np.int64)
@@ -30,7 +37,16 @@ def mesh_volume(vertices, faces):
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def mesh_area(vertices, faces, per_face=False):
+@overload
+def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: Literal[False] = False) -> float: ...
+
+
+@overload
+def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: Literal[True]) -> np.ndarray: ...
+
+
+def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: bool = False) -> np.ndarray | float:
+
     """Total (or per-face) area of a triangle mesh."""
     v = np.asarray(vertices, dtype=float)
     f = np.asarray(faces, dtype=np.int64)
@@ -40,14 +56,14 @@ def mesh_area(vertices, faces, per_face=False):
     return ar if per_face else float(ar.sum())
 
 
-def loop_area(loop):
+def loop_area(loop: ArrayLike) -> float:
     """Signed area of a closed 2D loop (M, 2) (shoelace; positive counter-clockwise)."""
     p = np.asarray(loop, dtype=float)
     x, y = p[:, 0], p[:, 1]
     return float(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def enclosed_volume(levelset, grid: Grid, level: float = 0.0):
+def enclosed_volume(levelset: ArrayLike, grid: Grid, level: float = 0.0) -> float:
     """Volume (3D) or area (2D) inside the surface `extract_surface` gives, world units."""
     surf = extract_surface(levelset, grid, level)
     if grid.dim == 3:
@@ -55,7 +71,8 @@ def enclosed_volume(levelset, grid: Grid, level: float = 0.0):
     return float(sum(loop_area(loop) for loop in surf))
 
 
-def extract_surface(levelset, grid: Grid, level: float = 0.0):
+def extract_surface(levelset: ArrayLike, grid: Grid,
+                    level: float = 0.0) -> tuple[np.ndarray, np.ndarray] | list[np.ndarray]:
     """Zero set of ``levelset`` in world coordinates.
 
     Parameters
@@ -114,7 +131,9 @@ def extract_surface(levelset, grid: Grid, level: float = 0.0):
     return loops
 
 
-def _padded_box(f, level, lowest, h):
+def _padded_box(f: np.ndarray, level: float, lowest: float,
+                h: float) -> tuple[np.ndarray, np.ndarray]:
+
     """``f - level`` over the box of nodes that marching cubes needs, closed by padding
     (``lowest``: min(f) - level, which the caller has).
 

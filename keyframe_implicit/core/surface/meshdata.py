@@ -16,10 +16,30 @@ face attribute naming the frame and each point's velocity).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .attributes import MeshAttributes, concatenate
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+    from typing import Protocol
+
+    from numpy.typing import ArrayLike
+
+    class Baked(Protocol):
+        """What `output_mesh` reads of a bake's result (`core.bake.animation.Animation`),
+        named here so that this stage need not know the bake's module."""
+
+        frames: np.ndarray
+        vertices: np.ndarray
+        faces: np.ndarray
+        surfaces: list[tuple[np.ndarray, np.ndarray]]
+        velocities: list[np.ndarray]
+        attributes: MeshAttributes | None
+
+        def surface_attributes(self, i: int) -> MeshAttributes | None: ...
 
 __all__ = ["MeshData", "polygon_edges", "match_edges", "resolve_output", "output_mesh"]
 
@@ -48,11 +68,11 @@ class MeshData:
     corner_edges: np.ndarray
     sharp_edges: np.ndarray | None = None
     seams: np.ndarray | None = None
-    face_ints: dict = field(default_factory=dict)
-    point_vectors: dict = field(default_factory=dict)
+    face_ints: dict[str, np.ndarray] = field(default_factory=dict)
+    point_vectors: dict[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
-    def build(cls, vertices, polygons):
+    def build(cls, vertices: ArrayLike, polygons: MeshAttributes) -> MeshData:
         """The mesh of ``vertices`` (V, 3) and ``polygons`` (`MeshAttributes`): edges made
         with `polygon_edges`, the polygons' sharp and seam flags carried onto them."""
         edges, corner_edges = polygon_edges(polygons.loop_start, polygons.loop_total,
@@ -68,7 +88,7 @@ class MeshData:
         return data
 
 
-def _flags_on(rows, flags):
+def _flags_on(rows: np.ndarray, flags: ArrayLike | None) -> np.ndarray | None:
     """Flags of source edges on the edges at ``rows`` (-1: no source edge, unflagged)."""
     if flags is None:
         return None
@@ -77,7 +97,8 @@ def _flags_on(rows, flags):
     return out if out.any() else None
 
 
-def polygon_edges(loop_start, loop_total, loop_vertices):
+def polygon_edges(loop_start: ArrayLike, loop_total: ArrayLike,
+                  loop_vertices: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Every edge of the polygons once, and each corner's edge, as Blender stores them.
 
     Corner c of a polygon runs from its vertex to the next corner's (the last corner back to
@@ -102,13 +123,13 @@ def polygon_edges(loop_start, loop_total, loop_vertices):
     return edges.astype(np.int32), corner_edges.astype(np.int32).reshape(-1)
 
 
-def match_edges(edges, source):
+def match_edges(edges: ArrayLike, source: ArrayLike) -> np.ndarray:
     """Row of ``source`` (E_s, 2) holding each edge of ``edges`` (E, 2) (either order), or -1."""
     edges = np.reshape(edges, (-1, 2))
     source = np.reshape(source, (-1, 2))
     scale = int(max(np.max(edges, initial=0), np.max(source, initial=0))) + 1
 
-    def key(e):
+    def key(e: np.ndarray) -> np.ndarray:
         e = np.sort(np.asarray(e, dtype=np.int64), axis=1)
         return e[:, 0] * scale + e[:, 1]
     src = key(source)
@@ -119,7 +140,7 @@ def match_edges(edges, source):
     return np.where(found, order[pos], -1)
 
 
-def resolve_output(mode, stats):
+def resolve_output(mode: str, stats: Mapping[str, Any]) -> tuple[str, str]:
     """(`SHAPE_KEYS` | `MESH_SEQUENCE`, reason) for the setting ``mode`` (AUTO, SHAPE_KEYS,
     MESH_SEQUENCE) and the core's figures (``Animation.stats``)."""
     if mode == "SHAPE_KEYS":
@@ -131,14 +152,15 @@ def resolve_output(mode, stats):
     return SHAPE_KEYS, "no per-frame surfaces to choose from"
 
 
-def clean_faces(faces):
+def clean_faces(faces: ArrayLike) -> np.ndarray:
     """(F, 3) triangles without the degenerate ones (a vertex twice)."""
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
     return faces[keep]
 
 
-def output_mesh(animation, kind):
+def output_mesh(animation: Baked, kind: str) -> MeshData:
+
     """The `MeshData` of ``animation``'s output ``kind``.
 
     Shape keys: the template on the first frame, with the artist's polygons and attributes

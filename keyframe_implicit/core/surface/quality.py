@@ -26,29 +26,39 @@ breaks and `worst_frame` picks the frame to tell the artist about.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..base.sampling import sample_with_gradient
 from ..fields.triangles import Triangles, nearest_candidates, proper
 from .extract import extract_surface, mesh_area
 
+if TYPE_CHECKING:
+    from collections.abc import Mapping, Sequence
+
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
+
 __all__ = ["LIMITS", "frame_quality", "keyframe_distance", "mesh_distance", "failures",
            "worst_frame", "choose_output", "describe_worst"]
 
 # per-frame limits of a clean result (area ratio band, largest inverted share, smallest
 # coverage, and on keyframe frames the mean and largest two-way distance in cells)
-LIMITS = {"area_ratio": (0.97, 1.03), "inverted_fraction": 0.005, "coverage": 0.99,
+LIMITS: dict[str, Any] = {"area_ratio": (0.97, 1.03), "inverted_fraction": 0.005, "coverage": 0.99,
           "keyframe_mean": 0.1, "keyframe_max": 1.0}
 
 
-def _triangles(vertices, faces):
+def _triangles(vertices: ArrayLike, faces: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Float vertices and the triangles of non-zero area."""
     v = np.asarray(vertices, dtype=float).reshape(-1, 3)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     return v, f[proper(v, f)] if len(f) else f
 
 
-def mesh_distance(points, vertices, faces, candidates=16):
+def mesh_distance(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike,
+                  candidates: int = 16) -> np.ndarray:
     """Distance from points (P, 3) to a triangle mesh.
 
     Exact point-triangle distances (`triangles.Triangles.distance`, its constants made once
@@ -67,7 +77,8 @@ def mesh_distance(points, vertices, faces, candidates=16):
     return d.reshape(len(p), k).min(axis=1)
 
 
-def frame_quality(levelset, grid, vertices, faces, surface=None):
+def frame_quality(levelset: np.ndarray, grid: Grid, vertices: ArrayLike, faces: ArrayLike,
+                  surface: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
     """Area ratio, inverted-area share and coverage of one frame's output (module docstring).
 
     Parameters
@@ -105,7 +116,8 @@ def frame_quality(levelset, grid, vertices, faces, surface=None):
             "inverted_fraction": float(area[turned].sum() / area.sum()), "coverage": covered}
 
 
-def _within(points, vertices, faces, tol):
+def _within(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
+            tol: float) -> np.ndarray:
     """Which points lie within ``tol`` of a mesh: a sample of the mesh (vertex, edge
     midpoint, centroid) that close settles it; the rest get `mesh_distance`."""
     from scipy.spatial import cKDTree
@@ -124,7 +136,8 @@ def _within(points, vertices, faces, tol):
     return near
 
 
-def keyframe_distance(vertices, faces, key_vertices, key_faces, spacing):
+def keyframe_distance(vertices: ArrayLike, faces: ArrayLike, key_vertices: ArrayLike,
+                      key_faces: ArrayLike, spacing: float) -> dict[str, float]:
     """Two-way distance between a frame's output and the keyframe mesh, in cells.
 
     Points of each mesh (vertices and face centroids) are measured to the
@@ -142,7 +155,7 @@ def keyframe_distance(vertices, faces, key_vertices, key_faces, spacing):
     return {"keyframe_mean": float(d.mean()), "keyframe_max": float(d.max())}
 
 
-def failures(figures, limits=LIMITS):
+def failures(figures: Mapping[str, float], limits: Mapping[str, Any] = LIMITS) -> list[str]:
     """Names of the limits one frame's figures break (dict from `frame_quality`, maybe
     with the `keyframe_distance` keys), each with its value, e.g. ``["coverage 0.962"]``."""
     out = []
@@ -160,7 +173,7 @@ def failures(figures, limits=LIMITS):
     return out
 
 
-def _badness(figures, limits=LIMITS):
+def _badness(figures: Mapping[str, float], limits: Mapping[str, Any] = LIMITS) -> float:
     """How far a frame is past its limits, each figure relative to its own limit."""
     lo, hi = limits["area_ratio"]
     r = figures["area_ratio"]
@@ -174,7 +187,7 @@ def _badness(figures, limits=LIMITS):
     return max(parts)
 
 
-def _nearness(figures, limits=LIMITS):
+def _nearness(figures: Mapping[str, float], limits: Mapping[str, Any] = LIMITS) -> float:
     """How close a frame comes to its limits: each figure's departure from its ideal
     value as a share of what the limit allows (1 = on the limit)."""
     lo, hi = limits["area_ratio"]
@@ -187,7 +200,8 @@ def _nearness(figures, limits=LIMITS):
     return max(parts)
 
 
-def worst_frame(frames, per_frame, limits=LIMITS):
+def worst_frame(frames: Sequence[int] | np.ndarray, per_frame: Sequence[Mapping[str, float]],
+                limits: Mapping[str, Any] = LIMITS) -> tuple[int, Mapping[str, float], list[str]]:
     """(frame, figures, failures) of the frame farthest past the limits, or, when every
     frame passes (its failures list is then empty), of the frame nearest to them."""
     if not len(per_frame):
@@ -197,7 +211,9 @@ def worst_frame(frames, per_frame, limits=LIMITS):
     return int(frames[k]), per_frame[k], failures(per_frame[k], limits)
 
 
-def choose_output(frames, quality, limits=LIMITS):
+def choose_output(frames: Sequence[int] | np.ndarray,
+                  quality: Mapping[str, Sequence[Mapping[str, float]]],
+                  limits: Mapping[str, Any] = LIMITS) -> tuple[str, str]:
     """The Auto output: shape keys when every frame of the tracked template passes the
     limits, the mesh sequence otherwise.
 
@@ -217,7 +233,10 @@ def choose_output(frames, quality, limits=LIMITS):
                              "stretch, fold or leave gaps), so each frame has its own surface")
 
 
-def describe_worst(frames, per_frame, what, limits=LIMITS):
+def describe_worst(frames: Sequence[int] | np.ndarray, per_frame: Sequence[Mapping[str, float]],
+                   what: str, limits: Mapping[str, Any] = LIMITS) -> list[str]:
+
+
     """The figures of an output's worst frame in words, for the details of the bake report:
     the frame farthest past the limits, or, when all pass, the one nearest to them; ``what``
     names the output ("Shape keys"). A grid cell is the bake's grid spacing (Resolution cells

@@ -23,12 +23,32 @@ B with no counterpart in A), their area is measured and reported
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient
 from .extract import extract_surface, mesh_area
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+    from typing import Protocol
+
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
+
+    class Inbetweens(Protocol):
+        """What the template reads of a keyframe pair's in-betweens
+        (`core.motion.levelset.Inbetween`), named here so that this stage need not know
+        the motion stage's module."""
+
+        grid: Grid
+
+        def levelset(self, s: float) -> np.ndarray: ...
+
+        def trajectory(self, points: ArrayLike, s: float) -> np.ndarray: ...
 
 __all__ = ["track_template", "initial_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
 
@@ -46,14 +66,16 @@ class TemplateTrack:
         and ``seconds``.
     """
 
-    def __init__(self, times, vertices, faces, stats):
+    def __init__(self, times: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
+                 stats: dict[str, Any]) -> None:
         self.times = times
         self.vertices = vertices
         self.faces = faces
         self.stats = stats
 
 
-def project_to_zero_set(points, levelset, grid, steps=3, tol=0.01):
+def project_to_zero_set(points: ArrayLike, levelset: np.ndarray, grid: Grid, steps: int = 3,
+                        tol: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
     """Pull points onto the zero set of a grid field (Newton steps along the normal).
 
     Each step moves a point along the unit normal n (central differences of the
@@ -92,14 +114,15 @@ def project_to_zero_set(points, levelset, grid, steps=3, tol=0.01):
     return p, np.abs(phi)
 
 
-def _normals(levelset, grid, p):
+def _normals(levelset: np.ndarray, grid: Grid, p: np.ndarray) -> np.ndarray:
     """Unit normals from central differences over one cell (smooth across cell faces)."""
     n = central_differences(levelset, grid, p, outside="distance")
     nn = np.linalg.norm(n, axis=1)
     return np.where(nn[:, None] > 1e-12, n / np.maximum(nn, 1e-12)[:, None], 0.0)
 
 
-def _line_search(levelset, grid, p, n, reach=1.5, samples=13, iterations=8):
+def _line_search(levelset: np.ndarray, grid: Grid, p: np.ndarray, n: np.ndarray,
+                 reach: float = 1.5, samples: int = 13, iterations: int = 8) -> np.ndarray:
     """Root of phi(p - t n) for t in [-reach, reach] cells nearest t = 0 (regula falsi)."""
     h = grid.spacing
     ts = np.linspace(-reach * h, reach * h, samples)
@@ -124,7 +147,7 @@ def _line_search(levelset, grid, p, n, reach=1.5, samples=13, iterations=8):
     return p - t[:, None] * n
 
 
-def _template_samples(vertices, faces):
+def _template_samples(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Points covering a template: vertices, edge midpoints and face centroids."""
     if faces.shape[1] == 2:
         return np.concatenate([vertices, 0.5 * (vertices[faces[:, 0]] + vertices[faces[:, 1]])])
@@ -133,7 +156,10 @@ def _template_samples(vertices, faces):
                            (a + b + c) / 3.0])
 
 
-def uncovered_area(levelset, grid, vertices, faces, tol=None, surface=None):
+def uncovered_area(levelset: np.ndarray, grid: Grid, vertices: np.ndarray, faces: np.ndarray,
+                   tol: float | None = None,
+                   surface: tuple[np.ndarray, np.ndarray] | list[np.ndarray] | None = None,
+                   ) -> tuple[float, float]:
     """Area (3D) or length (2D) of a frame's own zero set that the template does not reach.
 
     The frame's surface is extracted (marching cubes / contours); a piece of it
@@ -169,7 +195,7 @@ def uncovered_area(levelset, grid, vertices, faces, tol=None, surface=None):
     return float(size[dist > tol].sum()), float(size.sum())
 
 
-def initial_template(levelset, grid):
+def initial_template(levelset: np.ndarray, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
     """The default template: the zero set of ``levelset`` as a mesh (3D), or its contour
     loops joined into one list of segments (2D)."""
     surf = extract_surface(levelset, grid)
@@ -187,8 +213,11 @@ def initial_template(levelset, grid):
     return np.concatenate(verts), np.concatenate(segs)
 
 
-def track_template(inb, times, *, template=None, projection_steps=4, coverage=True,
-                   progress=None, cancel=None):
+def track_template(inb: Inbetweens, times: ArrayLike, *,
+                   template: tuple[ArrayLike, ArrayLike] | None = None,
+                   projection_steps: int = 4, coverage: bool = True,
+                   progress: Callable[[float, str], object] | None = None,
+                   cancel: Callable[[], bool] | None = None) -> TemplateTrack:
     """Carry one template mesh through the in-betweens of one keyframe pair.
 
     Parameters
@@ -250,7 +279,7 @@ def track_template(inb, times, *, template=None, projection_steps=4, coverage=Tr
     return TemplateTrack(times, out, faces, stats)
 
 
-def local_rotations(inb, points, s, step=0.5):
+def local_rotations(inb: Inbetweens, points: ArrayLike, s: float, step: float = 0.5) -> np.ndarray:
     """Rotation part (P, 3, 3) of the trajectories' local motion at time s.
 
     The Jacobian of x -> ``inb.trajectory(x, s)`` at each point (central
@@ -269,7 +298,8 @@ def local_rotations(inb, points, s, step=0.5):
     return polar(jac)[0]
 
 
-def surface_filter(points, radius, passes=3):
+def surface_filter(points: np.ndarray, radius: float,
+                   passes: int = 3) -> Callable[[np.ndarray], np.ndarray]:
     """Low-pass filter over points (V, 3): ``passes`` rounds of Gaussian-weighted averages
     over neighbours within ``radius`` (sigma = radius / 2). Returns f(values) -> values."""
     from scipy.sparse import csr_matrix, identity
@@ -282,14 +312,15 @@ def surface_filter(points, radius, passes=3):
     W = csr_matrix((w, (dist.row, dist.col)), shape=(n, n)) + identity(n, format="csr")
     W = csr_matrix(W.multiply(1.0 / np.asarray(W.sum(axis=1))))
 
-    def apply(values):
+    def apply(values: np.ndarray) -> np.ndarray:
         for _ in range(passes):
             values = W @ values
         return values
     return apply
 
 
-def same_vertices(landing, end_vertices, spacing, median_cells=1.0, max_cells=6.0):
+def same_vertices(landing: np.ndarray, end_vertices: ArrayLike, spacing: float,
+                  median_cells: float = 1.0, max_cells: float = 6.0) -> bool:
     """Whether keyframe B's vertices are the template's own, posed: the same count, and
     the template's landing points on B (closest points) lie near B's vertex of the same
     index (median within ``median_cells`` cells, all within ``max_cells``). A different
@@ -338,7 +369,9 @@ class DetailTrack:
     filter_cells : float, the filter's radius in cells.
     """
 
-    def __init__(self, inb, vertices, end_mesh, projection_steps=4, filter_cells=1.0):
+    def __init__(self, inb: Inbetweens, vertices: ArrayLike,
+                 end_mesh: tuple[ArrayLike, ArrayLike], projection_steps: int = 4,
+                 filter_cells: float = 1.0) -> None:
         from .attributes import closest_points
 
         self.inb = inb
@@ -355,13 +388,14 @@ class DetailTrack:
             self.end = np.asarray(end_mesh[0], dtype=float).copy()
         self.offset_b = np.einsum("pji,pj->pi", local_rotations(inb, v0, 1.0), self.end - pulled)
 
-    def _pull(self, p, s):
+    def _pull(self, p: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """p + L[P_s(p) - p], L[P_s(p) - p] and |phi| at P_s(p)."""
         q, err = project_to_zero_set(p, self.inb.levelset(s), self.inb.grid, self.steps)
         smooth = self.smooth(q - p)
         return p + smooth, smooth, err
 
-    def __call__(self, s):
+    def __call__(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+
         """(V, 3) vertices at time s in [0, 1] and (V,) |phi| of their projection."""
         s = float(s)
         if s == 0.0:
