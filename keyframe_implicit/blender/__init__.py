@@ -55,8 +55,9 @@ def register():
     bpy.app.handlers.persistent(_forget_surfaces)  # kept across file loads
     for name in _HANDLERS:
         getattr(bpy.app.handlers, name).append(_forget_surfaces)
-    from . import preview
+    from . import preview, result_view
 
+    props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled)
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)
 
@@ -84,6 +85,7 @@ def unregister():
     for job in list(ops.running):
         job.cancel()
     bpy.types.VIEW3D_MT_object.remove(ops.menu_func)
+    props.ON_CHANGE.clear()
     props.unregister_properties()
     for cls in reversed(_registered):
         bpy.utils.unregister_class(cls)

@@ -25,12 +25,16 @@ go out and come back, is measured only when asked for (`diagnostics.current`).
 """
 
 import time
+from typing import TYPE_CHECKING
 
 import bpy
 
 from . import diagnostics, features, overlay, scene_io, validate
 
-__all__ = ["State", "state", "start", "stop", "schedule", "tick", "active",
+if TYPE_CHECKING:
+    from .props import KFI_Settings
+
+__all__ = ["State", "state", "start", "stop", "toggled", "schedule", "tick", "active",
            "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post", "HANDLERS"]
 
 #: Seconds after the last edit before its solve is asked for: a drag's moves coalesce.
@@ -119,6 +123,14 @@ def stop():
         bpy.app.timers.unregister(tick)
     state.worker = state.handle = state.due = state.mesh = state.drawn = None
     _redraw()
+
+
+def toggled(settings: "KFI_Settings", _context: bpy.types.Context) -> None:
+    """The Live Preview toggle's handler (`props.ON_CHANGE`): start or stop the preview."""
+    if settings.live_preview:
+        start()
+    else:
+        stop()
 
 
 def turn_off(scene):

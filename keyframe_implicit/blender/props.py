@@ -8,6 +8,8 @@ baking again replaces that object and only it, and whether the keyframes are
 shown over it (`result_view`), and whether the live preview runs (`preview`).
 """
 
+from collections.abc import Callable
+
 import bpy
 from bpy.props import (
     BoolProperty,
@@ -26,19 +28,20 @@ def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
     return obj is not None and obj.type == "MESH"
 
 
-def _live_preview_changed(settings: "KFI_Settings", _context: bpy.types.Context) -> None:
-    from . import preview
-
-    if settings.live_preview:
-        preview.start()
-    else:
-        preview.stop()
+#: What runs when a setting with a side effect changes, by property name. The modules that
+#: act on a setting fill it in when the add-on registers (`blender.register`), so the
+#: settings, which every other module reads, import none of them.
+ON_CHANGE: dict[str, Callable[["KFI_Settings", bpy.types.Context], None]] = {}
 
 
-def _show_keyframes_changed(settings: "KFI_Settings", context: bpy.types.Context) -> None:
-    from . import result_view
+def _on_change(name: str) -> Callable[["KFI_Settings", bpy.types.Context], None]:
+    """The ``update`` callback of setting ``name``: the handler `ON_CHANGE` holds for it."""
+    def update(settings: "KFI_Settings", context: bpy.types.Context) -> None:
+        handler = ON_CHANGE.get(name)
+        if handler is not None:
+            handler(settings, context)
 
-    result_view.show_keyframes(settings, context.view_layer, settings.show_keyframes)
+    return update
 
 
 class KFI_Keyframe(bpy.types.PropertyGroup):
@@ -152,14 +155,14 @@ class KFI_Settings(bpy.types.PropertyGroup):
         name="Show Keyframes", default=False,
         description="Show the keyframe objects as wireframes over the baked result, to compare "
         "them (they stay out of renders)",
-        update=_show_keyframes_changed,
+        update=_on_change("show_keyframes"),
     )
     live_preview: BoolProperty(
         name="Live Preview", default=False,
         description="Show the in-between on the current frame over the 3D view, solved on a "
         "coarse grid and updated as keyframes and feature points move (nothing is added to "
         "the scene)",
-        update=_live_preview_changed,
+        update=_on_change("live_preview"),
     )
     show_all_problems: BoolProperty(
         name="All Problems", default=False,

@@ -39,6 +39,11 @@ def _set_hidden(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer, hidden: 
         pass
 
 
+def toggled(settings: KFI_Settings, context: bpy.types.Context) -> None:
+    """The Show Keyframes toggle's handler (`props.ON_CHANGE`)."""
+    show_keyframes(settings, context.view_layer, settings.show_keyframes)
+
+
 def show_keyframes(settings: KFI_Settings, view_layer: bpy.types.ViewLayer, show: bool) -> None:
     """Show the keyframes as wireframes, or hide them (with their feature Empties).
 
