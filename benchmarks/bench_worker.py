@@ -42,7 +42,7 @@ class InThreadJob(bake.BakeJob):
     """The core in a thread of this process, as before the worker process."""
 
     def _bake(self):
-        return pipeline.animate(**self._arguments(), progress=self._progress)
+        return pipeline.bake(**self.inputs.core_arguments(), progress=self._progress)
 
 
 def polled(job):
@@ -79,7 +79,7 @@ def main(resolutions):
             seconds, gap = polled(kind(inputs))
             print(f"{res:>4} {mode:<10} {seconds:8.2f} {gap * 1000:25.0f} ms", flush=True)
         t0 = time.perf_counter()
-        pipeline.animate(**bake.BakeJob(inputs)._arguments())
+        pipeline.bake(**inputs.core_arguments())
         print(f"{res:>4} {'in-process':<10} {time.perf_counter() - t0:8.2f}", flush=True)
         print(f"{res:>4} cancel latency: " + ", ".join(
             f"{stage} {cancel_latency(inputs, stage) * 1000:.0f} ms" for stage in STAGES))

@@ -35,18 +35,18 @@ FAULT = """
     import os, resource, signal, sys, time
     from keyframe_implicit.core.bake import pipeline
 
-    _animate = pipeline.animate
+    _bake = pipeline.bake
     done = []
 
-    def animate(*args, progress, **kwargs):
+    def bake(*args, progress, **kwargs):
         def report(fraction, message):
             progress(fraction, message)
             if fraction > {after} and not done:
                 done.append(message)
                 {action}
-        return _animate(*args, progress=report, **kwargs)
+        return _bake(*args, progress=report, **kwargs)
 
-    pipeline.animate = animate
+    pipeline.bake = bake
 """
 
 
@@ -138,7 +138,7 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     assert job.state == bake.DONE, job.error_message()
     # in this process without a helper (Blender's own process starts none): the worker's
     # helper solves the map B -> A and half the frames, equal to the trajectories' CG tolerance
-    mine = pipeline.animate(**job.arguments())
+    mine = pipeline.bake(**job.inputs.core_arguments())
     np.testing.assert_allclose(job.result.vertices, mine.vertices, rtol=0, atol=1e-5)
     np.testing.assert_array_equal(job.result.faces, mine.faces)
     assert type(job.result) is Animation  # mapped onto this process's classes
@@ -166,7 +166,7 @@ class _InThreadJob(bake.BakeJob):
     """The bake as it ran before the worker process: the core in a thread of this process."""
 
     def _bake(self):
-        return pipeline.animate(**self.arguments(), progress=self._progress)
+        return pipeline.bake(**self.inputs.core_arguments(), progress=self._progress)
 
 
 @pytest.mark.processes
