@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.grid import Grid
+from .options import BakeOptions
 from .memory import MemoryLimitError, estimate_memory, largest_fitting, megabytes
 
 __all__ = ["fit_grid", "auto_motion_resolution", "motion_grid", "MIN_MOTION_RESOLUTION"]
@@ -55,8 +56,8 @@ def _grid_for(lo, hi, resolution, padding_cells):
     return Grid(origin, h, tuple(int(c) + 1 for c in cells))
 
 
-def fit_grid(vertex_arrays, resolution, *, padding_cells=4, extra_points=None, max_bytes=None,
-             **memory_options):
+def fit_grid(vertex_arrays, resolution, *, padding_cells=BakeOptions.padding_cells,
+             extra_points=None, max_bytes=None, **memory_options):
     """Grid holding all keyframes (and extra points), with cubic cells and padding.
 
     Parameters

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.grid import Grid
+from ..map.options import MapOptions
 
 __all__ = ["MemoryLimitError", "estimate_memory", "active_nodes", "check_memory", "largest_fitting",
            "megabytes"]
@@ -56,8 +57,8 @@ _MOTION_BYTES = {2: 1892.8 * 36 / 243, 3: 1892.8}
 _REGION_BYTES = {2: 751.8 * 36 / 243, 3: 751.8}
 
 
-def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin_cells=3,
-                    motion_grid=None):
+def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2,
+                    margin_cells=MapOptions.margin_cells, motion_grid=None):
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
     Model (N surface grid nodes; M the motion grid's active nodes, R the surface grid's):
@@ -115,7 +116,7 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2, margin
     return out
 
 
-def active_nodes(grid, material_fraction, margin_cells=3, motion_grid=None):
+def active_nodes(grid, material_fraction, margin_cells=MapOptions.margin_cells, motion_grid=None):
     """(M, R): the nodes the model counts on the motion grid (the maps' and trajectories'
     active nodes) and on the surface grid (the transports' regions): a compact blob
     filling ``material_fraction`` of ``grid``'s box, and a margin of ``margin_cells``

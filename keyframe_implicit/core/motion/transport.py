@@ -32,6 +32,7 @@ from ..base.elements import cofactor
 from ..base.grid import Grid
 from ..base.progress import Reporter
 from ..base.sampling import multilinear_in_cells, sample
+from .options import MotionOptions
 
 __all__ = ["Transport", "inverse_lookup"]
 
@@ -41,8 +42,9 @@ _GUESS_SLACK = 0.35  # cells: the widest a candidate's affine guess may stray ou
 _ON_FACE = 1e-4  # cells: local coordinates this far outside the unit cell still count as in it
 
 
-def inverse_lookup(grid: Grid, corner_positions, cells, *, newton_steps=6, tol=1e-6,
-                   max_candidates=65_536, check=None):
+def inverse_lookup(grid: Grid, corner_positions, cells, *,
+                   newton_steps=MotionOptions.newton_steps, tol=1e-6, max_candidates=65_536,
+                   check=None):
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
     Every cell listed in ``cells`` is moved (its corners to
@@ -92,8 +94,8 @@ def _index_coordinates(grid, cells, cell, local):
     return base + 0.5 + local.T
 
 
-def _lookup_in_cells(grid, corners, cells, *, newton_steps=6, tol=1e-6, max_candidates=65_536,
-                     check=None):
+def _lookup_in_cells(grid, corners, cells, *, newton_steps=MotionOptions.newton_steps, tol=1e-6,
+                     max_candidates=65_536, check=None):
     """`inverse_lookup`'s nodes found (M,), each with its cell (an index into ``cells``) and
     its local coordinates about the cell's centre (d, M): what a multilinear read of node
     values at the source points needs (`multilinear_in_cells`). ``corners``: the moved
@@ -345,8 +347,9 @@ class Transport:
     truncation : float
     """
 
-    def __init__(self, field, trajectories, *, interpolation="cubic", newton_steps=6,
-                 truncation=None, cancel=None, torn=None):
+    def __init__(self, field, trajectories, *, interpolation=MotionOptions.interpolation,
+                 newton_steps=MotionOptions.newton_steps, truncation=None, cancel=None,
+                 torn=None):
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
         grid = trajectories.grid
