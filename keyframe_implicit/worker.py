@@ -232,7 +232,7 @@ def _signal_name(number):
         return f"signal {number}"
 
 
-def main():
+def main() -> None:
     """The worker: read the inputs from stdin, run `bake` (its options' ``processes`` this
     machine's), answer on stdout."""
     if hasattr(os, "nice"):

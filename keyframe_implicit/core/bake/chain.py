@@ -127,7 +127,7 @@ class Chain:
     """
 
     def __init__(self, phis, grid, features, frames, options: BakeOptions, *, maps=None,
-                 template=None, keyframe_meshes=None, motion_grid=None, cancel=None):
+                 template=None, keyframe_meshes=None, motion_grid=None, cancel=None) -> None:
         phis, self.frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
         kinds = check_key_interpolation(options.key_interpolation, len(phis))
         self.options, self.cancel = options, cancel
@@ -139,7 +139,7 @@ class Chain:
                                      cancel, motion_grid, (self.frames, kinds))
 
     @functools.cached_property
-    def template(self):
+    def template(self) -> tuple:
         """(vertices, faces) of the mesh carried through the frames on the first keyframe:
         the one given, else marching cubes of the first keyframe's field (made when first
         asked for: the live preview never asks)."""
@@ -246,7 +246,7 @@ class Inbetweens:
     """
 
     def __init__(self, phis, grid, features, maps, map_options, motion_options, cancel=None,
-                 motion_grid=None, timing=None):
+                 motion_grid=None, timing=None) -> None:
         from .maps import solve_fields
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
@@ -527,7 +527,7 @@ def _frame_outputs(inb, s, segment, p, rep):
     return out
 
 
-def frame_mesh(surface, keyframe_meshes, k, s):
+def frame_mesh(surface, keyframe_meshes, k: int, s: float) -> tuple:
     """A frame's own mesh for the mesh sequence: on a keyframe's frame (s = 0 of the first
     segment, s = 1 of every segment) the keyframe mesh the artist modelled, when given;
     else the frame's grid surface."""

@@ -57,7 +57,7 @@ def _grid_for(lo, hi, resolution, padding_cells):
 
 
 def fit_grid(vertex_arrays, resolution, *, padding_cells=BakeOptions.padding_cells,
-             extra_points=None, max_bytes=None, **memory_options):
+             extra_points=None, max_bytes=None, **memory_options) -> Grid:
     """Grid holding all keyframes (and extra points), with cubic cells and padding.
 
     Parameters

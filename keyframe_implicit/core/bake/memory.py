@@ -58,7 +58,7 @@ _REGION_BYTES = {2: 751.8 * 36 / 243, 3: 751.8}
 
 
 def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2,
-                    margin_cells=MapOptions.margin_cells, motion_grid=None):
+                    margin_cells=MapOptions.margin_cells, motion_grid=None) -> dict:
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
     Model (N surface grid nodes; M the motion grid's active nodes, R the surface grid's):
@@ -116,7 +116,8 @@ def estimate_memory(grid: Grid, *, material_fraction=None, n_keyframes=2,
     return out
 
 
-def active_nodes(grid, material_fraction, margin_cells=MapOptions.margin_cells, motion_grid=None):
+def active_nodes(grid: Grid, material_fraction, margin_cells=MapOptions.margin_cells,
+                 motion_grid=None) -> tuple:
     """(M, R): the nodes the model counts on the motion grid (the maps' and trajectories'
     active nodes) and on the surface grid (the transports' regions): a compact blob
     filling ``material_fraction`` of ``grid``'s box, and a margin of ``margin_cells``

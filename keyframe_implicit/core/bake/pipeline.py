@@ -11,6 +11,7 @@ import dataclasses
 import os
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,9 @@ from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
 from .options import BakeOptions
+
+if TYPE_CHECKING:
+    from .chain import Chain
 
 __all__ = ["Keyframe", "animate", "bake", "BakePlan", "plan_bake", "bake_grids",
            "distance_fields", "distance_grid", "finish_bake"]
@@ -75,7 +79,7 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
-def distance_grid(keyframes, surfaces, grid, k, rep=None, cancel=None):
+def distance_grid(keyframes, surfaces, grid: Grid, k: int, rep=None, cancel=None) -> tuple:
     """(field, figures) of keyframe ``k``; ValueError naming the keyframe on bad input."""
     from ..fields.sdf import mesh_to_sdf
 
@@ -223,7 +227,7 @@ class BakePlan:
         """The keyframes' timeline frames."""
         return [kf.frame for kf in self.keyframes]
 
-    def chain(self, phis, cancel=None):
+    def chain(self, phis, cancel=None) -> Chain:
         """The `chain.Chain` of this plan's keyframes, given their distance grids ``phis``
         on ``grid``: the artist's mesh as the template when there is one."""
         from .chain import Chain
@@ -273,7 +277,7 @@ def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, 
                     stats)
 
 
-def bake_grids(fit, options: BakeOptions):
+def bake_grids(fit, options: BakeOptions) -> tuple:
     """The bake's grid rule (`plan_bake`'s ``grid_rule``): the grids at the options'
     resolutions, refused over the options' memory limit (None: 75 % of physical memory)."""
     max_bytes = options.max_bytes

@@ -133,7 +133,7 @@ class Preview:
         return np.asarray(v, dtype=np.float32), np.asarray(tris, dtype=np.int32)
 
 
-def preview_grids(fit, options: BakeOptions):
+def preview_grids(fit, options: BakeOptions) -> tuple:
     """The preview's grid rule (`pipeline.plan_bake`'s ``grid_rule``): `PREVIEW_RESOLUTION`
     cells and a motion grid of `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one
     where two feature points would share a motion cell; raised by a quarter at a time, up

@@ -118,7 +118,7 @@ class MapOptions:
         return cls(weights=weights, **values)
 
     @classmethod
-    def names(cls):
+    def names(cls) -> frozenset:
         """The keyword names `from_keywords` takes: the fields but ``weights``, and the
         ``<term>_weight`` of every registered term."""
         return frozenset(f.name for f in dataclasses.fields(cls) if f.name != "weights") \

@@ -70,7 +70,7 @@ _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
 
 def idw_resample(grid: Grid, positions, values, *, fill, radius=MotionOptions.idw_radius,
-                 eps=0.25):
+                 eps=0.25) -> tuple:
     """Thesis eq. 3.2-3.3: inverse-distance weights 1 / (r^2 + eps^2) of nearby moved nodes.
 
     ``radius`` and ``eps`` are in cells. Grid nodes with no moved node within
@@ -179,7 +179,8 @@ class Inbetween:
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
                  components=None, motion_grid=None, bends=None, cracks=None, options=None,
-                 stats=None, map_result=None, map_result_back=None, cancel=None, **keywords):
+                 stats=None, map_result=None, map_result_back=None, cancel=None,
+                 **keywords) -> Inbetween:
         """In-betweens from given maps.
 
         Parameters

@@ -270,7 +270,7 @@ class Trajectories:
                  method=MotionOptions.trajectory_method,
                  margin_cells=MotionOptions.trajectory_margin_cells,
                  margin_weight=MotionOptions.trajectory_margin_weight, mass=None,
-                 tolerance=1e-5, cancel=None):
+                 tolerance=1e-5, cancel=None) -> None:
         y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
                                       margin_weight)
         d = grid.dim

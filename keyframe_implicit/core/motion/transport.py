@@ -44,7 +44,7 @@ _ON_FACE = 1e-4  # cells: local coordinates this far outside the unit cell still
 
 def inverse_lookup(grid: Grid, corner_positions, cells, *,
                    newton_steps=MotionOptions.newton_steps, tol=1e-6, max_candidates=65_536,
-                   check=None):
+                   check=None) -> tuple:
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
     Every cell listed in ``cells`` is moved (its corners to
@@ -349,7 +349,7 @@ class Transport:
 
     def __init__(self, field, trajectories, *, interpolation=MotionOptions.interpolation,
                  newton_steps=MotionOptions.newton_steps, truncation=None, cancel=None,
-                 torn=None):
+                 torn=None) -> None:
         if interpolation not in ("cubic", "linear"):
             raise ValueError(f'interpolation must be "cubic" or "linear", got {interpolation!r}.')
         grid = trajectories.grid

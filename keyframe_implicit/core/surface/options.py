@@ -31,6 +31,6 @@ class SurfaceOptions:
     levelsets: bool = False
 
     @classmethod
-    def names(cls):
+    def names(cls) -> frozenset:
         """The keyword names these options take."""
         return frozenset(f.name for f in dataclasses.fields(cls))
