@@ -1,10 +1,10 @@
 """The farm job's two Blender stages and the panel's Export Farm Job.
 
 ``prepare`` reads a scene exactly as the Bake button does (`bake.collect`, the worker's
-arguments: `scene_io.BakeInput.core_arguments`) into a job directory; ``assemble`` writes the job's result into the scene
-exactly as a local bake does (`bake.BakeJob.apply`). The stages between them need no
-Blender (`farm.stages`). Assemble reads the scene again and refuses a job prepared from
-another scene, or from this one before it changed.
+arguments: `scene_io.BakeInput.core_arguments`) into a job directory; ``assemble`` writes
+the job's result into the scene exactly as a local bake does (`bake.BakeJob.apply`). The
+stages between them need no Blender (`farm.stages`). Assemble reads the scene again and
+refuses a job prepared from another scene, or from this one before it changed.
 """
 
 import os

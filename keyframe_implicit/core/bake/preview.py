@@ -2,11 +2,11 @@
 
 `Preview.solve` plans with the bake's planner (`pipeline.plan_bake`: the same checks, the
 same options, the artist's template) and its own grid rule (`preview_grids`: coarse grids),
-then keeps the in-betweens of every segment of the bake's chain (`chain.Chain`); `Preview.frame` then makes one timeline frame's own surface as the bake's
-mesh sequence makes it (the frame's level set, eq. 3.4, its marching cubes, or the
-keyframe's own mesh on a keyframe's frame): the same functions on the same inputs, so a
-bake at the preview's resolutions has the same mesh on that frame (docs/method.md,
-section 11 for the two grids).
+then keeps the in-betweens of every segment of the bake's chain (`chain.Chain`);
+`Preview.frame` then makes one timeline frame's own surface as the bake's mesh sequence
+makes it (the frame's level set, eq. 3.4, its marching cubes, or the keyframe's own mesh
+on a keyframe's frame): the same functions on the same inputs, so a bake at the preview's
+resolutions has the same mesh on that frame (docs/method.md, sections 10 and 11).
 
 Kept between solves: the keyframes' distance grids, while the grid and the keyframe's mesh
 are unchanged. The grid holds the feature points and their rigid sweeps (`gridfit`), so a
