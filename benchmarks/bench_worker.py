@@ -5,9 +5,9 @@ Two unit spheres 1.5 apart on frames 1 and 7, baked at each resolution given (de
 - ``process``: `BakeJob` (the worker process), polled by a loop that, like the modal
   operator's timer, calls ``job.poll()`` every 20 ms: seconds and the longest gap between
   two polls (``max_poll_gap``; 20 ms is no stall at all);
-- ``thread``: the same poll loop while `pipeline.animate` runs in a thread of this process
+- ``thread``: the same poll loop while `pipeline.bake` runs in a thread of this process
   (how the bake ran before the worker process);
-- ``in-process``: `pipeline.animate` alone: the worker's overhead is ``process`` minus this;
+- ``in-process``: `pipeline.bake` alone: the worker's overhead is ``process`` minus this;
 - cancel latency: ``job.cancel()`` at the first report of each stage, until ``finished``.
 
 Usage: ``python benchmarks/bench_worker.py [RESOLUTION ...]`` from the repository root.

@@ -181,7 +181,7 @@ def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypa
     gaps = {}
     for kind in (bake.BakeJob, _InThreadJob):
         if kind is _InThreadJob:  # the same stage, in this process's core
-            monkeypatch.setattr(pipeline, "animate", pipeline.animate)
+            monkeypatch.setattr(pipeline, "bake", pipeline.bake)
             exec(compile(__import__("textwrap").dedent(fault), "fault", "exec"), {})
         job = kind(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
         me, ctx, reports = _modal_operator(job, scene)
