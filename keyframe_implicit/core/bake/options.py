@@ -64,7 +64,7 @@ class BakeOptions:
     padding_cells: int = 4
     max_bytes: int | None = None
     template: str = "keyframe"
-    key_interpolation: object = None
+    key_interpolation: str | tuple | list | None = None
     processes: int = 1
     map: MapOptions = field(default_factory=MapOptions)
     motion: MotionOptions = field(default_factory=MotionOptions)
