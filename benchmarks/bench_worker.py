@@ -5,9 +5,9 @@ Two unit spheres 1.5 apart on frames 1 and 7, baked at each resolution given (de
 - ``process``: `BakeJob` (the worker process), polled by a loop that, like the modal
   operator's timer, calls ``job.poll()`` every 20 ms: seconds and the longest gap between
   two polls (`Diagnostics.max_poll_gap`; 20 ms is no stall at all);
-- ``thread``: the same poll loop while `pipeline.animate` runs in a thread of this process
+- ``thread``: the same poll loop while `pipeline.bake` runs in a thread of this process
   (how the bake ran before the worker process);
-- ``in-process``: `pipeline.animate` alone: the worker's overhead is ``process`` minus this;
+- ``in-process``: `pipeline.bake` alone: the worker's overhead is ``process`` minus this;
 - cancel latency: ``job.cancel()`` at the first report of each stage, until ``finished``.
 
 Usage: ``python benchmarks/bench_worker.py [RESOLUTION ...]`` from the repository root.
@@ -43,7 +43,7 @@ class InThreadJob(bake.BakeJob):
     """The core in a thread of this process, as before the worker process."""
 
     def _bake(self):
-        return pipeline.animate(**self._arguments(), progress=self._progress)
+        return pipeline.bake(**self.inputs.core_arguments(), progress=self._progress)
 
 
 def polled(kind, inputs):
@@ -82,7 +82,7 @@ def main(resolutions):
             seconds, gap = polled(kind, inputs)
             print(f"{res:>4} {mode:<10} {seconds:8.2f} {gap * 1000:25.0f} ms", flush=True)
         t0 = time.perf_counter()
-        pipeline.animate(**bake.BakeJob(inputs)._arguments())
+        pipeline.bake(**inputs.core_arguments())
         print(f"{res:>4} {'in-process':<10} {time.perf_counter() - t0:8.2f}", flush=True)
         print(f"{res:>4} cancel latency: " + ", ".join(
             f"{stage} {cancel_latency(inputs, stage) * 1000:.0f} ms" for stage in STAGES))

@@ -1,4 +1,4 @@
-"""The bake in a worker process: `core.bake.pipeline.animate` in a Python process of its own.
+"""The bake in a worker process: `core.bake.pipeline.bake` in a Python process of its own.
 
 Why a process and not a thread of Blender's: the core's long numpy/scipy calls hold the
 GIL, so a thread stalls Blender's main loop for as long as each call lasts, and a crash or
@@ -16,7 +16,8 @@ unpacked wheels), ahead of the parent's own ``PYTHONPATH``.
 
 Protocol: the bake's messages (`core.base.wire`) on the worker's standard streams.
 
-- parent -> stdin: the sender's package name, then `animate`'s keyword arguments and,
+- parent -> stdin: the sender's package name, then `bake`'s keyword arguments (the
+  keyframes, the feature pairs and their names, the `BakeOptions`) and,
   optionally, ``output_mode`` (the output setting: the worker then also makes the output's
   mesh, `Animation.output_mesh`, so Blender's main loop only copies it in). The worker
   leaves as soon as stdin reaches its end (the parent has gone: `wire.follow_parent`).
@@ -33,6 +34,7 @@ way: `start_process`, `lower_priority`, `connect_parent`.
 """
 
 import contextlib
+import dataclasses
 import importlib.util
 import os
 import signal
@@ -53,7 +55,7 @@ ROOT = __package__
 WORKER_ROOT = os.path.basename(os.path.dirname(os.path.abspath(__file__)))
 #: The distributions the core imports, found by the worker where the parent found them.
 _NEEDS = ("numpy", "scipy", "skimage", "threadpoolctl")
-#: Processes the bake uses (`chain.animate_chain`'s ``processes``): the worker and, on a
+#: Processes the bake uses (`BakeOptions.processes`): the worker and, on a
 #: machine with two cores or more, one helper it starts for the second core.
 _PROCESSES = 2 if cores() >= 2 else 1
 #: How far below Blender's own the worker's scheduling priority is (a POSIX nice increment;
@@ -142,12 +144,12 @@ def connect_parent() -> tuple[Stream, str]:
 
 
 class Worker:
-    """One worker process running `core.bake.pipeline.animate` on ``arguments`` (started at once).
+    """One worker process running `core.bake.pipeline.bake` on ``arguments`` (started at once).
 
     Parameters
     ----------
     arguments : dict
-        `animate`'s keyword arguments, all picklable (no callables), and optionally
+        `bake`'s keyword arguments, all picklable (no callables), and optionally
         ``output_mode`` (see the protocol above).
     """
 
@@ -228,7 +230,7 @@ class Worker:
                 f"'{self.stage}'; the console shows what it printed.")
 
     def _lower_resolution(self):
-        return (f"lower the resolution (it is {self.arguments.get('resolution')}), or close "
+        return (f"lower the resolution (it is {self.arguments['options'].resolution}), or close "
                 "other programs, and bake again.")
 
 
@@ -240,7 +242,8 @@ def _signal_name(number):
 
 
 def main() -> None:
-    """The worker: read the inputs from stdin, run `animate`, answer on stdout."""
+    """The worker: read the inputs from stdin, run `bake` (its options' ``processes`` this
+    machine's), answer on stdout."""
     lower_priority()
     # the helper's interpreter loads while this one reads the inputs and imports the core
     # (named, not imported, here: `chain.HELPER_PRELOAD` would import the core first)
@@ -252,10 +255,11 @@ def main() -> None:
     from .core.surface.meshdata import resolve_output
 
     mode = arguments.pop("output_mode", None)
+    options = dataclasses.replace(arguments.pop("options"), processes=_PROCESSES)
     try:
         try:
-            result = pipeline.animate(**arguments, processes=_PROCESSES, helper=helper,
-                                      progress=lambda f, m: send(parent, ("progress", f, m)))
+            result = pipeline.bake(**arguments, options=options, helper=helper,
+                                   progress=lambda f, m: send(parent, ("progress", f, m)))
         finally:  # before the output mesh: the helper's memory goes with it
             if helper is not None:
                 helper.close()

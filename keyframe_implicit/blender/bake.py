@@ -1,5 +1,5 @@
-"""Baking: scene -> `BakeInput` (read once, checked) -> core.animate (worker process) ->
-output (main thread).
+"""Baking: scene -> `BakeInput` (read once, checked) -> core.bake.pipeline.bake (worker
+process) -> output (main thread).
 
 `collect` reads the scene once (`scene_io.read`) into a plain description of the bake and
 checks that description (`validate.raise_on_errors`); `BakeJob` bakes the same description.
@@ -105,20 +105,13 @@ class BakeJob:
         if self.on_progress is not None:
             self.on_progress(self, float(fraction), str(message))
 
-    def arguments(self):
-        """`core.animate`'s keyword arguments for this bake."""
-        inp = self.inputs
-        return dict(keyframes=inp.keyframes, features=inp.features, resolution=inp.resolution,
-                    motion_resolution=inp.motion_resolution, weights=inp.weights,
-                    feature_names=inp.feature_names or None, levelsets=inp.levelsets,
-                    key_interpolation=inp.key_interpolation or None)
-
     def _bake(self):
         """The core's `Animation`, from a worker process started here."""
         with self._lock:
             if self._cancel.is_set():
                 raise Cancelled("cancelled before start")
-            self._worker = Worker(dict(self.arguments(), output_mode=self.inputs.output_mode))
+            self._worker = Worker(dict(self.inputs.core_arguments(),
+                                       output_mode=self.inputs.output_mode))
         return self._worker.result(self._progress)
 
     def run(self) -> str:

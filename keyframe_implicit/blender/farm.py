@@ -1,10 +1,10 @@
 """The farm job's two Blender stages and the panel's Export Farm Job.
 
 ``prepare`` reads a scene exactly as the Bake button does (`bake.collect`, the worker's
-arguments) into a job directory; ``assemble`` writes the job's result into the scene
-exactly as a local bake does (`bake.apply_result`). The stages between them need no
-Blender (`farm.stages`). Assemble reads the scene again and refuses a job prepared from
-another scene, or from this one before it changed.
+arguments: `scene_io.BakeInput.core_arguments`) into a job directory; ``assemble`` writes
+the job's result into the scene exactly as a local bake does (`bake.apply_result`). The
+stages between them need no Blender (`farm.stages`). Assemble reads the scene again and
+refuses a job prepared from another scene, or from this one before it changed.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ __all__ = ["prepare_scene", "assemble_scene", "job_dir_of", "export_job"]
 
 def _inputs_of(inputs):
     """What ``prepare`` keeps of a `scene_io.BakeInput` (its fingerprint is the job's)."""
-    return {"arguments": bake.BakeJob(inputs).arguments(), "output_mode": inputs.output_mode}
+    return {"arguments": inputs.core_arguments(), "output_mode": inputs.output_mode}
 
 
 def prepare_scene(scene, depsgraph, job_dir, scene_path, resolution=0, segments=None,

@@ -218,11 +218,7 @@ def _send_solve(scene):
         return
     state.message = ""
     diagnostics.step("sending the solve")
-    arguments = dict(keyframes=inputs.keyframes, features=inputs.features,
-                     resolution=inputs.resolution, weights=inputs.weights,
-                     feature_names=inputs.feature_names or None,
-                     key_interpolation=inputs.key_interpolation or None)
-    state.solve_id = state.worker.solve(arguments, scene.frame_current)
+    state.solve_id = state.worker.solve(inputs.core_arguments(), scene.frame_current)
     diagnostics.mark("solves")
 
 

@@ -21,6 +21,7 @@ from bpy.props import (
     StringProperty,
 )
 
+from ..core.bake.options import BakeOptions
 from ..core.map.solver import DEFAULT_WEIGHTS
 
 
@@ -81,7 +82,7 @@ class KFI_Settings(bpy.types.PropertyGroup):
     active_keyframe_index: IntProperty(name="Active Keyframe", default=0, min=0)
     resolution: IntProperty(
         name="Resolution",
-        default=48,
+        default=BakeOptions.resolution,
         min=8,
         max=512,
         soft_max=128,

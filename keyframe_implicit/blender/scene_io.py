@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, overload
 import numpy as np
 
 from ..core.surface.attributes import MeshAttributes
+from ..core.bake.options import BakeOptions
 from ..core.bake.pipeline import Keyframe
 from ..core.fields.measure import Surface
 from ..core.fields.measure import read_surface as measure_surface
@@ -172,6 +173,18 @@ class BakeInput:
     def frames(self) -> list[int]:
         """The frames of the keyframes read, in list order."""
         return [k.frame for k in self.keyframes]
+
+    def core_arguments(self) -> dict:
+        """`core.bake.pipeline.bake`'s keyword arguments for this bake: the keyframes, the
+        feature pairs and their names, and the bake's options (`BakeOptions`). The one
+        translation of the panel's settings into the core's: the bake's worker, the farm
+        job and the live preview (`core.bake.preview.Preview.solve`) all take it."""
+        options = BakeOptions.from_keywords(
+            resolution=self.resolution, motion_resolution=self.motion_resolution,
+            weights=self.weights, levelsets=self.levelsets,
+            key_interpolation=self.key_interpolation or None)
+        return dict(keyframes=self.keyframes, features=self.features,
+                    feature_names=self.feature_names or None, options=options)
 
 
 def _get(collection: bpy.types.bpy_prop_collection, prop: str, n: int, dtype: type,

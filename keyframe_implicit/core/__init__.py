@@ -9,13 +9,14 @@ and what goes beyond the thesis in docs/method.md), one sub-package per stage:
 ``map``        volume map by constrained Gauss-Newton on eq. 2.6 (ch. 2)
 ``motion``     as-rigid-as-possible trajectories, transports, in-betweens (ch. 3)
 ``surface``    level sets -> tracked meshes, attributes, quality, output mesh
-``bake``       the whole bake: `animate`, chains, grid and memory, map scheduling
+``bake``       the whole bake: `animate`, its options (`BakeOptions`), chains, grid and
+               memory, map scheduling, the live preview
 ``base``       the grid and the numerics every stage shares
 =============  =================================================================
 
-Imports run one way: ``bake`` uses the stages, each stage uses ``base`` (``surface``
-and ``fields`` share the triangle kernel), and no module imports another's private
-name.
+Imports run one way: ``bake`` uses the stages, each stage uses ``base`` (and
+``surface`` the triangle kernel of ``fields``, ``motion`` the volumes and marching cubes
+of ``surface``), and no module imports another's private name.
 
 The public names below are imported lazily so that ``import
 keyframe_implicit.core`` stays cheap and each stage can be used on its own.

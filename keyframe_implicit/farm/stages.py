@@ -60,7 +60,8 @@ def prepare(arguments, output_mode, job_dir, source, progress=None):
     Parameters
     ----------
     arguments : dict
-        `core.animate`'s keyword arguments, as the panel's Bake passes them to the worker.
+        `pipeline.bake`'s keyword arguments (the keyframes, the feature pairs and their
+        names, and the bake's `BakeOptions`), as the panel's Bake passes them to the worker.
     output_mode : str
         The output setting (`meshdata.resolve_output`).
     job_dir : str
@@ -87,7 +88,7 @@ def prepare(arguments, output_mode, job_dir, source, progress=None):
     n = len(plan.keyframes)
     manifest = dict(source, fingerprint=job, keyframes=n, segments=n - 1,
                     frames=[int(f) for f in plan.frames],
-                    resolution=int(arguments.get("resolution", 48)))
+                    resolution=int(plan.options.resolution))
     store.write_manifest(job_dir, manifest)
     rep(1.0, f"prepared {n} keyframes, {n - 1} segments")
     return manifest
@@ -185,14 +186,11 @@ def inputs(job_dir):
 
 def _open(job_dir):
     """(files, the inputs' fingerprint, `BakePlan`, `chain.Chain`) of a prepared job."""
-    from ..core.bake.chain import Chain
-
     files = JobFiles(job_dir)
     job = store.read_manifest(job_dir)["fingerprint"]
     data = _read(files.plan, job, _PREPARE)
     plan = data["plan"]
-    return files, job, plan, Chain(data["phis"], plan.grid, plan.features, plan.frames,
-                                   **plan.chain_options)
+    return files, job, plan, plan.chain(data["phis"])
 
 
 #: How a missing or stale file of ``prepare`` is made again.

@@ -25,7 +25,7 @@ __all__ = ["save", "load", "fingerprint", "write_manifest", "read_manifest", "Jo
            "FORMAT"]
 
 #: The job directory's layout version: a directory of another layout is refused.
-FORMAT = 1
+FORMAT = 2
 MANIFEST = "manifest.json"
 
 
@@ -36,18 +36,23 @@ class JobError(ValueError):
 
 def _classes():
     """The classes a job file may hold, by name: {name: (class, fields of an object)}."""
+    from ..core.bake.options import BakeOptions
     from ..core.bake.pipeline import BakePlan, Keyframe
     from ..core.base.grid import Grid
+    from ..core.map.options import MapOptions
     from ..core.map.result import MapResult
     from ..core.map.tear import Tear
+    from ..core.motion.options import MotionOptions
     from ..core.motion.spline import Bend
     from ..core.surface.attributes import MeshAttributes
+    from ..core.surface.options import SurfaceOptions
 
     def fields(obj):
         return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj) if f.init}
 
     table = {cls.__name__: (cls, fields)
-             for cls in (BakePlan, Keyframe, Grid, MapResult, MeshAttributes)}
+             for cls in (BakePlan, Keyframe, Grid, MapResult, MeshAttributes, BakeOptions,
+                         MapOptions, MotionOptions, SurfaceOptions)}
     table["Bend"] = (Bend, lambda b: {"start": b.start, "end": b.end})
     table["Tear"] = (Tear, lambda t: {"piece": t.piece, "crack": t.crack, "target": t.target,
                                       "crack_material": t.stats["crack_material"]})

@@ -152,7 +152,7 @@ def test_failing_core_leaves_scene_unchanged(scene, kfi, in_worker):
             progress(0.2, "signed distance grids")
             raise ValueError("Keyframe 1 is not a closed surface: close its holes.")
 
-        pipeline.animate = broken
+        pipeline.bake = broken
     """)
     with pytest.raises(RuntimeError) as err:
         bpy.ops.keyframe_implicit.bake(resolution=kfi.RES)

@@ -23,7 +23,7 @@ def test_the_interpolation_is_stored_per_keyframe_and_read_by_the_bake(scene, kf
     assert [kf.interpolation for kf in items] == ["SMOOTH", "EASE", "LINEAR"]
     inputs = _read(scene, kfi)
     assert inputs.key_interpolation == ["smooth", "ease", "linear"]
-    assert bake.BakeJob(inputs).arguments()["key_interpolation"] == ["smooth", "ease", "linear"]
+    assert inputs.core_arguments()["options"].key_interpolation == ["smooth", "ease", "linear"]
 
 
 def _step_at_the_middle_keyframe(scene, kfi, kind):

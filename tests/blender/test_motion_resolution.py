@@ -14,12 +14,12 @@ def test_automatic_by_default_and_read_by_the_bake(scene, kfi):
     settings = scene.keyframe_implicit
     assert settings.motion_resolution == 0 and settings.motion() is None
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    assert bake.BakeJob(bake.collect(scene, depsgraph, kfi.RES)).arguments()[
-        "motion_resolution"] is None
+    assert bake.collect(scene, depsgraph, kfi.RES).core_arguments()[
+        "options"].motion_resolution is None
     settings.motion_resolution = 12
     inputs = bake.collect(scene, depsgraph, kfi.RES)
     assert inputs.motion_resolution == 12
-    assert bake.BakeJob(inputs).arguments()["motion_resolution"] == 12
+    assert inputs.core_arguments()["options"].motion_resolution == 12
 
 
 def test_a_bake_on_a_motion_grid_uses_it(scene, kfi):

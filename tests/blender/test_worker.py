@@ -31,18 +31,18 @@ FAULT = """
     import os, resource, signal, sys, time
     from keyframe_implicit.core.bake import pipeline
 
-    _animate = pipeline.animate
+    _bake = pipeline.bake
     done = []
 
-    def animate(*args, progress, **kwargs):
+    def bake(*args, progress, **kwargs):
         def report(fraction, message):
             progress(fraction, message)
             if fraction > {after} and not done:
                 done.append(message)
                 {action}
-        return _animate(*args, progress=report, **kwargs)
+        return _bake(*args, progress=report, **kwargs)
 
-    pipeline.animate = animate
+    pipeline.bake = bake
 """
 
 
@@ -134,7 +134,7 @@ def test_worker_result_applied_equals_the_core_in_this_process(scene, kfi):
     assert job.state == bake.DONE, job.error_message()
     # in this process without a helper (Blender's own process starts none): the worker's
     # helper solves the map B -> A and half the frames, equal to the trajectories' CG tolerance
-    mine = pipeline.animate(**job.arguments())
+    mine = pipeline.bake(**job.inputs.core_arguments())
     np.testing.assert_allclose(job.result.vertices, mine.vertices, rtol=0, atol=1e-5)
     np.testing.assert_array_equal(job.result.faces, mine.faces)
     assert type(job.result) is Animation  # mapped onto this process's classes
@@ -170,12 +170,12 @@ GATE = """
     import ctypes, os
     from keyframe_implicit.core.bake import pipeline
 
-    _animate = pipeline.animate
+    _bake = pipeline.bake
 
     class _PollFd(ctypes.Structure):
         _fields_ = [("fd", ctypes.c_int), ("events", ctypes.c_short), ("revents", ctypes.c_short)]
 
-    def animate(*args, progress, **kwargs):
+    def bake(*args, progress, **kwargs):
         held = []
 
         def report(fraction, message):
@@ -189,9 +189,9 @@ GATE = """
                 os.close(fd)
                 if not released:
                     raise RuntimeError("the main loop did not turn while the bake held a stage")
-        return _animate(*args, progress=report, **kwargs)
+        return _bake(*args, progress=report, **kwargs)
 
-    pipeline.animate = animate
+    pipeline.bake = bake
 """
 
 
@@ -199,7 +199,7 @@ class _InThreadJob(bake.BakeJob):
     """The bake as it ran before the worker process: the core in a thread of this process."""
 
     def _bake(self):
-        return pipeline.animate(**self.arguments(), progress=self._progress)
+        return pipeline.bake(**self.inputs.core_arguments(), progress=self._progress)
 
 
 @pytest.mark.processes
@@ -220,7 +220,7 @@ def test_main_loop_keeps_its_turns_during_a_bake(scene, kfi, in_worker, monkeypa
         if kind is bake.BakeJob:
             in_worker(fault)
         else:  # the same stage, in this process's core
-            monkeypatch.setattr(pipeline, "animate", pipeline.animate)
+            monkeypatch.setattr(pipeline, "bake", pipeline.bake)
             exec(compile(__import__("textwrap").dedent(fault), "gate", "exec"), {})
         turns = []
         job = kind(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from benchmark_modules import load
-from keyframe_implicit.core import Grid, animate
+from keyframe_implicit.core import Grid
+from keyframe_implicit.core.bake.options import BakeOptions
+from keyframe_implicit.core.bake.pipeline import bake
 from keyframe_implicit.core.map.tear import Tear
 from keyframe_implicit.core.motion.spline import Bend
 from keyframe_implicit.core.surface.attributes import MeshAttributes
@@ -21,9 +23,10 @@ RESOLUTION = 20
 SOURCE = {"scene": "arc.blend", "scene_name": "arc"}
 
 
-def _arguments(resolution=RESOLUTION):
+def _arguments(resolution=RESOLUTION, **options):
     kfs, feats = bench.ball_arc((1, 5, 9))  # three keyframes: the paths bend at the middle
-    return dict(keyframes=kfs, features=feats, resolution=resolution)
+    return dict(keyframes=kfs, features=feats,
+                options=BakeOptions.from_keywords(resolution=resolution, **options))
 
 
 def _run_all(job_dir, arguments):
@@ -48,7 +51,7 @@ def job_copy(job, tmp_path):
 
 
 def test_the_assembled_bake_is_the_local_bake_on_every_frame(job):
-    local = animate(**_arguments(), processes=2)
+    local = bake(**_arguments(processes=2))
     farm = stages.assemble(job)
     np.testing.assert_array_equal(farm.frames, local.frames)
     np.testing.assert_allclose(farm.vertices, local.vertices, rtol=0, atol=1e-6)
@@ -71,7 +74,7 @@ def test_the_paths_bend_through_the_middle_keyframe(job):
     assert all(isinstance(b, Bend) for paths in (first, second) for b in paths["bends"])
     assert np.abs(first["bends"][0].end).max() > 0 and np.abs(second["bends"][0].start).max() > 0
     # the second segment starts where the first one's template ends, on keyframe 2
-    local = animate(**_arguments(), surfaces=False, coverage=False)
+    local = bake(**_arguments(surfaces=False, coverage=False))
     np.testing.assert_allclose(second["start"], local.vertices[4], rtol=0, atol=1e-6)
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from inbetween_cases import sphere_features, uv_sphere
 from keyframe_implicit.core import Cancelled, Keyframe, animate
+from keyframe_implicit.core.bake.options import BakeOptions
 from keyframe_implicit.core.bake.preview import PREVIEW_RESOLUTION, Preview
 
 
@@ -31,7 +32,8 @@ def _same_mesh(got, want, h, tolerance=1e-6):
 def test_every_frame_is_the_bake_at_the_preview_resolution(interpolation):
     keyframes, feats = _chain()
     preview = Preview()
-    figures = preview.solve(keyframes, feats, resolution=48, key_interpolation=interpolation)
+    figures = preview.solve(keyframes, feats,
+                            BakeOptions(resolution=48, key_interpolation=interpolation))
     assert figures["resolution"] == PREVIEW_RESOLUTION
     anim = animate(keyframes, feats, resolution=figures["resolution"],
                    motion_resolution=figures["motion_resolution"],
@@ -82,11 +84,11 @@ def test_feature_points_closer_than_a_cell_raise_the_preview_resolution():
     with pytest.raises(ValueError, match="less than one grid cell"):
         animate(keyframes, feats, resolution=PREVIEW_RESOLUTION)
     preview = Preview()
-    figures = preview.solve(keyframes, feats, resolution=64)
+    figures = preview.solve(keyframes, feats, BakeOptions(resolution=64))
     assert PREVIEW_RESOLUTION < figures["resolution"] < 64
     anim = animate(keyframes, feats, resolution=figures["resolution"],
                    motion_resolution=figures["motion_resolution"])
     assert anim.stats["grid_shape"] == figures["grid_shape"]
     _same_mesh(preview.frame(2), anim.surfaces[2], anim.grid.spacing)
     with pytest.raises(ValueError, match="less than one grid cell"):  # the bake's refusal
-        preview.solve(keyframes, feats, resolution=PREVIEW_RESOLUTION)
+        preview.solve(keyframes, feats, BakeOptions(resolution=PREVIEW_RESOLUTION))

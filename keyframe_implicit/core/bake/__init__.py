@@ -1,6 +1,8 @@
 """Stage 5: the whole bake, from keyframe meshes to one mesh per timeline frame.
 
-``pipeline``  `animate`: grid, distance grids, chain, output choice
+``pipeline``  `animate` and `bake`: plan (checks, grids), distance grids, chain, output
+              choice
+``options``   `BakeOptions`: a bake's options, built once, each stage reading its part
 ``checks``    refusals before any heavy work, and the result checked after
 ``gridfit``   the one grid holding every keyframe and feature point
 ``memory``    the memory model: a request that would not fit is refused first
@@ -8,6 +10,7 @@
               in-betweens
 ``chain``     `animate_chain`: several keyframes in sequence, paths bent through the
               inner keyframes, segments shared with the helper process
-``preview``   `Preview`: the maps solved once on coarse grids, then any one frame's
-              surface as the bake makes it (the live preview)
+``preview``   `Preview`: the bake's plan on coarse grids (`preview_grids`), its maps
+              solved once, then any one frame's surface as the bake makes it (the live
+              preview)
 """

@@ -24,6 +24,8 @@ default the paths bend so that it does not (`spline`, docs/method.md, section
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -37,20 +39,20 @@ from ..surface.quality import frame_quality
 from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
 from .animation import Animation
+from .options import BakeOptions
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
 from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
 
-__all__ = ["animate_chain", "HELPER_PRELOAD"]
+__all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "HELPER_PRELOAD"]
 
 #: What a helper process imports as it starts: everything a chain's work sends it.
 HELPER_PRELOAD = (__name__,)
 
 
-def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, surfaces=True,
-                  levelsets=False, template=None, keyframe_meshes=None, processes=1,
-                  helper=None, motion_grid=None, key_interpolation=None, progress=None,
-                  cancel=None, **options):
+def animate_chain(phis, grid, features, frames, *, maps=None, template=None,
+                  keyframe_meshes=None, helper=None, motion_grid=None, progress=None,
+                  cancel=None, **options) -> Animation:
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -68,107 +70,112 @@ def animate_chain(phis, grid, features, frames, *, maps=None, coverage=True, sur
     maps : sequence of ndarray, optional
         One map y(x) (grid.shape + (d,)) per segment, used instead of solving
         (`solve_map`) -- for maps computed elsewhere or known in closed form.
-    coverage : bool
-        Measure each frame's surface area the template does not reach
-        (one marching cubes per frame).
-    surfaces : bool
-        3D only: also keep every frame's own surface (marching cubes of its
-        level set) with its vertices' velocities (`Inbetween.velocity`), and
-        measure both outputs against it (`quality.frame_quality`).
-    levelsets : bool
-        Also keep every frame's level set (float32, grid.shape), e.g. for a volume export.
     template : (vertices, faces), optional
         The mesh carried through the frames, lying on keyframe 0's surface (e.g. the
         artist's own mesh); default: marching cubes of ``phis[0]``.
     keyframe_meshes : sequence of (vertices, triangles), optional
         3D only: every keyframe's own mesh. The template then keeps its sub-cell detail
         and ends each segment on the next keyframe's mesh itself (`template.DetailTrack`),
-        instead of on its grid's zero set; and each keyframe's frame in ``surfaces`` is
-        that keyframe's own mesh, not its grid surface.
-    processes : int
-        1: everything in this process (the two maps, and the two transports of each
-        frame, in two threads). 2 or more: one helper process (`parallel.Helper`)
-        shares the maps of every two segments with this process, each taking the
-        next when it is free (`maps.solve_maps_shared`), and makes the later half
-        of each segment's frames, for a machine with two free cores and a caller that
-        may start processes. Either way BLAS keeps to one thread in this process while
-        the chain runs (`parallel.one_blas_thread`).
+        instead of on its grid's zero set; and each keyframe's frame in the surfaces kept
+        is that keyframe's own mesh, not its grid surface.
     helper : `parallel.Helper`, optional
-        The helper to use instead of starting one (its caller closes it).
+        The helper to use instead of the one ``processes=2`` starts (its caller closes it).
     motion_grid : Grid, optional
         The coarser grid the maps and trajectories are solved on (`gridfit.motion_grid`;
         ``maps`` are then given on it); None: on ``grid``.
-    key_interpolation : sequence of str, or str, optional
-        Per keyframe, how the motion passes it (`spline.KEY_INTERPOLATIONS`): "smooth"
-        (default: continuous velocity, natural first and last keyframes), "linear" (each
-        segment on its own, a corner) or "ease" (coming to rest). Where any segment's paths
-        bend (`spline.bends_needed`), every map is solved before the first segment's
-        frames, since a segment's paths read its neighbours' (docs/method.md, section 12).
     progress, cancel : callables, optional (`progress.Reporter`).
     **options
-        The fields of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...)
-        and of `motion.options.MotionOptions` (``transport``, ``resample``, ...), checked
-        before any work.
+        The options a chain reads (`options.BakeOptions.from_keywords`, whose fields hold
+        the defaults), checked before any work:
+
+        - ``key_interpolation``: per keyframe, how the motion passes it
+          (`spline.KEY_INTERPOLATIONS`): "smooth" (continuous velocity, natural first and
+          last keyframes), "linear" (each segment on its own, a corner) or "ease" (coming
+          to rest). Where any segment's paths bend (`spline.bends_needed`), every map is
+          solved before the first segment's frames, since a segment's paths read its
+          neighbours' (docs/method.md, section 12);
+        - ``processes``: 1, everything in this process (the two maps, and the two
+          transports of each frame, in two threads); 2 or more, one helper process
+          (`parallel.Helper`) shares the maps of every two segments with this process,
+          each taking the next when it is free (`maps.solve_maps_shared`), and makes the
+          later half of each segment's frames. Either way BLAS keeps to one thread in
+          this process while the chain runs (`parallel.one_blas_thread`);
+        - ``coverage``, ``surfaces``, ``levelsets``: what each frame yields
+          (`surface.options.SurfaceOptions`; ``surfaces`` only in 3D);
+        - the fields of `map.options.MapOptions` (``volume_weight``, ``margin_cells``,
+          ...) and of `motion.options.MotionOptions` (``transport``, ``resample``, ...).
 
     Returns
     -------
     `animation.Animation`
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
-    rep = Reporter(progress, cancel)
-    t0 = time.perf_counter()
-    chain = Chain(phis, grid, features, frames, maps=maps, coverage=coverage,
-                  surfaces=surfaces, levelsets=levelsets, template=template,
-                  keyframe_meshes=keyframe_meshes, motion_grid=motion_grid,
-                  key_interpolation=key_interpolation, cancel=cancel, **options)
-    frames, nk = chain.frames, len(chain.frames)
-    verts, faces = chain.template
-    kept = Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, chain.outputs)
-    own = helper is None and processes > 1
-    blas = one_blas_thread()
-    try:
-        if own:
-            helper = Helper(HELPER_PRELOAD)
-        for k in range(nk - 1):  # loop over segments (keyframe pairs)
-            local, records, stats = chain.segment(
-                k, verts, helper, rep.sub(k / (nk - 1), (k + 1) / (nk - 1)))
-            kept.add(local - frames[0], records)
-            verts = kept.vertices[local[-1] - frames[0]]
-            kept.stats["segments"].append(stats)
-            if k < nk - 2:  # the next segment's arrays then do not stack on this one's
-                release_memory()
-    finally:
-        blas.restore_original_limits()
-        if helper is not None:
-            kept.stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
-        if own and helper is not None:
-            helper.close()
-    return kept.animation(chain, time.perf_counter() - t0)
+    chain = Chain(phis, grid, features, frames, BakeOptions.from_keywords(**options), maps=maps,
+                  template=template, keyframe_meshes=keyframe_meshes, motion_grid=motion_grid,
+                  cancel=cancel)
+    return chain.run(helper, progress)
 
 
 class Chain:
-    """A chain's inputs checked and ready to run one segment at a time (`segment`), in
-    timeline order (`animate_chain`) or each segment on its own, given the template it
-    starts from (`end_template` gives it; a render farm runs them so).
+    """A chain's inputs checked and ready to run: all its segments in timeline order
+    (`run`), or one segment at a time (`segment`), given the template it starts from
+    (`end_template` gives it; a render farm runs them so).
 
-    The parameters are `animate_chain`'s, ``processes`` and the progress apart.
+    The parameters are `animate_chain`'s, the options as one `options.BakeOptions`, of
+    which the chain reads the key interpolation, the processes and the three stages'
+    options.
     """
 
-    def __init__(self, phis, grid, features, frames, *, maps=None, coverage=True,
-                 surfaces=True, levelsets=False, template=None, keyframe_meshes=None,
-                 motion_grid=None, key_interpolation=None, cancel=None, **options):
+    def __init__(self, phis, grid, features, frames, options: BakeOptions, *, maps=None,
+                 template=None, keyframe_meshes=None, motion_grid=None, cancel=None) -> None:
         phis, self.frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
-        kinds = check_key_interpolation(key_interpolation, len(phis))
-        if template is None:
-            verts, faces = initial_template(phis[0], grid)
-        else:
-            verts, faces = np.asarray(template[0]), np.asarray(template[1], dtype=np.int64)
-        self.template = verts, faces
+        kinds = check_key_interpolation(options.key_interpolation, len(phis))
+        self.options, self.cancel = options, cancel
+        self._given_template, self._first_phi, self.grid = template, phis[0], grid
         self.keyframe_meshes = keyframe_meshes
-        self.outputs = SurfaceOptions(coverage=coverage, surfaces=surfaces and grid.dim == 3,
-                                      levelsets=levelsets)
-        self.inbetweens = Inbetweens(phis, grid, features, maps, options, cancel, motion_grid,
-                                     (self.frames, kinds))
+        self.outputs = dataclasses.replace(
+            options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
+        self.inbetweens = Inbetweens(phis, grid, features, maps, options.map, options.motion,
+                                     cancel, motion_grid, (self.frames, kinds))
+
+    @functools.cached_property
+    def template(self) -> tuple:
+        """(vertices, faces) of the mesh carried through the frames on the first keyframe:
+        the one given, else marching cubes of the first keyframe's field (made when first
+        asked for: the live preview never asks)."""
+        given = self._given_template
+        if given is None:
+            return initial_template(self._first_phi, self.grid)
+        return np.asarray(given[0]), np.asarray(given[1], dtype=np.int64)
+
+    def run(self, helper=None, progress=None) -> Animation:
+        """Every segment's frames in timeline order: `animate_chain`'s result. ``helper``
+        is used instead of starting one (``processes`` > 1) and left running."""
+        rep = Reporter(progress, self.cancel)
+        t0 = time.perf_counter()
+        frames, nk = self.frames, len(self.frames)
+        verts, faces = self.template
+        kept = Kept(np.arange(frames[0], frames[-1] + 1), verts.shape, self.outputs)
+        own = helper is None and self.options.processes > 1
+        blas = one_blas_thread()
+        try:
+            if own:
+                helper = Helper(HELPER_PRELOAD)
+            for k in range(nk - 1):  # loop over segments (keyframe pairs)
+                local, records, stats = self.segment(
+                    k, verts, helper, rep.sub(k / (nk - 1), (k + 1) / (nk - 1)))
+                kept.add(local - frames[0], records)
+                verts = kept.vertices[local[-1] - frames[0]]
+                kept.stats["segments"].append(stats)
+                if k < nk - 2:  # the next segment's arrays then do not stack on this one's
+                    release_memory()
+        finally:
+            blas.restore_original_limits()
+            if helper is not None:
+                kept.stats["helper_peak_rss_kib"] = helper.peak_rss_kib()
+            if own and helper is not None:
+                helper.close()
+        return kept.animation(self, time.perf_counter() - t0)
 
     def _segment(self, k, start):
         """`Segment` ``k`` starting from the template's vertices ``start``, and its frames."""
@@ -238,15 +245,14 @@ class Inbetweens:
     earlier tasks): a segment found there is not solved again.
     """
 
-    def __init__(self, phis, grid, features, maps, options, cancel, motion_grid=None,
-                 timing=None):
-        from .maps import solve_fields, stage_options
+    def __init__(self, phis, grid, features, maps, map_options, motion_options, cancel=None,
+                 motion_grid=None, timing=None) -> None:
+        from .maps import solve_fields
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
         self.cancel, self.motion_grid = cancel, motion_grid
         self.solve_phis = solve_fields(phis, grid, motion_grid) if maps is None else None
-        options = {k: v for k, v in options.items() if k != "parallel"}
-        self.map_options, self.motion_options = stage_options(options)
+        self.map_options, self.motion_options = map_options, motion_options
         self.solved = {}  # segment -> its maps, solved ahead in a window
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
@@ -512,7 +518,7 @@ def _frame_outputs(inb, s, segment, p, rep):
         rep.check()
     if outputs.surfaces:
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
-        own = _frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
+        own = frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
         out["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
         out["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
         rep.check()
@@ -521,7 +527,7 @@ def _frame_outputs(inb, s, segment, p, rep):
     return out
 
 
-def _frame_mesh(surface, keyframe_meshes, k, s):
+def frame_mesh(surface, keyframe_meshes, k: int, s: float) -> tuple:
     """A frame's own mesh for the mesh sequence: on a keyframe's frame (s = 0 of the first
     segment, s = 1 of every segment) the keyframe mesh the artist modelled, when given;
     else the frame's grid surface."""

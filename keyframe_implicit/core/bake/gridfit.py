@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..base.grid import Grid
+from .options import BakeOptions
 from .memory import MemoryLimitError, estimate_memory, largest_fitting, megabytes
 
 if TYPE_CHECKING:
@@ -65,8 +66,9 @@ def _grid_for(lo: np.ndarray, hi: np.ndarray, resolution: int, padding_cells: in
 
 
 def fit_grid(vertex_arrays: np.ndarray | Iterable[ArrayLike], resolution: int, *,
-             padding_cells: int = 4, extra_points: ArrayLike | None = None,
-             max_bytes: int | None = None, **memory_options: Any) -> Grid:
+             padding_cells: int = BakeOptions.padding_cells,
+             extra_points: ArrayLike | None = None, max_bytes: int | None = None,
+             **memory_options: Any) -> Grid:
     """Grid holding all keyframes (and extra points), with cubic cells and padding.
 
     Parameters

@@ -18,17 +18,17 @@ from concurrent.futures import ThreadPoolExecutor
 
 from ..base.parallel import cores, share
 from ..base.progress import Reporter
-from ..map.options import MapOptions
 from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
-from ..motion.options import MotionOptions
+from .options import BakeOptions
 
 __all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "solve_fields", "on_solve_grid",
-           "from_solved", "stage_options"]
+           "from_solved"]
 
 
 def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
-              on_maps=None, parallel=True, helper=None, motion_grid=None, **options):
+              on_maps=None, parallel=True, helper=None, motion_grid=None,
+              **options) -> Inbetween:
     """Solve the maps between two keyframes and return their in-betweens.
 
     ``inbetween = solve_map (A -> B, and B -> A with the feature pairs swapped
@@ -55,25 +55,18 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
         (`gridfit.motion_grid`); the fields travel on ``grid`` (docs/method.md, section 11).
     **options
         The fields of `motion.options.MotionOptions` (``transport``, ``resample``, ...)
-        and of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...).
+        and of `map.options.MapOptions` (``volume_weight``, ``margin_cells``, ...), read
+        as `options.BakeOptions.from_keywords` reads them (a pair reads its ``map`` and
+        ``motion``); an unknown one is refused (ValueError).
 
     Returns
     -------
     Inbetween
     """
-    map_options, motion_options = stage_options(options)
-    return pair_inbetweens(phi_a, phi_b, grid, (features_a, features_b), map_options,
-                           motion_options, parallel=parallel, helper=helper, progress=progress,
+    chosen = BakeOptions.from_keywords(**options)
+    return pair_inbetweens(phi_a, phi_b, grid, (features_a, features_b), chosen.map,
+                           chosen.motion, parallel=parallel, helper=helper, progress=progress,
                            cancel=cancel, on_maps=on_maps, motion_grid=motion_grid)
-
-
-def stage_options(keywords):
-    """One set of keywords as the options of the two stages a pair goes through: those
-    `motion.options.MotionOptions` names, and the rest as `map.options.MapOptions`
-    (ValueError on a keyword neither takes)."""
-    motion = {k: v for k, v in keywords.items() if k in MotionOptions.names()}
-    rest = {k: v for k, v in keywords.items() if k not in motion}
-    return MapOptions.from_keywords(**rest), MotionOptions(**motion)
 
 
 def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *,

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..base.grid import Grid
+from ..map.options import MapOptions
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -63,7 +64,8 @@ _REGION_BYTES = {2: 751.8 * 36 / 243, 3: 751.8}
 
 
 def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_keyframes: int = 2,
-                    margin_cells: float = 3, motion_grid: Grid | None = None) -> dict[str, int]:
+                    margin_cells: float = MapOptions.margin_cells,
+                    motion_grid: Grid | None = None) -> dict[str, int]:
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
     Model (N surface grid nodes; M the motion grid's active nodes, R the surface grid's):
@@ -121,7 +123,8 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
     return out
 
 
-def active_nodes(grid: Grid, material_fraction: float, margin_cells: float = 3,
+def active_nodes(grid: Grid, material_fraction: float,
+                 margin_cells: float = MapOptions.margin_cells,
                  motion_grid: Grid | None = None) -> tuple[float, float]:
     """(M, R): the nodes the model counts on the motion grid (the maps' and trajectories'
     active nodes) and on the surface grid (the transports' regions): a compact blob

@@ -11,16 +11,23 @@ import dataclasses
 import os
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..base.grid import Grid
 from ..base.progress import Reporter
+from .animation import Animation
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
+from .options import BakeOptions
 
-__all__ = ["Keyframe", "animate", "BakePlan", "plan_bake", "distance_fields", "finish_bake",
-           "weight_keywords"]
+if TYPE_CHECKING:
+    from .chain import Chain
+
+__all__ = ["Keyframe", "animate", "bake", "BakePlan", "plan_bake", "bake_grids",
+           "distance_fields", "distance_grid", "finish_bake"]
 
 
 @dataclass
@@ -55,14 +62,14 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
 
     n = len(keyframes)
     if helper is None or n < 2:
-        done = dict(enumerate(_distance_grid(keyframes, surfaces, grid, k, rep, cancel)
+        done = dict(enumerate(distance_grid(keyframes, surfaces, grid, k, rep, cancel)
                               for k in range(n)))
     else:
         def here(k, stop):
-            return _distance_grid(keyframes, surfaces, grid, k, rep, stop)
+            return distance_grid(keyframes, surfaces, grid, k, rep, stop)
 
         def there(k):
-            return _distance_grid, (keyframes, surfaces, grid, k), {}
+            return distance_grid, (keyframes, surfaces, grid, k), {}
 
         done, _, theirs = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
                                 last_first=True, when_started=True)
@@ -72,7 +79,7 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
-def _distance_grid(keyframes, surfaces, grid, k, rep=None, cancel=None):
+def distance_grid(keyframes, surfaces, grid: Grid, k: int, rep=None, cancel=None) -> tuple:
     """(field, figures) of keyframe ``k``; ValueError naming the keyframe on bad input."""
     from ..fields.sdf import mesh_to_sdf
 
@@ -110,47 +117,50 @@ def _material_fraction(keyframe, grid):
     return float(min(1.0, vol / np.prod(grid.upper - grid.origin)))
 
 
-def animate(keyframes, features, *, resolution=48, weights=None, progress=None, cancel=None,
-            padding_cells=4, max_bytes=None, feature_names=None, template="keyframe", helper=None,
-            motion_resolution=None, **options):
+def animate(keyframes, features, *, feature_names=None, progress=None, cancel=None, helper=None,
+            **options) -> Animation:
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
     refused before any work if it would not fit in memory), `sdf.mesh_to_sdf` per
-    keyframe, then `chain.animate_chain` (per segment: `solver.solve_map`,
+    keyframe, then the chain (`chain.Chain`; per segment: `solver.solve_map`,
     trajectories, in-between level sets, and the template tracked through all frames).
+    This is `bake` with the options as keyword arguments.
 
     Parameters
     ----------
     keyframes : sequence of `Keyframe`, at least two, frames strictly increasing.
     features : sequence of (points_a, points_b) pairs, one per segment (keyframe i -> i+1);
         (N, 3) arrays in world units, row j of points_a pairs with row j of points_b.
-    resolution : int, grid cells along the longest side of the keyframes' bounding box.
-    motion_resolution : int, optional
-        Cells along the same side of the motion grid, on which the maps and the
-        trajectories are solved (docs/method.md, section 11); from 8 to ``resolution``,
-        which reproduces a bake on one grid. None: chosen from a cost budget
-        (`gridfit.auto_motion_resolution`).
-    weights : dict with optional keys "volume", "rigidity", "levelset" (the weights of
-        the three terms of eq. 2.6).
-    progress : callable(fraction, message), optional.
-    cancel : callable() -> bool, optional; when it returns True, `Cancelled` is raised.
-    padding_cells : int, empty cells around the keyframes' bounding box.
-    max_bytes : int, optional memory limit for the bake; default: 75% of physical memory.
     feature_names : per segment, a sequence of (name_a, name_b) per feature row, optional;
         used in messages (e.g. the Empties' names).
-    template : {"keyframe", "grid"}
-        The mesh carried through the frames: the first keyframe's own mesh with its
-        attributes and sub-cell detail, ending every segment on the next keyframe's mesh
-        (`template.DetailTrack`; falls back to "grid" when it has loose vertices), or
-        marching cubes of its distance grid, pulled onto every frame's zero set.
+    progress : callable(fraction, message), optional.
+    cancel : callable() -> bool, optional; when it returns True, `Cancelled` is raised.
     helper : `parallel.Helper`, optional
         A helper process already started (and left running): it takes the place of the
         one ``processes=2`` starts here, whose interpreter then loads while this one
         checks the keyframes (the worker process starts it before reading its inputs).
-    **options : passed to `chain.animate_chain` (solver, trajectory and level-set options;
-        ``processes``: 2 shares the bake with a helper process; ``key_interpolation``: per
-        keyframe "smooth", "linear" or "ease", how the motion passes it).
+    **options
+        The bake's options (`options.BakeOptions.from_keywords`, whose fields hold the
+        defaults), checked before any work:
+
+        - the bake's own: ``resolution`` (grid cells along the longest side of the
+          keyframes' bounding box), ``motion_resolution`` (the motion grid's, None:
+          automatic; docs/method.md, section 11), ``padding_cells``, ``max_bytes`` (the
+          memory limit; None: 75 % of physical memory), ``template`` ("keyframe": the
+          first keyframe's own mesh is tracked, or "grid": marching cubes of its distance
+          grid), ``key_interpolation`` (per keyframe "smooth", "linear" or "ease", how the
+          motion passes it), ``processes`` (2 shares the bake with a helper process);
+        - ``weights``: a dict with optional keys "volume", "rigidity", "levelset" (the
+          weights of the three terms of eq. 2.6);
+        - what each frame yields (`SurfaceOptions`): ``coverage``, ``surfaces``,
+          ``levelsets``;
+        - the map solve's settings, the fields of `map.options.MapOptions`
+          (``volume_weight``, ``margin_cells``, ``feature_radius``, ``tear``, ...);
+        - the in-betweens' settings, the fields of `motion.options.MotionOptions`
+          (``transport``, ``keep_volume``, ``trajectory_margin_cells``, ...).
+
+        An unknown one is refused with a ValueError that lists the known ones.
 
     Returns
     -------
@@ -164,23 +174,28 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
     Cancelled
         When ``cancel()`` returned True.
     """
-    from .chain import HELPER_PRELOAD, animate_chain
+    return bake(keyframes, features, BakeOptions.from_keywords(**options),
+                feature_names=feature_names, progress=progress, cancel=cancel, helper=helper)
+
+
+def bake(keyframes, features, options: BakeOptions, *, feature_names=None, progress=None,
+         cancel=None, helper=None) -> Animation:
+    """`animate` with its options as one `BakeOptions`: what the Blender side's worker and
+    every other caller that built its options once run. The other parameters, the result
+    and the errors are `animate`'s."""
+    from .chain import HELPER_PRELOAD
     from ..base.parallel import Helper, one_blas_thread
 
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
-    plan = plan_bake(keyframes, features, resolution=resolution, weights=weights,
-                     padding_cells=padding_cells, max_bytes=max_bytes,
-                     feature_names=feature_names, template=template,
-                     motion_resolution=motion_resolution, progress=rep, **options)
+    plan = plan_bake(keyframes, features, options, feature_names=feature_names, progress=rep)
     blas, given = one_blas_thread(), helper
     try:
-        if helper is None and plan.chain_options.get("processes", 1) > 1:
+        if helper is None and options.processes > 1:
             helper = Helper(HELPER_PRELOAD)
         phis = distance_fields(plan, rep.sub(0.0, 0.15), cancel, helper)
         plan.stats["sdf_seconds"] = time.perf_counter() - t0
-        chain = animate_chain(phis, plan.grid, plan.features, plan.frames, helper=helper,
-                              progress=rep.sub(0.15, 0.98), cancel=cancel, **plan.chain_options)
+        chain = plan.chain(phis, cancel).run(helper, rep.sub(0.15, 0.98))
     finally:
         blas.restore_original_limits()
         if helper is not None and helper is not given:
@@ -190,69 +205,86 @@ def animate(keyframes, features, *, resolution=48, weights=None, progress=None, 
 
 @dataclass
 class BakePlan:
-    """What `animate` settles before any grid work (`plan_bake`): the checked keyframes
-    and feature pairs, each keyframe's surface (`checks.surface_vertices`: vertices,
-    triangles, loose vertices, points the grid must hold), the surface grid, the artist's
-    template (vertices, triangles, `attributes.MeshAttributes`; None: the grid's),
-    `chain.animate_chain`'s keyword arguments and the figures so far."""
+    """What a bake settles before any grid work (`plan_bake`): the checked keyframes and
+    feature pairs, each keyframe's surface (`checks.surface_vertices`: vertices,
+    triangles, loose vertices, points the grid must hold), the surface grid at
+    ``resolution`` and the motion grid (None: the surface grid), the artist's template
+    (vertices, triangles, `attributes.MeshAttributes`; None: the grid's), the bake's
+    options and the figures so far."""
 
     keyframes: list
     features: list
-    grid: object
+    resolution: int
+    grid: Grid
+    motion_grid: Grid | None
     surfaces: list
     artist: tuple | None
-    chain_options: dict
+    options: BakeOptions
     stats: dict
 
     @property
-    def frames(self):
+    def frames(self) -> list:
         """The keyframes' timeline frames."""
         return [kf.frame for kf in self.keyframes]
 
+    def chain(self, phis, cancel=None) -> Chain:
+        """The `chain.Chain` of this plan's keyframes, given their distance grids ``phis``
+        on ``grid``: the artist's mesh as the template when there is one."""
+        from .chain import Chain
 
-def plan_bake(keyframes, features, *, resolution=48, weights=None, padding_cells=4,
-              max_bytes=None, feature_names=None, template="keyframe", motion_resolution=None,
-              progress=None, **options):
-    """`animate`'s inputs checked and its grids chosen, before any grid work: a `BakePlan`.
+        artist = self.artist
+        return Chain(phis, self.grid, self.features, self.frames, self.options,
+                     template=None if artist is None else artist[:2],
+                     keyframe_meshes=None if artist is None else [s[:2] for s in self.surfaces],
+                     motion_grid=self.motion_grid, cancel=cancel)
 
-    The parameters are `animate`'s; ValueError (and `memory.MemoryLimitError`) on input
-    the user must fix.
+
+def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, progress=None,
+              grid_rule=None) -> BakePlan:
+    """`bake`'s inputs checked and its grids chosen, before any grid work: a `BakePlan`.
+
+    ``grid_rule`` chooses the grids: called as ``grid_rule(fit, options)``, it returns
+    (resolution, `fit`'s answer at it), where ``fit(resolution, motion_resolution,
+    max_bytes)`` is (surface grid, Motion Resolution, motion grid) of these keyframes at
+    those resolutions, or ValueError where two feature points would share a cell or
+    `memory.MemoryLimitError` over ``max_bytes`` (None: no limit). None: the bake's own
+    rule (`bake_grids`); the live preview has its own (`preview.preview_grids`).
+
+    The other parameters are `bake`'s; ValueError (and `memory.MemoryLimitError`) on
+    input the user must fix.
     """
     from ..motion.spline import check_key_interpolation
 
     keyframes, features = check_inputs(keyframes, features, feature_names)
-    check_motion_resolution(motion_resolution, resolution)
-    check_key_interpolation(options.get("key_interpolation"), len(keyframes))
-    opts = dict(options, **weight_keywords(weights))
-    if max_bytes is None:
-        phys = _physical_memory()
-        max_bytes = int(0.75 * phys) if phys else None
+    check_motion_resolution(options.motion_resolution, options.resolution)
+    check_key_interpolation(options.key_interpolation, len(keyframes))
 
     Reporter(progress)(0.0, "Choosing the grid")
     stats = {}
     surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
-    grid, stats["motion_resolution"], opts["motion_grid"] = _bake_grid(
-        keyframes, surfaces, features, feature_names, resolution, motion_resolution,
-        padding_cells, max_bytes)
+
+    def fit(resolution, motion_resolution, max_bytes):
+        return _bake_grid(keyframes, surfaces, features, feature_names, resolution,
+                          motion_resolution, options.padding_cells, max_bytes)
+
+    resolution, (grid, stats["motion_resolution"], motion) = (grid_rule or bake_grids)(
+        fit, options)
     stats.update(grid_shape=tuple(grid.shape), grid_spacing=grid.spacing)
-    if opts["motion_grid"] is not None:
-        stats["motion_grid_shape"] = tuple(opts["motion_grid"].shape)
-    artist = _artist_template(keyframes[0], surfaces[0], template)
-    if artist is not None:
-        opts.update(template=artist[:2], keyframe_meshes=[s[:2] for s in surfaces])
-    return BakePlan(keyframes, features, grid, surfaces, artist, opts, stats)
+    if motion is not None:
+        stats["motion_grid_shape"] = tuple(motion.shape)
+    artist = _artist_template(keyframes[0], surfaces[0], options.template)
+    return BakePlan(keyframes, features, resolution, grid, motion, surfaces, artist, options,
+                    stats)
 
 
-def weight_keywords(weights):
-    """The weights of eq. 2.6's terms by name ({"volume": 30.0, ...}) as the solver's options
-    ({"volume_weight": 30.0, ...}); ValueError naming an unknown one."""
-    from ..map import terms
-
-    names = {t.name: t.weight_option for t in terms.TERMS}
-    unknown = sorted(set(weights or {}) - set(names))
-    if unknown:
-        raise ValueError(f"Unknown weight {unknown[0]!r}; use {sorted(names)}.")
-    return {names[key]: float(value) for key, value in (weights or {}).items()}
+def bake_grids(fit, options: BakeOptions) -> tuple:
+    """The bake's grid rule (`plan_bake`'s ``grid_rule``): the grids at the options'
+    resolutions, refused over the options' memory limit (None: 75 % of physical memory)."""
+    max_bytes = options.max_bytes
+    if max_bytes is None:
+        phys = _physical_memory()
+        max_bytes = int(0.75 * phys) if phys else None
+    return options.resolution, fit(options.resolution, options.motion_resolution, max_bytes)
 
 
 def distance_fields(plan, rep, cancel=None, helper=None):

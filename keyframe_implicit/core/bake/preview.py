@@ -1,12 +1,12 @@
 """One frame of the bake on demand: the live preview's maps solved once, then any frame alone.
 
-`Preview.solve` runs the front of `pipeline.animate` on a coarse grid (the same checks, grid,
-distance grids and `chain.animate_chain`'s in-betweens of every segment) and keeps the
-in-betweens; `Preview.frame` then makes one timeline frame's own surface as the bake's
-mesh sequence makes it (the frame's level set, eq. 3.4, its marching cubes, or the
-keyframe's own mesh on a keyframe's frame): the same functions on the same inputs, so a
-bake at the preview's resolutions has the same mesh on that frame (docs/method.md,
-section 11 for the two grids).
+`Preview.solve` plans with the bake's planner (`pipeline.plan_bake`: the same checks, the
+same options, the artist's template) and its own grid rule (`preview_grids`: coarse grids),
+then keeps the in-betweens of every segment of the bake's chain (`chain.Chain`);
+`Preview.frame` then makes one timeline frame's own surface as the bake's mesh sequence
+makes it (the frame's level set, eq. 3.4, its marching cubes, or the keyframe's own mesh
+on a keyframe's frame): the same functions on the same inputs, so a bake at the preview's
+resolutions has the same mesh on that frame (docs/method.md, sections 10 and 11).
 
 Kept between solves: the keyframes' distance grids, while the grid and the keyframe's mesh
 are unchanged. The grid holds the feature points and their rigid sweeps (`gridfit`), so a
@@ -25,8 +25,11 @@ import numpy as np
 
 from ..base.parallel import one_blas_thread
 from ..base.progress import Reporter
+from .chain import frame_mesh
+from .options import BakeOptions
+from .pipeline import distance_grid, plan_bake
 
-__all__ = ["Preview", "PREVIEW_RESOLUTION", "PREVIEW_MOTION_RESOLUTION"]
+__all__ = ["Preview", "preview_grids", "PREVIEW_RESOLUTION", "PREVIEW_MOTION_RESOLUTION"]
 
 #: Cells along the longest side of the preview's surface grid (no finer than the bake's; finer
 #: where two feature points would share a cell).
@@ -51,85 +54,53 @@ class Preview:
         self._solved = None
         self.figures = {}
 
-    def solve(self, keyframes, features, *, resolution=48, weights=None, feature_names=None,
-              key_interpolation=None, progress=None, cancel=None, padding_cells=4):
+    def solve(self, keyframes, features, options: BakeOptions | None = None, *,
+              feature_names=None, progress=None, cancel=None) -> dict:
         """Solve every segment's maps and in-betweens at the preview's resolutions.
 
-        Parameters are `pipeline.animate`'s; ``resolution`` is the bake's own, the preview's
-        surface grid being no finer (`_grids`).
+        The parameters are `pipeline.bake`'s: the bake's own ``options`` (None: the
+        defaults), planned by the bake's planner with the preview's grid rule
+        (`preview_grids`), so the preview's surface grid is no finer than the bake's.
 
         Raises ValueError on input the user must fix (the bake's own refusals), `Cancelled`
         when ``cancel()`` returns True. On either the previous solve is gone.
         """
-        from . import pipeline
-        from .chain import Inbetweens
-        from .checks import check_inputs, surface_vertices
-        from ..motion.spline import check_key_interpolation
-
         t0 = time.perf_counter()
         self._solved = None
         rep = Reporter(progress, cancel)
-        keyframes, features = check_inputs(keyframes, features, feature_names)
-        kinds = check_key_interpolation(key_interpolation, len(keyframes))
-        options = pipeline.weight_keywords(weights)
-        surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
-        res, grid, motion, motion_grid = self._grids(keyframes, surfaces, features,
-                                                     feature_names, resolution, padding_cells)
+        plan = plan_bake(keyframes, features, options or BakeOptions(),
+                         feature_names=feature_names, grid_rule=preview_grids)
         rep(0.05, "Distance grids")
-        phis, kept = self._distance_grids(keyframes, surfaces, grid, rep.sub(0.05, 0.2), cancel)
-        artist = pipeline._artist_template(keyframes[0], surfaces[0], "keyframe")
-        frames = np.asarray([kf.frame for kf in keyframes], dtype=np.int64)
-        segments = Inbetweens(phis, grid, features, None, options, cancel, motion_grid,
-                               (frames, kinds))
-        nseg = len(keyframes) - 1
+        phis, kept = self._distance_grids(plan, rep.sub(0.05, 0.2), cancel)
+        chain = plan.chain(phis, cancel)
+        nseg = len(phis) - 1
         with one_blas_thread():  # as in the bake: BLAS's threads round differently
-            inbetweens = [segments.make(k, None, None, rep.sub(0.2 + 0.8 * k / nseg,
-                                                               0.2 + 0.8 * (k + 1) / nseg))
+            inbetweens = [chain.inbetweens.make(k, None, None,
+                                                rep.sub(0.2 + 0.8 * k / nseg,
+                                                        0.2 + 0.8 * (k + 1) / nseg))
                           for k in range(nseg)]
-        self._solved = (grid, frames, inbetweens,
-                        None if artist is None else [s[:2] for s in surfaces])
-        self.figures = dict(resolution=res, motion_resolution=motion,
-                            grid_shape=tuple(grid.shape),
+        self._solved = (plan.grid, chain.frames, inbetweens, chain.keyframe_meshes)
+        motion_grid = plan.motion_grid
+        self.figures = dict(resolution=plan.resolution,
+                            motion_resolution=plan.stats["motion_resolution"],
+                            grid_shape=tuple(plan.grid.shape),
                             motion_grid_shape=None if motion_grid is None
                             else tuple(motion_grid.shape),
                             seconds=time.perf_counter() - t0, distance_grids_kept=kept)
         return self.figures
 
-    @staticmethod
-    def _grids(keyframes, surfaces, features, feature_names, resolution, padding_cells):
-        """(surface resolution, then `pipeline._bake_grid`'s grid, motion resolution and
-        motion grid) of the preview: `PREVIEW_RESOLUTION` cells and a motion grid of
-        `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one where two feature points
-        would share a motion cell; raised by a quarter at a time, up to the bake's
-        ``resolution``, where two would share a surface cell (the bake's own refusal when
-        even that does not hold them apart)."""
-        from . import pipeline
-
-        res = min(int(resolution), PREVIEW_RESOLUTION)
-        while True:
-            for motion in (min(res, PREVIEW_MOTION_RESOLUTION), None):
-                try:
-                    return (res,) + pipeline._bake_grid(keyframes, surfaces, features,
-                                                        feature_names, res, motion,
-                                                        padding_cells, None)
-                except ValueError:
-                    if res >= resolution and motion is None:
-                        raise
-            res = min(int(resolution), int(np.ceil(1.25 * res)))
-
-    def _distance_grids(self, keyframes, surfaces, grid, rep, cancel):
-        """Every keyframe's distance grid (`pipeline._distance_grid`), those of an unchanged
-        mesh on an unchanged grid kept from before; and how many were kept."""
-        from . import pipeline
-
-        keys = [_field_key(grid, s) for s in surfaces]
+    def _distance_grids(self, plan, rep, cancel):
+        """Every keyframe's distance grid on the plan's grid (`pipeline.distance_grid`),
+        those of an unchanged mesh on an unchanged grid kept from before; and how many were
+        kept."""
+        keys = [_field_key(plan.grid, s) for s in plan.surfaces]
         phis, kept = [], 0
         for k, key in enumerate(keys):
             if key in self._phis:
                 kept += 1
             else:
-                self._phis[key] = pipeline._distance_grid(keyframes, surfaces, grid, k, rep,
-                                                          cancel)[0]
+                self._phis[key] = distance_grid(plan.keyframes, plan.surfaces, plan.grid, k,
+                                                rep, cancel)[0]
             phis.append(self._phis[key])
         self._phis = {key: self._phis[key] for key in keys}  # only the current ones stay
         return phis, kept
@@ -146,7 +117,6 @@ class Preview:
         before the first keyframe or after the last show that keyframe's. RuntimeError
         before a solve.
         """
-        from .chain import _frame_mesh
         from ..surface.extract import extract_surface
 
         if self._solved is None:
@@ -159,8 +129,27 @@ class Preview:
         own_mesh = meshes is not None and (s == 1.0 or (s == 0.0 and k == 0))
         with one_blas_thread():
             surface = None if own_mesh else extract_surface(inbetweens[k].levelset(s), grid)
-        v, tris = _frame_mesh(surface, meshes, k, s)
+        v, tris = frame_mesh(surface, meshes, k, s)
         return np.asarray(v, dtype=np.float32), np.asarray(tris, dtype=np.int32)
+
+
+def preview_grids(fit, options: BakeOptions) -> tuple:
+    """The preview's grid rule (`pipeline.plan_bake`'s ``grid_rule``): `PREVIEW_RESOLUTION`
+    cells and a motion grid of `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one
+    where two feature points would share a motion cell; raised by a quarter at a time, up
+    to the bake's ``options.resolution``, where two would share a surface cell (the bake's
+    own refusal when even that does not hold them apart). No memory limit: the preview's
+    grids are no finer than the bake's."""
+    top = int(options.resolution)
+    res = min(top, PREVIEW_RESOLUTION)
+    while True:
+        for motion in (min(res, PREVIEW_MOTION_RESOLUTION), None):
+            try:
+                return res, fit(res, motion, None)
+            except ValueError:
+                if res >= top and motion is None:
+                    raise
+        res = min(top, int(np.ceil(1.25 * res)))
 
 
 def _field_key(grid, surface):

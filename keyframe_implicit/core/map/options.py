@@ -1,7 +1,7 @@
 """The options of the map solve, as one frozen object (`MapOptions`).
 
-`solve_map` takes them as keywords; the bake builds one `MapOptions` from its keywords
-and hands that down, so no stage sorts option names by lists. The defaults are measured
+`solve_map` takes them as keywords (`MapOptions.from_keywords`) or as one object; the
+bake's `bake.options.BakeOptions` holds one and hands it to the solve. The defaults are measured
 choices: benchmarks/README.md ("Map solver") has the table behind each.
 """
 
@@ -106,17 +106,23 @@ class MapOptions:
         ``weights``, the others the fields of the same name. ValueError names an unknown
         keyword and lists the known ones."""
         by_option = weight_options()
-        names = {f.name for f in dataclasses.fields(cls)} - {"weights"}
         weights, values = _default_weights(), {}
         for key, value in keywords.items():
             if key in by_option:
                 weights[by_option[key]] = value
-            elif key in names:
+            elif key in cls.names():
                 values[key] = value
             else:
                 raise ValueError(f"unknown option {key!r} for solve_map; known options: "
-                                 f"{sorted(names | set(by_option))}.")
+                                 f"{sorted(cls.names())}.")
         return cls(weights=weights, **values)
+
+    @classmethod
+    def names(cls) -> frozenset:
+        """The keyword names `from_keywords` takes: the fields but ``weights``, and the
+        ``<term>_weight`` of every registered term."""
+        return frozenset(f.name for f in dataclasses.fields(cls) if f.name != "weights") \
+            | frozenset(weight_options())
 
     def __post_init__(self):
         by_name = {name: option for option, name in weight_options().items()}

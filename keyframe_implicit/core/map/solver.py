@@ -63,7 +63,7 @@ from ..base.grid import Grid
 from ..base.parallel import cores
 from ..base.progress import Reporter
 from .coarse import CoarseSpace
-from .options import MapOptions, weight_options
+from .options import MapOptions
 from .hierarchy import coarse_to_fine, correction, fields_on, prolong, start_map
 from .rbf import initial_map
 from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
@@ -337,14 +337,16 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progr
         Feature points x'_i of A and their targets y'_i in B (row i pairs with
         row i), world units, inside the grid box. N may be 0.
     options : `options.MapOptions`, optional
-        All settings at once (the bake passes them so); keywords override them.
+        All settings at once: how the bake passes them. Give them so or as keywords,
+        not both.
     progress, cancel : callables, see `keyframe_implicit.core.base.progress`.
     **keywords
         Any field of `options.MapOptions` (``max_iterations`` 20, ``tolerance`` 1 %,
         ``margin_cells`` 3, ``margin_weight`` 0.1, ``feature_radius``, ``min_det`` 0.2,
         ...: its docstring lists them with their defaults), and ``volume_weight``,
         ``rigidity_weight``, ``levelset_weight`` (30, 1, 10: eq. 2.6's weights,
-        `terms`) or the weight of any term registered in `terms.TERMS`.
+        `terms`) or the weight of any term registered in `terms.TERMS`: the form for
+        callers outside the bake (`options.MapOptions.from_keywords`).
 
     Returns
     -------
@@ -360,7 +362,12 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progr
     """
     t_start = time.perf_counter()
     phi_a, phi_b, xa, yb = _check_inputs(phi_a, phi_b, grid, features_a, features_b)
-    options = _with_keywords(options, keywords).on_grid(grid)
+    if options is None:
+        options = MapOptions.from_keywords(**keywords)
+    elif keywords:
+        raise TypeError(f"solve_map takes options= or keywords, not both; got options and "
+                        f"{sorted(keywords)}.")
+    options = options.on_grid(grid)
     weights = options.weights
     rep = Reporter(progress, cancel)
     timing = {"initial map": 0.0, "setup": 0.0, "assembly": 0.0, "linear solve": 0.0,
@@ -412,20 +419,6 @@ def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progr
     region[system.active] = True
     return MapResult(mapped=y0 + corr, stats=stats, grid=grid, region=region.reshape(grid.shape),
                      material=phi_a < 0, components=init.components, tear=tear)
-
-
-def _with_keywords(options, keywords):
-    """``options`` (default `MapOptions`) with ``keywords`` in its place; ValueError on an
-    unknown keyword."""
-    if options is None:
-        return MapOptions.from_keywords(**keywords)
-    if not keywords:
-        return options
-    given = MapOptions.from_keywords(**keywords)
-    changed = {k: getattr(given, k) for k in keywords if k in DEFAULTS}
-    weights = dict(options.weights, **{n: given.weights[n] for o, n in weight_options().items()
-                                       if o in keywords})
-    return dataclasses.replace(options, weights=weights, **changed)
 
 
 def _map_stats(system, y, dets, energies, weights, level_stats, init):

@@ -88,7 +88,7 @@ class MapSystem:
     cells `elem`), the elements' quadrature, the node stencil and the feature constraints."""
 
     def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, margin_cells, margin_weight, radius,
-                 patch_rigidity=1.0, crack=None):
+                 patch_rigidity, crack=None) -> None:
         d = grid.dim
         self.grid, self.d = grid, d
         self.phi_b = phi_b

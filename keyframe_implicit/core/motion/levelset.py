@@ -69,7 +69,8 @@ __all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
 
-def idw_resample(grid: Grid, positions, values, *, fill, radius=1.5, eps=0.25):
+def idw_resample(grid: Grid, positions, values, *, fill, radius=MotionOptions.idw_radius,
+                 eps=0.25) -> tuple:
     """Thesis eq. 3.2-3.3: inverse-distance weights 1 / (r^2 + eps^2) of nearby moved nodes.
 
     ``radius`` and ``eps`` are in cells. Grid nodes with no moved node within
@@ -178,7 +179,8 @@ class Inbetween:
     @classmethod
     def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
                  components=None, motion_grid=None, bends=None, cracks=None, options=None,
-                 stats=None, map_result=None, map_result_back=None, cancel=None, **keywords):
+                 stats=None, map_result=None, map_result_back=None, cancel=None,
+                 **keywords) -> Inbetween:
         """In-betweens from given maps.
 
         Parameters
@@ -208,7 +210,8 @@ class Inbetween:
             (`map.tear.Tear.crack`): the transport along that map leaves them out, so the
             pieces part with empty space between them.
         options : `options.MotionOptions`, optional
-            All settings at once (the bake passes them so); keywords override them.
+            All settings at once: how the bake passes them. Give them so or as keywords,
+            not both.
         stats, map_result, map_result_back : optional
             Figures and results of the maps' solves, kept with the in-betweens.
         cancel : callable() -> bool, optional
@@ -218,12 +221,17 @@ class Inbetween:
             Any field of `options.MotionOptions`: ``transport``, ``keep_volume``,
             ``trajectory_method``, ``trajectory_margin_cells``,
             ``trajectory_margin_weight``, ``resample``, ``idw_radius``,
-            ``newton_steps``, ``interpolation`` (its docstring has their defaults).
+            ``newton_steps``, ``interpolation`` (its docstring has their defaults): the
+            form for callers outside the bake.
         """
         unknown = set(keywords) - MotionOptions.names()
         if unknown:
             raise TypeError(f"Inbetween.from_map got unexpected options {sorted(unknown)}.")
-        options = dataclasses.replace(options or MotionOptions(), **keywords)
+        if options is None:
+            options = MotionOptions(**keywords)
+        elif keywords:
+            raise TypeError(f"Inbetween.from_map takes options= or keywords, not both; got "
+                            f"options and {sorted(keywords)}.")
         if not isinstance(grid, Grid):
             raise ValueError("grid must be a keyframe_implicit.core.Grid.")
         phi_a = grid.check_field(phi_a, "phi_a")

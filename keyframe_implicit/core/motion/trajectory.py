@@ -78,6 +78,7 @@ from ..base.multigrid import BlockMultigrid, block_pcg
 from ..base.progress import Reporter
 from ..base.rotations import polar, rigid_fit, rotation_exp, rotation_log
 from ..base.sampling import cell_weights, sample
+from .options import MotionOptions
 
 __all__ = ["Trajectories"]
 
@@ -265,8 +266,11 @@ class Trajectories:
         ``cg_iterations`` (one entry per solve).
     """
 
-    def __init__(self, grid: Grid, mapped, material, components=None, *, method="global",
-                 margin_cells=4.0, margin_weight=0.1, mass=None, tolerance=1e-5, cancel=None):
+    def __init__(self, grid: Grid, mapped, material, components=None, *,
+                 method=MotionOptions.trajectory_method,
+                 margin_cells=MotionOptions.trajectory_margin_cells,
+                 margin_weight=MotionOptions.trajectory_margin_weight, mass=None,
+                 tolerance=1e-5, cancel=None) -> None:
         y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
                                       margin_weight)
         d = grid.dim

@@ -34,6 +34,7 @@ from ..base.elements import cofactor
 from ..base.grid import Grid
 from ..base.progress import Reporter
 from ..base.sampling import multilinear_in_cells, sample
+from .options import MotionOptions
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -52,7 +53,8 @@ _ON_FACE = 1e-4  # cells: local coordinates this far outside the unit cell still
 
 
 def inverse_lookup(grid: Grid, corner_positions: np.ndarray, cells: np.ndarray, *,
-                   newton_steps: int = 6, tol: float = 1e-6, max_candidates: int = 65_536,
+                   newton_steps: int = MotionOptions.newton_steps, tol: float = 1e-6,
+                   max_candidates: int = 65_536,
                    check: Callable[[], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Semi-Lagrangian inverse lookup: for grid nodes z, source points x with x(s) = z.
 
@@ -104,8 +106,8 @@ def _index_coordinates(grid: Grid, cells: np.ndarray, cell: np.ndarray,
     return base + 0.5 + local.T
 
 
-def _lookup_in_cells(grid, corners, cells, *, newton_steps=6, tol=1e-6, max_candidates=65_536,
-                     check=None):
+def _lookup_in_cells(grid, corners, cells, *, newton_steps=MotionOptions.newton_steps, tol=1e-6,
+                     max_candidates=65_536, check=None):
     """`inverse_lookup`'s nodes found (M,), each with its cell (an index into ``cells``) and
     its local coordinates about the cell's centre (d, M): what a multilinear read of node
     values at the source points needs (`multilinear_in_cells`). ``corners``: the moved
@@ -358,7 +360,8 @@ class Transport:
     """
 
     def __init__(self, field: ArrayLike, trajectories: Trajectories | FinePaths, *,
-                 interpolation: str = "cubic", newton_steps: int = 6,
+                 interpolation: str = MotionOptions.interpolation,
+                 newton_steps: int = MotionOptions.newton_steps,
                  truncation: float | None = None, cancel: Callable[[], bool] | None = None,
                  torn: ArrayLike | None = None) -> None:
         if interpolation not in ("cubic", "linear"):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 __all__ = ["SurfaceOptions"]
@@ -28,3 +29,8 @@ class SurfaceOptions:
     coverage: bool = True
     surfaces: bool = True
     levelsets: bool = False
+
+    @classmethod
+    def names(cls) -> frozenset:
+        """The keyword names these options take."""
+        return frozenset(f.name for f in dataclasses.fields(cls))

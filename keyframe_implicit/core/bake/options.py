@@ -1,0 +1,106 @@
+"""The options of a whole bake, as one frozen object (`BakeOptions`).
+
+A bake's options are built once where the bake is asked for: from `pipeline.animate`'s
+keyword arguments (`BakeOptions.from_keywords`), from the panel's settings on the Blender
+side (`blender.scene_io.BakeInput.core_arguments`), or read back from a farm job's
+directory. Each stage then reads its own part: the planner the grids' settings
+(`pipeline.plan_bake`), the chain the key interpolation and the processes
+(`chain.Chain`), the map solve `map`, the trajectories and transports `motion`, each
+frame's outputs `surface`. Every default is written once, in these fields.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from ..map.options import MapOptions, weight_options
+from ..motion.options import MotionOptions
+from ..surface.options import SurfaceOptions
+
+__all__ = ["BakeOptions"]
+
+#: The fields holding one stage's options each, and the class of each.
+_STAGES = {"map": MapOptions, "motion": MotionOptions, "surface": SurfaceOptions}
+
+
+@dataclass(frozen=True)
+class BakeOptions:
+    """Settings of one bake (docs/method.md, sections 11 and 12 for the two grids and the
+    key interpolation).
+
+    Attributes
+    ----------
+    resolution : int
+        Grid cells along the longest side of the keyframes' bounding box (48).
+    motion_resolution : int or None
+        Cells along the same side of the motion grid, on which the maps and the
+        trajectories are solved; from 8 to ``resolution``, which reproduces a bake on one
+        grid. None (default): chosen from a cost budget (`gridfit.auto_motion_resolution`).
+    padding_cells : int
+        Empty cells around the keyframes' bounding box (4).
+    max_bytes : int or None
+        Memory limit of the bake; None (default): 75 % of the physical memory.
+    template : {"keyframe", "grid"}
+        The mesh carried through the frames: the first keyframe's own mesh with its
+        attributes and sub-cell detail (default; `template.DetailTrack`; the grid's when it
+        has loose vertices), or marching cubes of its distance grid.
+    key_interpolation : str, sequence of str, or None
+        Per keyframe, how the motion passes it (`spline.KEY_INTERPOLATIONS`): "smooth"
+        (None, the default: continuous velocity), "linear" or "ease".
+    processes : int
+        1 (default): everything in this process; 2 or more: a helper process shares the
+        maps and the frames (`chain.animate_chain`).
+    map : `map.options.MapOptions`
+        The map solve's settings, eq. 2.6's weights among them.
+    motion : `motion.options.MotionOptions`
+        The trajectories', the transports' and the blend's settings.
+    surface : `surface.options.SurfaceOptions`
+        What each frame yields besides the template's vertices.
+    """
+
+    resolution: int = 48
+    motion_resolution: int | None = None
+    padding_cells: int = 4
+    max_bytes: int | None = None
+    template: str = "keyframe"
+    key_interpolation: str | tuple | list | None = None
+    processes: int = 1
+    map: MapOptions = field(default_factory=MapOptions)
+    motion: MotionOptions = field(default_factory=MotionOptions)
+    surface: SurfaceOptions = field(default_factory=SurfaceOptions)
+
+    @classmethod
+    def from_keywords(cls, *, weights: dict | None = None, **keywords) -> BakeOptions:
+        """The options `pipeline.animate`'s keywords ask for, each keyword given to the one
+        class that names it: this one's own fields, then `SurfaceOptions`',
+        `MotionOptions`' and `MapOptions`' (``volume_weight`` and the like included).
+        ``weights`` ({"volume": 30.0, ...}, by term name) sets the map's weights over any
+        ``<term>_weight`` keyword.
+
+        ValueError names an unknown keyword or weight and lists the known ones.
+        """
+        own = {f.name for f in dataclasses.fields(cls)} - set(_STAGES)
+        known = {"": own, "surface": SurfaceOptions.names(), "motion": MotionOptions.names(),
+                 "map": MapOptions.names()}
+        parts = {name: {} for name in known}
+        for key, value in keywords.items():
+            owner = next((name for name, names in known.items() if key in names), None)
+            if owner is None:
+                raise ValueError(f"unknown option {key!r}; known options: "
+                                 f"{sorted(set().union(*known.values()) | {'weights'})}.")
+            parts[owner][key] = value
+        parts["map"].update(_weight_keywords(weights))
+        return cls(**parts[""], map=MapOptions.from_keywords(**parts["map"]),
+                   motion=MotionOptions(**parts["motion"]),
+                   surface=SurfaceOptions(**parts["surface"]))
+
+
+def _weight_keywords(weights):
+    """The weights of eq. 2.6's terms by name ({"volume": 30.0, ...}) as the map's keywords
+    ({"volume_weight": 30.0, ...}); ValueError naming an unknown one."""
+    names = {term: option for option, term in weight_options().items()}
+    unknown = sorted(set(weights or {}) - set(names))
+    if unknown:
+        raise ValueError(f"Unknown weight {unknown[0]!r}; use {sorted(names)}.")
+    return {names[key]: float(value) for key, value in (weights or {}).items()}
