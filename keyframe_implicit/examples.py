@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .core.bake.pipeline import Keyframe
+from .core.bake.keyframe import Keyframe
 from .core.surface.extract import loop_area, mesh_volume
 from .shapes import (capsule_sdf, match_volume, mesh_of, rigid_motion, rotation, round_box_sdf,
                      round_cylinder_sdf, smooth_union, sphere_sdf)

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..core.surface.attributes import MeshAttributes
 from ..core.bake.options import BakeOptions
-from ..core.bake.pipeline import Keyframe
+from ..core.bake.keyframe import Keyframe
 from ..core.fields.measure import Surface
 from ..core.fields.measure import read_surface as measure_surface
 from . import features, volumes

@@ -47,7 +47,7 @@ _EXPORTS = {
     "track_template": "surface.template",
     "animate_chain": "bake.chain",
     "animate": "bake.pipeline",
-    "Keyframe": "bake.pipeline",
+    "Keyframe": "bake.keyframe",
     "Animation": "bake.animation",
     "Cancelled": "base.progress",
     "Reporter": "base.progress",

@@ -37,7 +37,8 @@ class JobError(ValueError):
 def _classes():
     """The classes a job file may hold, by name: {name: (class, fields of an object)}."""
     from ..core.bake.options import BakeOptions
-    from ..core.bake.pipeline import BakePlan, Keyframe
+    from ..core.bake.keyframe import Keyframe
+    from ..core.bake.pipeline import BakePlan
     from ..core.base.grid import Grid
     from ..core.map.options import MapOptions
     from ..core.map.result import MapResult

@@ -2,6 +2,7 @@
 
 ``pipeline``  `animate` and `bake`: plan (checks, grids), distance grids, chain, output
               choice
+``keyframe``  `Keyframe`: one keyframe's mesh in world space and its timeline frame
 ``options``   `BakeOptions`: a bake's options, built once, each stage reading its part
 ``checks``    refusals before any heavy work, and the result checked after
 ``gridfit``   the one grid holding every keyframe and feature point

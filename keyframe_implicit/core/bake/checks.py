@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from ..base.grid import Grid
     from ..fields.measure import Surface
     from .animation import Animation
-    from .pipeline import Keyframe
+    from .keyframe import Keyframe
 
     #: Per segment, per feature pair, the two Empties' names (on keyframe A, on B).
     FeatureNames = Sequence[Sequence[tuple[str, str]]]

@@ -21,6 +21,7 @@ from .animation import Animation
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
+from .keyframe import Keyframe
 from .options import BakeOptions
 
 if TYPE_CHECKING:
@@ -28,26 +29,6 @@ if TYPE_CHECKING:
 
 __all__ = ["Keyframe", "animate", "bake", "BakePlan", "plan_bake", "bake_grids",
            "distance_fields", "distance_grid", "finish_bake"]
-
-
-@dataclass
-class Keyframe:
-    """One keyframe: a mesh in world space on a timeline frame.
-
-    vertices : (V, 3) float array, world coordinates.
-    faces : sequence of index sequences (triangles or polygons), or an (F, k) int array.
-    frame : int, the timeline frame this shape must be matched on.
-    name : str, optional; the object's name, used in messages about this keyframe.
-    attributes : `attributes.MeshAttributes`, optional; the mesh's polygons, UV maps,
-        colours, materials, sharp and seam edges, custom normals. On the first keyframe they
-        make the artist's own mesh the shape-keyed result.
-    """
-
-    vertices: np.ndarray
-    faces: object
-    frame: int
-    name: str = ""
-    attributes: object = None
 
 
 def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
