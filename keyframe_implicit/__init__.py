@@ -10,7 +10,9 @@ extension is enabled; they also work when the package is imported from a
 source checkout with the ``bpy`` module.
 """
 
-__version__ = "0.1.0"
+from .version import __version__
+
+__all__ = ["__version__", "register", "unregister"]
 
 
 def register():

@@ -19,7 +19,7 @@ import tempfile
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 
 __all__ = ["save", "load", "fingerprint", "write_manifest", "read_manifest", "JobError",
            "FORMAT"]

@@ -135,7 +135,7 @@ def test_blender_validator_accepts_zip_and_manifest_is_honest(linux_zip):
     source = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
     assert source["blender_version_min"] == manifest["blender_version_min"] == "4.2.0"
     # One version everywhere: manifest, package, pyproject.
-    init = (ROOT / "keyframe_implicit" / "__init__.py").read_text()
+    init = (ROOT / "keyframe_implicit" / "version.py").read_text()
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert f'__version__ = "{source["version"]}"' in init
     assert manifest["version"] == source["version"] == pyproject["project"]["version"]

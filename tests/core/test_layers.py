@@ -1,11 +1,10 @@
 """The package's import graph: no circle, and no arrow from a lower layer to a higher one.
 
-From the bottom: ``core`` (bpy-free: the method); the worker processes (``worker``,
+From the bottom: ``core`` (bpy-free: the method) and ``version`` (one constant); the worker processes (``worker``,
 ``preview_worker``) and ``farm`` (bpy-free: the stages of a farm job); ``blender`` (the
 add-on, which reaches ``farm`` in ``blender.farm``); the package's top, whose
 ``register`` Blender calls; ``cli``, the command line; ``__main__``, which only dispatches.
-Every import counts, the ones inside functions too. One is left out: the package's version,
-a constant of the top module, which the farm's job files carry.
+Every import counts, the ones inside functions and those only type checkers read too.
 """
 
 import ast
@@ -27,7 +26,7 @@ def _modules():
 
 
 def _imports(name, path, modules):
-    """The package's modules ``name`` imports (the version constant left out)."""
+    """The package's modules ``name`` imports."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     targets = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
@@ -38,8 +37,7 @@ def _imports(name, path, modules):
             if node.level:
                 anchor = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
                 base = f"{anchor}.{base}" if base else anchor
-            targets += [f"{base}.{alias.name}" for alias in node.names
-                        if not (base == PACKAGE and alias.name == "__version__")]
+            targets += [f"{base}.{alias.name}" for alias in node.names]
     found = set()
     for target in targets:
         while target and target not in modules:  # a name imported from a module: the module
@@ -107,7 +105,7 @@ def test_the_core_imports_nothing_above_it():
 
 def test_the_farm_and_the_workers_stay_below_blender_and_the_command_line():
     graph = _graph()
-    below = [f"{PACKAGE}.core", f"{PACKAGE}.farm", f"{PACKAGE}.worker"]
+    below = [f"{PACKAGE}.core", f"{PACKAGE}.farm", f"{PACKAGE}.worker", f"{PACKAGE}.version"]
     assert _arrows(graph, f"{PACKAGE}.farm", below) == []
     assert _arrows(graph, f"{PACKAGE}.worker", below) == []
     assert _arrows(graph, f"{PACKAGE}.preview_worker", below) == []
