@@ -7,22 +7,25 @@ The package has two halves:
 
 ``register()`` / ``unregister()`` below are what Blender calls when the
 extension is enabled; they also work when the package is imported from a
-source checkout with the ``bpy`` module.
+source checkout with the ``bpy`` module. They import the Blender side themselves: importing
+the package (the worker processes and the command line do) imports no bpy.
 """
+
+from __future__ import annotations
 
 from .version import __version__
 
 __all__ = ["__version__", "register", "unregister"]
 
 
-def register():
+def register() -> None:
     """Register the add-on's properties, operators, panels and handlers with Blender."""
     from . import blender
 
     blender.register()
 
 
-def unregister():
+def unregister() -> None:
     """Remove what `register` added, in reverse order."""
     from . import blender
 

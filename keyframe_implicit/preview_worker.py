@@ -23,13 +23,20 @@ A solve or a stop cancels the work in flight (the core's ``cancel`` callable, ch
 between its steps); a frame cancels a frame in flight. Requests that arrive while the
 worker is busy coalesce: it takes the last solve, then the last frame. The worker leaves
 when stdin ends (the parent has gone or closed it: `wire.follow_parent`).
+
+The worker imports the core's preview (`main`) only once it follows its parent and takes
+requests: that import is the longest part of its start, and a parent gone meanwhile ends it.
 """
+
+from __future__ import annotations
 
 import pickle
 import queue
 import threading
 import traceback
+from typing import Any
 
+from .core.base.progress import Cancelled
 from .core.base.wire import follow_parent, receive, send
 from .worker import ROOT, WORKER_ROOT, connect_parent, lower_priority, no_sigpipe, start_process
 
@@ -71,16 +78,16 @@ class PreviewWorker:
         self._requests.put((kind, self._last_id) + parts)
         return self._last_id
 
-    def solve(self, arguments, frame):
+    def solve(self, arguments: dict[str, Any], frame: int) -> int:
         """Ask for a new solve (`Preview.solve`'s keyword arguments) and then ``frame``;
         returns the request's id."""
         return self._request("solve", arguments, int(frame))
 
-    def frame(self, frame):
+    def frame(self, frame: int) -> int:
         """Ask for timeline frame ``frame``'s mesh; returns the request's id."""
         return self._request("frame", int(frame))
 
-    def stop(self):
+    def stop(self) -> int:
         """End the work in flight; returns the request's id."""
         return self._request("stop")
 
@@ -92,7 +99,7 @@ class PreviewWorker:
                 break
         self._answers.put(("ended", None, self.process.wait()))
 
-    def answers(self):
+    def answers(self) -> list[tuple]:
         """Every answer received since the last call, oldest first (never waits)."""
         out = []
         while True:
@@ -102,11 +109,11 @@ class PreviewWorker:
                 return out
 
     @property
-    def alive(self):
+    def alive(self) -> bool:
         """Whether the worker process is running."""
         return self.process.poll() is None
 
-    def close(self):
+    def close(self) -> None:
         """End the worker now (killed: it holds nothing the scene depends on)."""
         self._requests.put(None)
         if self.process.poll() is None:
@@ -163,8 +170,7 @@ def main() -> None:
     lower_priority()
     parent, sender = connect_parent()
     requests = _Requests(parent, sender)
-    from .core.bake.preview import Preview
-    from .core.base.progress import Cancelled
+    from .core.bake.preview import Preview  # only now (module docstring)
 
     preview = Preview()
     while True:

@@ -31,7 +31,13 @@ maps them onto its own (`wire.receive`'s ``rename``).
 
 The live preview's worker (`preview_worker`) is started, lowered and connected the same
 way: `start_process`, `lower_priority`, `connect_parent`.
+
+The worker imports the core's bake (`main`) only after it has started its helper and read
+the inputs: that import is the longest part of its start, and the helper's interpreter
+loads meanwhile.
 """
+
+from __future__ import annotations
 
 import contextlib
 import dataclasses
@@ -42,10 +48,15 @@ import site
 import subprocess
 import sys
 import traceback
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING
 
 from .core.base.parallel import Helper, cores
 from .core.base.progress import Cancelled
 from .core.base.wire import Stream, follow_parent, receive, send
+
+if TYPE_CHECKING:  # read by type checkers only: the worker imports the core when it bakes
+    from .core.bake.animation import Animation
 
 __all__ = ["Worker", "WorkerError", "start_process", "lower_priority", "connect_parent",
            "no_sigpipe", "python_path", "NICENESS"]
@@ -73,7 +84,7 @@ class WorkerError(RuntimeError):
 
 
 @contextlib.contextmanager
-def no_sigpipe():
+def no_sigpipe() -> Iterator[None]:
     """Within this block a write to a process that has ended raises BrokenPipeError instead
     of SIGPIPE: Python ignores that signal, but Blender's embedded interpreter does not, and
     its default action ends Blender. The signal is blocked in this thread for the block and
@@ -91,7 +102,7 @@ def no_sigpipe():
             signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-def python_path():
+def python_path() -> str:
     """The worker's PYTHONPATH: the folder holding this package, then the folders numpy,
     scipy, scikit-image and threadpoolctl come from unless they are this Python's own
     site-packages (which the worker has anyway), then the parent's PYTHONPATH."""
@@ -159,13 +170,13 @@ class Worker:
         self.cancelled = False
         self.process, self._stream = start_process("worker")
 
-    def cancel(self):
+    def cancel(self) -> None:
         """End the bake now (from any thread): the process is killed, `result` raises
         `Cancelled`."""
         self.cancelled = True
         self.process.kill()
 
-    def result(self, progress):
+    def result(self, progress: Callable[[float, str], object]) -> Animation:
         """Send the inputs, pass progress on to ``progress(fraction, message)`` (in this
         thread) and return the `Animation`, once the worker has ended.
 
@@ -251,7 +262,7 @@ def main() -> None:
     parent, sender = connect_parent()
     arguments = receive(parent, (sender, ROOT))
     follow_parent(parent)  # a worker whose parent has gone stops at once, not bakes on
-    from .core.bake import pipeline
+    from .core.bake import pipeline  # only now (module docstring)
     from .core.surface.meshdata import resolve_output
 
     mode = arguments.pop("output_mode", None)
