@@ -10,6 +10,10 @@ panel's "keyframes 1 → 2" counts them.
 
 Each stage reads the files of the stages before it and writes its own (`store`); rerun,
 it writes the same file again.
+
+The core's bake is imported in the stages' functions: the command line imports this module
+for every stage (and for ``--help``), and a task starts its helper process first, which
+loads the core while the task imports the rest of it and reads its files.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,37 +30,42 @@ from ..core.base.parallel import Helper, can_start_helper, cores, one_blas_threa
 from ..core.base.progress import Reporter
 from . import store
 
+if TYPE_CHECKING:  # read by type checkers only (module docstring)
+    from ..core.bake.animation import Animation
+
 __all__ = ["prepare", "solve_pair", "bend_paths", "make_segment", "assemble", "JobFiles"]
 
 
 class JobFiles:
     """Where each stage's file lives in the job directory ``root``."""
 
-    def __init__(self, root):
+    def __init__(self, root: str) -> None:
         self.root = os.path.abspath(root)
 
-    def path(self, *parts):
+    def path(self, *parts: str) -> str:
         return os.path.join(self.root, *parts)
 
     @property
-    def inputs(self):
+    def inputs(self) -> str:
         return self.path("inputs.npz")
 
     @property
-    def plan(self):
+    def plan(self) -> str:
         return self.path("plan.npz")
 
-    def pair(self, i):
+    def pair(self, i: int) -> str:
         return self.path("maps", f"pair_{i}.npz")
 
-    def paths(self, i):
+    def paths(self, i: int) -> str:
         return self.path("paths", f"segment_{i}.npz")
 
-    def segment(self, i):
+    def segment(self, i: int) -> str:
         return self.path("segments", f"segment_{i}.npz")
 
 
-def prepare(arguments, output_mode, job_dir, source, progress=None):
+def prepare(arguments: dict[str, Any], output_mode: str | None, job_dir: str,
+            source: dict[str, str], progress: Callable[[float, str], None] | None = None
+            ) -> dict[str, Any]:
     """Write the job directory's inputs, plan and the keyframes' distance grids.
 
     Parameters
@@ -94,7 +105,8 @@ def prepare(arguments, output_mode, job_dir, source, progress=None):
     return manifest
 
 
-def solve_pair(job_dir, pair, progress=None):
+def solve_pair(job_dir: str, pair: int | Sequence[int],
+               progress: Callable[[float, str], None] | None = None) -> None:
     """Solve the maps of pair ``pair`` (keyframes ``pair`` -> ``pair + 1``), both ways, or of
     every pair in ``pair`` (a sequence): their maps shared between this process and a
     helper, each taking the next map when it is free, as the local bake shares them."""
@@ -108,7 +120,7 @@ def solve_pair(job_dir, pair, progress=None):
         store.save(files.pair(p), {"job": job, "maps": chain.inbetweens.solved[k]})
 
 
-def bend_paths(job_dir, progress=None):
+def bend_paths(job_dir: str, progress: Callable[[float, str], None] | None = None) -> None:
     """Every segment's bends (`spline.Bend`, None when no path bends) and the template's
     vertices on its first frame, from every pair's maps; a file per segment."""
     files, job, plan, chain = _open(job_dir)
@@ -128,7 +140,8 @@ def bend_paths(job_dir, progress=None):
         store.save(files.paths(k + 1), {"job": job, "bends": bends, "start": starts[k]})
 
 
-def make_segment(job_dir, segment, progress=None):
+def make_segment(job_dir: str, segment: int,
+                 progress: Callable[[float, str], None] | None = None) -> None:
     """Segment ``segment``'s frames (keyframes ``segment`` -> ``segment + 1``)."""
     with _task_helper() as helper:
         files, job, plan, chain = _open(job_dir)
@@ -146,7 +159,7 @@ def make_segment(job_dir, segment, progress=None):
                                         "stats": stats})
 
 
-def assemble(job_dir, progress=None):
+def assemble(job_dir: str, progress: Callable[[float, str], None] | None = None) -> Animation:
     """The bake's `Animation` from every segment's frames, exactly as the worker returns
     it (output mesh included); `store.JobError` naming the segments not made yet."""
     from ..core.bake.chain import Kept
@@ -177,7 +190,7 @@ def assemble(job_dir, progress=None):
     return result
 
 
-def inputs(job_dir):
+def inputs(job_dir: str) -> dict[str, Any]:
     """What ``prepare`` was given: {"arguments": ..., "output_mode": ...}."""
     files = JobFiles(job_dir)
     manifest = store.read_manifest(job_dir)
@@ -218,7 +231,7 @@ def _index(number, count, what):
 
 
 @contextlib.contextmanager
-def _task_helper():
+def _task_helper() -> Iterator[Helper | None]:
     """A helper process for the second core, as the worker starts one (None on one core, or
     where none can start: in Blender's own process, for prepare). Started first thing in a
     task, it imports while the task reads its files."""

@@ -7,6 +7,9 @@ anything it holds. Classes are rebuilt only from this package's own list (`_clas
 A file carries the fingerprint of the inputs ``prepare`` read (`fingerprint`); a stage
 refuses a file made for other inputs, and the manifest (`read_manifest`) refuses a
 directory written by another version of the add-on.
+
+The classes are imported when a file is first written or read (`_classes`): they import
+the core's bake, which the command line's ``--help`` and the manifest's readers do without.
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ import hashlib
 import json
 import os
 import tempfile
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -101,7 +106,7 @@ def _tree(obj):
     return json.dumps(_encode(obj, arrays, _classes())), arrays
 
 
-def fingerprint(obj):
+def fingerprint(obj: object) -> str:
     """A hex digest of ``obj``'s content: its tree and every array's type, shape and bytes."""
     text, arrays = _tree(obj)
     h = hashlib.sha256(text.encode())
@@ -111,7 +116,7 @@ def fingerprint(obj):
     return h.hexdigest()
 
 
-def save(path, obj):
+def save(path: str, obj: object) -> None:
     """Write ``obj`` to ``path`` (a .npz) whole: written beside it, then moved in place, so
     a task stopped half way leaves the old file or none, and a rerun replaces it."""
     text, arrays = _tree(obj)
@@ -128,14 +133,14 @@ def save(path, obj):
         raise
 
 
-def load(path):
+def load(path: str) -> Any:
     """The object `save` wrote to ``path``."""
     with np.load(path, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files if k != "tree"}
         return _decode(json.loads(str(z["tree"])), arrays, _classes())
 
 
-def write_manifest(job_dir, manifest):
+def write_manifest(job_dir: str, manifest: Mapping[str, Any]) -> None:
     """Write DIR/manifest.json: ``manifest`` plus the layout and the add-on's version."""
     data = dict(manifest, format=FORMAT, version=__version__)
     path = os.path.join(job_dir, MANIFEST)
@@ -145,7 +150,7 @@ def write_manifest(job_dir, manifest):
     os.replace(tmp, path)
 
 
-def read_manifest(job_dir):
+def read_manifest(job_dir: str) -> dict[str, Any]:
     """DIR/manifest.json, or `JobError` when there is none or another version wrote it."""
     path = os.path.join(job_dir, MANIFEST)
     if not os.path.isfile(path):

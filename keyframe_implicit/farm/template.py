@@ -27,6 +27,9 @@ import json
 import os
 import shutil
 import sys
+from typing import Any
+
+from ..worker import python_path as worker_path
 
 __all__ = ["job_template", "write_template", "to_yaml", "TEMPLATE"]
 
@@ -52,11 +55,10 @@ def _tasks(name, count, chunk=None):
     return {"taskParameterDefinitions": [task]}
 
 
-def job_template(job_dir, blend_path, segments, resolution, python=None, python_path=None,
-                 blender=""):
+def job_template(job_dir: str, blend_path: str, segments: int, resolution: int,
+                 python: str | None = None, python_path: str | None = None,
+                 blender: str = "") -> dict[str, Any]:
     """The job template as a dict (see the module docstring)."""
-    from ..worker import python_path as worker_path
-
     job_dir = os.path.abspath(job_dir)
     params = [
         # a PATH's default lies in the template's folder, the job directory
@@ -111,7 +113,7 @@ def job_template(job_dir, blend_path, segments, resolution, python=None, python_
     }
 
 
-def to_yaml(value, indent=0):
+def to_yaml(value: object, indent: int = 0) -> str:
     """``value`` (dicts, lists, strings, numbers) as block YAML; strings double-quoted."""
     pad = " " * indent
     if isinstance(value, dict):
@@ -132,7 +134,8 @@ def to_yaml(value, indent=0):
     return pad + json.dumps(value)
 
 
-def write_template(job_dir, blend_path, segments, resolution, **kwargs):
+def write_template(job_dir: str, blend_path: str, segments: int, resolution: int,
+                   **kwargs: str | None) -> str:
     """Write DIR/template.yaml (`job_template`'s keywords); returns its path."""
     os.makedirs(job_dir, exist_ok=True)
     copy = os.path.join(job_dir, os.path.basename(blend_path))
