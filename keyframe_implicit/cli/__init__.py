@@ -19,6 +19,10 @@ import os
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
+from .. import register
+from ..core.base.progress import Cancelled
+from ..worker import WorkerError
+
 if TYPE_CHECKING:  # read by type checkers only: bpy is imported when a command needs it
     import bpy
 
@@ -54,9 +58,6 @@ def failure_line(what: str, exc: BaseException) -> str:
     """The line a command prints when ``what`` failed with ``exc``: the text alone for the
     failures that say what happened and what to do in their own words, else with the
     exception's type."""
-    from ..core.base.progress import Cancelled
-    from ..worker import WorkerError
-
     told = isinstance(exc, (ValueError, Cancelled, WorkerError))
     return f"error: {what} failed: {'' if told else f'{type(exc).__name__}: '}{exc}"
 
@@ -66,8 +67,6 @@ def open_file(scene_path: str) -> Iterator[tuple[bpy.types.Scene, bpy.types.Deps
     (scene, depsgraph) of each of its scenes with keyframes, the scene made the window's
     when there is a window (the depsgraph then None). ValueError when none has keyframes."""
     import bpy
-
-    from .. import register
 
     register()
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(scene_path), load_ui=False)

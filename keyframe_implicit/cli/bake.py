@@ -34,7 +34,7 @@ def bake_file(scene_path: str, out_path: str, resolution: int = 0,
     if resolution < 0:
         raise ValueError(f"--resolution must be positive, got {resolution}.")
     check_paths(scene_path, out_path)
-    from ..blender import bake
+    from ..blender import bake  # imports bpy: only now, once the paths are checked
 
     for scene, depsgraph in open_file(scene_path):
         report = percent_log(scene.name, log)

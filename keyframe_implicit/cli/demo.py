@@ -17,17 +17,28 @@ Stages, one progress line each on the terminal:
    tiles labelled with their frame numbers; keyframe tiles get an orange border.
 
 `render_contact_sheet` works on any scene with a camera, e.g. any shape-keyed mesh.
+
+bpy is imported in the functions that use it: ``demo --help`` works without it, and `main`
+says how to get it when it is missing.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Collection, Container, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from .. import register
+
+if TYPE_CHECKING:  # read by type checkers only: bpy is imported where it is used
+    import bpy
 
 SCENES = ("rigid", "merge", "bend", "splash", "suzanne")
 DEFAULT_SCENE = "merge"
@@ -54,7 +65,7 @@ def _parse_tile(text):
     return w, h
 
 
-def parse_args(argv):
+def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     """The demo's command line (``python -m keyframe_implicit demo --help``)."""
     p = argparse.ArgumentParser(
         prog="python -m keyframe_implicit demo",
@@ -81,12 +92,10 @@ def ensure_registered() -> None:
     import bpy
 
     if not hasattr(bpy.types.Scene, "keyframe_implicit"):
-        from .. import register
-
         register()
 
 
-def open_scene(name):
+def open_scene(name: str) -> bpy.types.Scene:
     """Open assets/NAME.blend (build it with assets/make_assets.py if it is missing)."""
     import bpy
 
@@ -95,8 +104,6 @@ def open_scene(name):
     if os.path.exists(path):
         bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
     else:
-        import importlib.util
-
         spec = importlib.util.spec_from_file_location("kfi_make_assets",
                                                       os.path.join(ASSETS, "make_assets.py"))
         if spec is None:
@@ -108,12 +115,12 @@ def open_scene(name):
     return bpy.context.scene
 
 
-def keyframe_objects(scene):
+def keyframe_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """The scene's keyframe mesh objects in timeline order."""
     return [k.object for k in scene.keyframe_implicit.keyframes if k.object is not None]
 
 
-def output_object(scene):
+def output_object(scene: bpy.types.Scene) -> bpy.types.Object | None:
     """The baked object: the setup's output pointer, else the mesh with the most shape keys."""
     settings = scene.keyframe_implicit
     obj = getattr(settings, "output_object", None)
@@ -125,7 +132,7 @@ def output_object(scene):
     return max(keyed, key=lambda o: len(o.data.shape_keys.key_blocks))
 
 
-def bake(scene, resolution):
+def bake(scene: bpy.types.Scene, resolution: int) -> bpy.types.Object:
     """Run the add-on's bake (blocking) and return the baked object."""
     import bpy
 
@@ -138,7 +145,7 @@ def bake(scene, resolution):
     return obj
 
 
-def hide_setup(scene):
+def hide_setup(scene: bpy.types.Scene) -> None:
     """Hide keyframes and feature Empties in the viewport and in renders (Alt+H shows them)."""
     import bpy
 
@@ -152,7 +159,8 @@ def hide_setup(scene):
 
 
 # --------------------------------------------------------------------------- rendering
-def sheet_frames(start, end, count, keyframes=()):
+def sheet_frames(start: int, end: int, count: int, keyframes: Collection[int] = ()
+                 ) -> list[int]:
     """About `count` frames from start to end (both included), keyframe frames always in."""
     even = np.rint(np.linspace(start, end, max(2, count))).astype(int)
     frames = set(even.tolist()) | {int(f) for f in keyframes if start <= f <= end}
@@ -194,7 +202,8 @@ def _write_png(path, pixels):
         bpy.data.images.remove(img)
 
 
-def compose(tiles, columns, keyed=(), gap=10, border=4):
+def compose(tiles: Sequence[np.ndarray], columns: int, keyed: Container[int] = (),
+            gap: int = 10, border: int = 4) -> np.ndarray:
     """Lay (H, W, 4) tiles out in a grid, row by row; tiles whose index is in `keyed` get an
     orange frame drawn in the gap around them (the tile itself is left untouched)."""
     h, w = tiles[0].shape[:2]
@@ -211,8 +220,11 @@ def compose(tiles, columns, keyed=(), gap=10, border=4):
     return sheet
 
 
-def render_contact_sheet(scene, path, frames, keyframes=(), tile=(320, 240), columns=None,
-                         progress=None):
+def render_contact_sheet(scene: bpy.types.Scene, path: str, frames: Sequence[int],
+                         keyframes: Collection[int] = (), tile: tuple[int, int] = (320, 240),
+                         columns: int | None = None,
+                         progress: Callable[[int, int, int], object] | None = None
+                         ) -> np.ndarray:
     """Render `frames` of `scene` with Workbench and write them as one grid image to `path`.
 
     Parameters
@@ -288,8 +300,9 @@ def _stamp_frame_only(render, font):
 
 
 # --------------------------------------------------------------------------- main
-def run(scene_name=DEFAULT_SCENE, out="out", resolution=DEFAULT_RESOLUTION, frames=12,
-        tile=(320, 240)):
+def run(scene_name: str = DEFAULT_SCENE, out: str = "out", resolution: int = DEFAULT_RESOLUTION,
+        frames: int = 12, tile: tuple[int, int] = (320, 240)
+        ) -> tuple[str, str, str, dict[str, float]]:
     """Do the four stages; returns (blend path, png path, baked object name, timings dict)."""
     import bpy
 
@@ -335,7 +348,7 @@ def run(scene_name=DEFAULT_SCENE, out="out", resolution=DEFAULT_RESOLUTION, fram
     return blend, png, obj.name, times
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``python -m keyframe_implicit demo``; returns a process exit code."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:

@@ -12,7 +12,8 @@ of importing the bpy module. Exit status 0 on success, 1 when the stage fails (t
 message says why and what to do), 2 on bad arguments.
 
 The stages themselves are in `farm` (bpy-free) and, for prepare and assemble, in
-`blender.farm`.
+`blender.farm`, which imports bpy: it is imported in the functions of the stages that read
+the .blend, so the others run without bpy.
 """
 
 from __future__ import annotations
