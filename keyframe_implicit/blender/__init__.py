@@ -19,29 +19,27 @@ Module map (operators and panels are thin; logic lives in plain functions):
 =============  ================================================================
 """
 
+from __future__ import annotations
+
+import bpy
+
+from . import ops, panel, preview, props, result_view, scene_io
+
 _registered = []
 _HANDLERS = ("depsgraph_update_post", "load_post")
 
 
 def _forget_surfaces(scene=None, depsgraph=None):
     """Handler: kept pre-bake surface checks are stale after geometry updates and loads."""
-    from . import scene_io
-
     scene_io.forget_surfaces(scene, depsgraph)
 
 
 def _class_lists():
-    from . import ops, panel, props
-
     return (props.classes, ops.classes, panel.classes)
 
 
-def register():
+def register() -> None:
     """Register the property groups, operators and panels (idempotent after unregister)."""
-    import bpy
-
-    from . import props
-
     if _registered:
         return
     for group in _class_lists():
@@ -49,25 +47,17 @@ def register():
             bpy.utils.register_class(cls)
             _registered.append(cls)
     props.register_properties()
-    from . import ops
-
     bpy.types.VIEW3D_MT_object.append(ops.menu_func)
     bpy.app.handlers.persistent(_forget_surfaces)  # kept across file loads
     for name in _HANDLERS:
         getattr(bpy.app.handlers, name).append(_forget_surfaces)
-    from . import preview, result_view
-
     props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled)
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)
 
 
-def unregister():
+def unregister() -> None:
     """Undo `register` in reverse order."""
-    import bpy
-
-    from . import ops, props
-
     if not _registered:
         return
     for name in _HANDLERS:
@@ -75,8 +65,6 @@ def unregister():
         if _forget_surfaces in handlers:
             handlers.remove(_forget_surfaces)
     _forget_surfaces()
-    from . import preview
-
     preview.stop()
     for name, handler in preview.HANDLERS:
         handlers = getattr(bpy.app.handlers, name)

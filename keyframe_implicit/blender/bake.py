@@ -31,20 +31,20 @@ import time
 from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING
 
+import bpy
+
 from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
 from . import output, scene_io, validate, volumes
 from .diagnostics import Diagnostics
 
 if TYPE_CHECKING:  # read by type checkers only
-    import bpy
-
     from ..core.bake.animation import Animation
 
 READY, RUNNING, DONE, CANCELLED, FAILED = "READY", "RUNNING", "DONE", "CANCELLED", "FAILED"
 
 
-def failure_text(exc):
+def failure_text(exc: BaseException) -> str:
     """What the user reads about a failed bake: a ValueError's or `WorkerError`'s own text
     (they say what to do), else the exception's type and text."""
     if isinstance(exc, (ValueError, WorkerError)):
@@ -67,7 +67,7 @@ class BakeJob:
 
     def __init__(self, inputs: scene_io.BakeInput,
                  on_progress: Callable[["BakeJob", float, str], None] | None = None,
-                 diagnostics: Diagnostics | None = None):
+                 diagnostics: Diagnostics | None = None) -> None:
         self.inputs = inputs
         self.on_progress = on_progress
         self.diagnostics = diagnostics
@@ -84,7 +84,7 @@ class BakeJob:
         self._worker = None
 
     # -- cancellation (the path ESC uses) ---------------------------------
-    def cancel(self):
+    def cancel(self) -> None:
         """Stop the bake now (from any thread): its worker process is ended at once."""
         with self._lock:
             self._cancel.set()
@@ -92,7 +92,7 @@ class BakeJob:
                 self._worker.cancel()
 
     @property
-    def cancel_requested(self):
+    def cancel_requested(self) -> bool:
         """Whether `cancel` was called: what a progress observer or the modal operator can
         ask before the job has reached its end."""
         return self._cancel.is_set()
@@ -145,13 +145,13 @@ class BakeJob:
         self._thread.start()
 
     @property
-    def finished(self):
+    def finished(self) -> bool:
         """Whether the job has ended (DONE, CANCELLED or FAILED) and its thread with it, so
         that `result`, `error` and `apply` can be read safely."""
         return self.state in (DONE, CANCELLED, FAILED) and (
             self._thread is None or not self._thread.is_alive())
 
-    def join(self, timeout=None):
+    def join(self, timeout: float | None = None) -> None:
         """Wait up to ``timeout`` seconds (None: for ever) for the thread `start` began; at
         once when the job was never started."""
         if self._thread is not None:
@@ -165,17 +165,17 @@ class BakeJob:
             self.diagnostics.polled()
         return self.finished
 
-    def status(self):
+    def status(self) -> tuple[float, str]:
         """(fraction, message) of the last progress report, safe from any thread."""
         with self._lock:
             return self.fraction, self.message
 
-    def error_message(self):
+    def error_message(self) -> str:
         """What the user reads about the failure (`failure_text`); "" when nothing failed."""
         return "" if self.error is None else failure_text(self.error)
 
     # -- writing back (main thread only) ------------------------------------
-    def apply(self, scene):
+    def apply(self, scene: bpy.types.Scene) -> bpy.types.Object:
         """Write the result into ``scene`` (main thread); returns the output object."""
         return output.run_steps(self.apply_steps(scene))
 
@@ -231,7 +231,8 @@ def apply_result_steps(scene: bpy.types.Scene, inputs: scene_io.BakeInput, resul
     return obj
 
 
-def collect(scene, depsgraph, resolution=0):
+def collect(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, resolution: int = 0
+            ) -> scene_io.BakeInput:
     """The bake ``scene``'s settings describe: read once and checked.
 
     Parameters
@@ -259,7 +260,10 @@ def collect(scene, depsgraph, resolution=0):
     return inputs
 
 
-def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None):
+def bake_scene(scene: bpy.types.Scene, resolution: int = 0,
+               depsgraph: bpy.types.Depsgraph | None = None,
+               on_progress: Callable[[BakeJob, float, str], None] | None = None,
+               notes: list[str] | None = None) -> bpy.types.Object:
     """Blocking bake of ``scene``'s setup; returns the output object.
 
     ``notes``, a list, receives what the user should be told about the result
@@ -270,8 +274,6 @@ def bake_scene(scene, resolution=0, depsgraph=None, on_progress=None, notes=None
     ran out of memory, or the core failed otherwise).
     The scene is unchanged unless the bake succeeds.
     """
-    import bpy
-
     if depsgraph is None:
         if bpy.context.scene == scene:
             depsgraph = bpy.context.evaluated_depsgraph_get()

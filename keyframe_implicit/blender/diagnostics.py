@@ -16,6 +16,8 @@ It then reads:
 Its clock is replaceable: tests pass a fake one and step it themselves.
 """
 
+from __future__ import annotations
+
 import contextlib
 import time
 from collections.abc import Callable, Iterator
@@ -49,7 +51,7 @@ class Diagnostics:
         When each answered frame became the preview, and its frame.
     """
 
-    def __init__(self, clock: Callable[[], float] = time.perf_counter):
+    def __init__(self, clock: Callable[[], float] = time.perf_counter) -> None:
         self.clock = clock
         self.max_poll_gap = 0.0
         self._last_poll = None

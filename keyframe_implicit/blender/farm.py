@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..farm import stages, store
 from ..farm.template import write_template
@@ -28,8 +28,9 @@ def _inputs_of(inputs):
     return {"arguments": inputs.core_arguments(), "output_mode": inputs.output_mode}
 
 
-def prepare_scene(scene, depsgraph, job_dir, scene_path, resolution=0, segments=None,
-                  progress=None):
+def prepare_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, job_dir: str,
+                  scene_path: str, resolution: int = 0, segments: int | None = None,
+                  progress: Callable[[float, str], None] | None = None) -> dict[str, Any]:
     """Write ``scene``'s bake into ``job_dir`` (`farm.stages.prepare`); the scene is only read.
 
     ``segments``: the number of segments the job was written for (its template's task
@@ -64,13 +65,14 @@ def assemble_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None
     return bake.apply_result(scene, inputs, result)
 
 
-def job_dir_of(blend_path):
+def job_dir_of(blend_path: str) -> str:
     """The job directory Export Farm Job writes beside a saved .blend: NAME_farm."""
     folder, name = os.path.split(os.path.abspath(blend_path))
     return os.path.join(folder, os.path.splitext(name)[0] + "_farm")
 
 
-def export_job(scene, depsgraph, blend_path, blender_path="", job_dir=None, resolution=0):
+def export_job(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, blend_path: str,
+               blender_path: str = "", job_dir: str | None = None, resolution: int = 0) -> str:
     """Check ``scene``'s bake (`bake.collect`) and write its job template into ``job_dir``
     (default: `job_dir_of` ``blend_path``), Prepare and Assemble run by ``blender_path``
     ("": a Python with the bpy module); returns the job directory. ValueError when the

@@ -8,7 +8,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, diagnostics, features, preview, result_view, validate
+from . import bake, diagnostics, farm, features, preview, result_view, validate
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -511,8 +511,6 @@ class KFI_OT_export_farm_job(bpy.types.Operator):
         return KFI_OT_bake.poll(context)
 
     def execute(self, context: bpy.types.Context) -> set[str]:
-        from . import farm
-
         try:
             job_dir = farm.export_job(context.scene, context.evaluated_depsgraph_get(),
                                       bpy.data.filepath, bpy.app.binary_path)

@@ -45,8 +45,10 @@ frame range), its kind (``kfi_output_kind``), the report the panel shows
 on (`STATS`, the Figures' first line, `grid_line`). Nothing else: no timings, no counts.
 """
 
-from collections.abc import Generator, Mapping, Sequence
-from typing import TYPE_CHECKING
+from __future__ import annotations
+
+from collections.abc import Generator, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, TypeVar
 
 import bpy
 import numpy as np
@@ -57,6 +59,10 @@ from . import fcurves, features
 
 if TYPE_CHECKING:
     from ..core.bake.animation import Animation
+    from ..core.surface.meshdata import MeshData
+    from .props import KFI_Settings
+
+_Result = TypeVar("_Result")  # what a generator of steps returns (`run_steps`)
 
 OUTPUT_TAG = "kfi_output"
 COLLECTION_TAG = "kfi_output_collection"
@@ -69,12 +75,12 @@ STATS = "kfi_stats"
 KEY_POINTS_PER_STEP = 1_000_000
 
 
-def frame_key_name(frame):
+def frame_key_name(frame: int) -> str:
     """The shape key of a timeline frame, as the artist sees it in the list."""
     return f"Frame {int(frame)}"
 
 
-def key_schedule(frames):
+def key_schedule(frames: Iterable[int]) -> list[tuple[list[int], list[float]]]:
     """Per frame f: (key frames, values) = ([f-1, f, f+1] clipped to the range, [0, 1, 0])."""
     frames = [int(f) for f in frames]
     first, last = frames[0], frames[-1]
@@ -93,7 +99,8 @@ def _floats(a):
     return np.ascontiguousarray(a, dtype=np.float32).ravel()
 
 
-def mesh_steps(mesh, data, fps=1.0):
+def mesh_steps(mesh: bpy.types.Mesh, data: MeshData, fps: float = 1.0
+               ) -> Generator[None, None, None]:
     """Copy ``data`` (`core.meshdata.MeshData`) into the new, empty ``mesh``, yielding
     between copies so that a caller on Blender's main loop can give it a turn.
 
@@ -125,7 +132,7 @@ def mesh_steps(mesh, data, fps=1.0):
     mesh.update()
 
 
-def write_attributes(mesh, data):
+def write_attributes(mesh: bpy.types.Mesh, data: MeshData) -> None:
     """UV maps (the first active), colour attributes, material indices, smooth flags, sharp
     and seam edges and custom split normals of ``data`` (`core.meshdata.MeshData`) onto
     ``mesh``, whose polygons and edges are ``data``'s own."""
@@ -183,7 +190,8 @@ def _write_edge_flag(mesh, prop, flags):
         mesh.edges.foreach_set(prop, flags)
 
 
-def frame_key_steps(obj, frames, vertices, action_name):
+def frame_key_steps(obj: bpy.types.Object, frames: Sequence[int], vertices: np.ndarray,
+                    action_name: str) -> Generator[None, None, None]:
     """Basis + one shape key per frame on ``obj``, keyed by `key_schedule` through
     `fcurves`; yields after every `KEY_POINTS_PER_STEP` points written."""
     obj.shape_key_add(name="Basis", from_mix=False)
@@ -223,7 +231,7 @@ def _math(tree, operation, a=None, value=None):
     return node
 
 
-def frame_switch_group(name, first, count):
+def frame_switch_group(name: str, first: int, count: int) -> bpy.types.NodeTree:
     """Geometry Nodes group: the faces of the input mesh that belong to the scene frame.
 
     A face belongs to frame ``first + i`` when its ``FRAME_ATTRIBUTE`` is i; the
@@ -256,7 +264,8 @@ def frame_switch_group(name, first, count):
     return tree
 
 
-def slot_materials(own, material_names):
+def slot_materials(own: Sequence[str] | None, material_names: Iterable[str]
+                   ) -> list[bpy.types.Material | None]:
     """The output's material slots: ``own`` slot names in order (the first keyframe's own
     slots when its mesh is the template, or every frame's slots of a mesh sequence; "" for
     an empty one), then the keyframes' other materials to pick from."""
@@ -270,13 +279,13 @@ def slot_materials(own, material_names):
 OUTPUT_LABELS = {SHAPE_KEYS: "Shape keys", MESH_SEQUENCE: "Mesh sequence"}
 
 
-def bake_report(kind, reason, frames):
+def bake_report(kind: str, reason: str, frames: Sequence[int]) -> str:
     """What the artist reads after a bake, in one line: what was made, on which frames, why
     ("Mesh sequence, frames 1-25: one mesh cannot follow the shape at frame 14 ...")."""
     return f"{OUTPUT_LABELS[kind]}, frames {frames[0]}-{frames[-1]}" + (f": {reason}." if reason else ".")
 
 
-def report_details(kind, frames, stats):
+def report_details(kind: str, frames: Sequence[int], stats: Mapping | None) -> list[str]:
     """The figures behind `bake_report`, one explained figure a line (`describe_worst`):
     what the panel shows behind its disclosure and the bake prints to the info log. A mesh
     sequence stored because the shape keys fail the limits shows the shape keys' figures
@@ -331,7 +340,7 @@ def _ensure_collection(scene, name):
     return coll, created, linked
 
 
-def remove_output(obj):
+def remove_output(obj: bpy.types.Object | None) -> None:
     """Delete a baked object with its mesh, shape keys and their action, and the frame switch
     of a sequence (also one of the earlier layout, `_sequence_blocks`), only what is unused
     elsewhere."""
@@ -367,7 +376,7 @@ def _uses(scene, settings, obj):
     return found
 
 
-def retire_output(scene, settings, old):
+def retire_output(scene: bpy.types.Scene, settings: KFI_Settings, old: bpy.types.Object) -> str:
     """Remove the previous output, or keep it renamed if the setup still uses it.
 
     A baked object the artist made a keyframe (or put feature points on) is the
@@ -406,7 +415,7 @@ def write_animation(scene: bpy.types.Scene, settings: bpy.types.PropertyGroup,
                                  material_names=material_names, notes=notes))
 
 
-def run_steps(steps):
+def run_steps(steps: Generator[None, None, _Result]) -> _Result:
     """Run a generator of steps to its end; its return value."""
     while True:
         try:

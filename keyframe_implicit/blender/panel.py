@@ -12,9 +12,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import blf
 import bpy
 
-from . import features, output, validate
+from . import features, output, preview, validate
+from .ops import running
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -99,8 +101,6 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col.prop(settings, "volume_export")
         if settings.volume_export:
             col.prop(settings, "volume_directory")
-        from .ops import running
-
         if running:
             fraction, message = running[0].status()
             _wrapped(layout, context, f"Baking {100 * fraction:.0f}%: {message}", "SORTTIME")
@@ -195,8 +195,6 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
 def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context,
                   settings: KFI_Settings) -> None:
     """The Live Preview toggle; while it is on, its grids or why it shows nothing."""
-    from . import preview
-
     layout.prop(settings, "live_preview", icon="HIDE_OFF" if settings.live_preview else "HIDE_ON")
     if not settings.live_preview:
         return
@@ -239,8 +237,6 @@ def ui_scale(context: bpy.types.Context) -> float:
 
 def text_width(text: str, scale: float) -> float:
     """Width in pixels of ``text`` in the UI font at ``scale`` (blf measures it)."""
-    import blf
-
     blf.size(0, bpy.context.preferences.ui_styles[0].widget.points * scale)
     return blf.dimensions(0, text)[0]
 

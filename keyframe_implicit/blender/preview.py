@@ -24,11 +24,14 @@ Blender. How long the preview's own code holds the main loop, and when solves an
 go out and come back, is measured only when asked for (`diagnostics.current`).
 """
 
+from __future__ import annotations
+
 import time
 from typing import TYPE_CHECKING
 
 import bpy
 
+from ..preview_worker import PreviewWorker
 from . import diagnostics, features, overlay, scene_io, validate
 
 if TYPE_CHECKING:
@@ -67,7 +70,7 @@ class State:
         Why there is no preview ("" when there is one, or one is on its way).
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.worker = self.handle = self.due = None
         self.solve_id = 0
         self.mesh = self.drawn = None
@@ -78,7 +81,7 @@ class State:
 state = State()
 
 
-def active():
+def active() -> bool:
     """Whether the preview is running (its worker started)."""
     return state.worker is not None
 
@@ -101,8 +104,6 @@ def _guarded(fn):
 
 def start() -> None:
     """Start the worker, the draw handler and the timer, and schedule a first solve now."""
-    from ..preview_worker import PreviewWorker
-
     if state.worker is not None:
         return
     state.__init__()
@@ -113,7 +114,7 @@ def start() -> None:
         bpy.app.timers.register(tick, first_interval=0.0)
 
 
-def stop():
+def stop() -> None:
     """End the worker and remove the overlay, the draw handler and the timer."""
     if state.worker is not None:
         state.worker.close()
@@ -133,7 +134,7 @@ def toggled(settings: "KFI_Settings", _context: bpy.types.Context) -> None:
         stop()
 
 
-def turn_off(scene):
+def turn_off(scene: bpy.types.Scene) -> None:
     """Stop the preview and show its toggle off (what Bake does first)."""
     stop()
     settings = scene.keyframe_implicit
@@ -180,13 +181,13 @@ def on_frame_change(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | Non
 
 
 @bpy.app.handlers.persistent
-def on_load_pre(*_args):
+def on_load_pre(*_args: object) -> None:
     """load_pre: the preview belongs to the file being left."""
     stop()
 
 
 @bpy.app.handlers.persistent
-def on_load_post(*_args):
+def on_load_post(*_args: object) -> None:
     """load_post: a file saved with the preview on starts it again."""
     scene = bpy.context.scene
     if scene is not None and scene.keyframe_implicit.live_preview:
