@@ -46,7 +46,7 @@ def main():
         bpy.context.scene.collection.objects.link(obj)
         t0 = time.perf_counter()
         surface = scene_io.read_surface(obj, bpy.context.evaluated_depsgraph_get())
-        refused = any(level == validate.ERROR for level, _ in validate.surface_problems(surface))
+        refused = any(severity == validate.ERROR for severity, _ in validate.surface_problems(surface))
         panel_s = time.perf_counter() - t0
         v, f = scene_io.mesh_arrays(obj, bpy.context.evaluated_depsgraph_get())  # as a bake reads it
         bakes = core_bakes(v, f, args.resolution)

@@ -344,7 +344,7 @@ class KFI_OT_bake(bpy.types.Operator):
 
     def _hints(self, context: bpy.types.Context, notes: "Iterable[str]" = ()) -> None:
         for p in validate.problems(context.scene):
-            if p.level == validate.WARNING:
+            if p.severity == validate.WARNING:
                 self.report({"WARNING"}, p.message)
         for note in notes:
             self.report({"WARNING"}, note)

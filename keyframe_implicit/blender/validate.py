@@ -67,7 +67,7 @@ class Problem:
 
     Attributes
     ----------
-    level : str
+    severity : str
         `ERROR` (blocks the bake) or `WARNING` (a hint).
     message : str
         What is wrong and what to do.
@@ -75,14 +75,14 @@ class Problem:
         The segment it concerns, -1 for the whole setup.
     """
 
-    level: str
+    severity: str
     message: str
     segment: int = -1
 
     @property
     def icon(self) -> str:
-        """The panel's icon for its level."""
-        return "ERROR" if self.level == ERROR else "INFO"
+        """The panel's icon for its severity."""
+        return "ERROR" if self.severity == ERROR else "INFO"
 
 
 def problems(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
@@ -128,7 +128,7 @@ def check(inputs: scene_io.BakeInput) -> list[Problem]:
     out += _motion_problems(inputs.motion_resolution, inputs.resolution)
     if inputs.volume_problem:
         out.append(Problem(ERROR, inputs.volume_problem))
-    out.sort(key=lambda p: p.level != ERROR)
+    out.sort(key=lambda p: p.severity != ERROR)
     return out
 
 
@@ -161,8 +161,8 @@ def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe]) -> list[Proble
             out.append(Problem(ERROR, f"{name} is not in this scene: link it into the scene or "
                                       "pick another object."))
         else:
-            out += [Problem(level, f"{name} {text}")
-                    for level, text in surface_problems(kf.surface, kf.modified)]
+            out += [Problem(severity, f"{name} {text}")
+                    for severity, text in surface_problems(kf.surface, kf.modified)]
     return out
 
 
@@ -244,7 +244,7 @@ def _off_keyframe(seg: int, number: int, parent: str | None, empties: Sequence[s
 
 
 def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str, str]]:
-    """``(level, message)`` of each problem of a keyframe's surface (none when it is sound).
+    """``(severity, message)`` of each problem of a keyframe's surface (none when it is sound).
 
     Parameters
     ----------
@@ -292,7 +292,7 @@ def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str
 
 def errors(found: Iterable[Problem]) -> list[Problem]:
     """The `ERROR` problems among ``found`` (those that block a bake), in order."""
-    return [p for p in found if p.level == ERROR]
+    return [p for p in found if p.severity == ERROR]
 
 
 def raise_on_errors(inputs: scene_io.BakeInput) -> None:

@@ -28,8 +28,8 @@ def mesh_object(name, vertices, faces):
 def panel_refuses(obj):
     """Whether the panel's checks of ``obj`` as a keyframe block the bake."""
     dg = bpy.context.evaluated_depsgraph_get()
-    return any(level == validate.ERROR
-               for level, _ in validate.surface_problems(scene_io.read_surface(obj, dg)))
+    return any(severity == validate.ERROR
+               for severity, _ in validate.surface_problems(scene_io.read_surface(obj, dg)))
 
 
 @FIXED
