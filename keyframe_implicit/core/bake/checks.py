@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     FeatureNames = Sequence[Sequence[tuple[str, str]]]
 
 
-__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes", "CLOSE_HOLES", "THICKEN", "FACE_OUTWARD", "FIXES"]
+__all__ = ["check_motion_resolution", "keyframe_label", "checked_mesh", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes", "CLOSE_HOLES", "THICKEN", "FACE_OUTWARD", "FIXES"]
 
 #: What a refusal or a note asks the artist to do to a keyframe's mesh, in the mesh's own
 #: terms. Each is worded here only; an application adds where its tools do it (the Blender
@@ -48,7 +48,7 @@ def _segment_label(i: int) -> str:
     return f"keyframes {i + 1} → {i + 2}"
 
 
-def surface_vertices(k: int, kf: Keyframe) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+def checked_mesh(k: int, kf: Keyframe) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """(vertices (V, 3), triangles, loose, face vertices) of a keyframe; loose counts vertices
     of no face. Refuses, before any grid work, a keyframe that encloses no volume
     (`fields.measure.read_mesh`, the measure the Blender panel judges it by too)."""
