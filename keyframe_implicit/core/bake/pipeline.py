@@ -254,7 +254,7 @@ def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, 
     stats.update(grid_shape=tuple(grid.shape), grid_spacing=grid.spacing)
     if motion is not None:
         stats["motion_grid_shape"] = tuple(motion.shape)
-    artist = _artist_template(keyframes[0], meshes[0], options.template)
+    artist = _artist_template(keyframes[0], meshes[0], options.tracked_mesh)
     return BakePlan(keyframes, features, resolution, grid, motion, meshes, artist, options,
                     stats)
 
@@ -402,15 +402,15 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
     stats["output"], stats["output_reason"] = choose_output(chain.frames, quality)
 
 
-def _artist_template(keyframe, mesh, template):
+def _artist_template(keyframe, mesh, tracked_mesh):
     """(vertices, triangles, MeshAttributes) of the first keyframe's own mesh, or None for
     the grid's template (asked for, or loose vertices that no surface carries)."""
     from ..surface.attributes import MeshAttributes
 
-    if template not in ("keyframe", "grid"):
-        raise ValueError(f'template must be "keyframe" or "grid", got {template!r}.')
+    if tracked_mesh not in ("keyframe", "grid"):
+        raise ValueError(f'template must be "keyframe" or "grid", got {tracked_mesh!r}.')
     v, tris, loose = mesh[:3]
-    if template == "grid" or loose:
+    if tracked_mesh == "grid" or loose:
         return None
     attrs = keyframe.attributes
     if attrs is None:
