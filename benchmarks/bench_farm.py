@@ -3,7 +3,7 @@ step's seconds, and whether the two results are equal.
 
 Both bake a saved scene end to end from the command line: the local bake with
 ``python -m keyframe_implicit bake`` (worker and helper processes, as the Bake button),
-the farm job with ``openjd run`` of the template ``farm template --scene`` writes (its
+the farm job with ``openjd run`` of the job template ``farm template --scene`` writes (its
 steps one after another, each task a process of its own with a helper for the second
 core). What the ratio above 1 costs is the tasks' own starts and reads and the Paths step.
 
@@ -50,7 +50,7 @@ def local_bake(scene, resolution, work):
 
 
 def farm_job(scene, resolution, work, pairs_per_task=None):
-    """Seconds of ``openjd run`` (the template written before the clock starts; the job
+    """Seconds of ``openjd run`` (the job template written before the clock starts; the job
     parameter PairsPerTask when given), each step's seconds from its log, and the .blend it
     wrote."""
     job = os.path.join(work, "job")
@@ -104,7 +104,7 @@ def main(argv=None):
     p.add_argument("--scene", default=os.path.join(ROOT, "assets", "splash.blend"))
     p.add_argument("--runs", type=int, default=1)
     p.add_argument("--pairs-per-task", type=int, default=None,
-                   help="the job parameter PairsPerTask (default: the template's)")
+                   help="the job parameter PairsPerTask (default: the job template's)")
     args = p.parse_args(argv)
     scene = os.path.abspath(args.scene)
     local, farm, steps, diffs = [], [], [], []

@@ -2,7 +2,7 @@
 
 Each mesh of tests/hostile_meshes.py (faces flipped, loose vertices near and far, holes,
 duplicated or overlapping parts, zero-area faces, scale 1e-4..1e4) becomes a Blender mesh
-object; the panel's verdict (`scene_io.read_surface`, `validate.surface_problems`: refused or
+object; the panel's verdict (`scene_io.read_mesh`, `validate.mesh_problems`: refused or
 not) is compared with the core's on the mesh as a bake reads it from Blender (`core_bakes`: its
 own check, then an inside on the bake's distance grid). Also counted: meshes the measure calls volumeless although the distance grid
 has an inside (sheets flat in their box, read as a one-cell slab; the core refuses those too).
@@ -45,12 +45,12 @@ def main():
         obj = bpy.data.objects.new("Generated", me)
         bpy.context.scene.collection.objects.link(obj)
         t0 = time.perf_counter()
-        surface = scene_io.read_surface(obj, bpy.context.evaluated_depsgraph_get())
-        refused = any(level == validate.ERROR for level, _ in validate.surface_problems(surface))
+        reading = scene_io.read_mesh(obj, bpy.context.evaluated_depsgraph_get())
+        refused = any(severity == validate.ERROR for severity, _ in validate.mesh_problems(reading))
         panel_s = time.perf_counter() - t0
         v, f = scene_io.mesh_arrays(obj, bpy.context.evaluated_depsgraph_get())  # as a bake reads it
         bakes = core_bakes(v, f, args.resolution)
-        slab = not surface.encloses_volume and grid_has_inside(v, f, args.resolution)
+        slab = not reading.encloses_volume and grid_has_inside(v, f, args.resolution)
         rows.append((refused, bakes, slab, panel_s, what))
         bpy.data.meshes.remove(me)
 

@@ -3,7 +3,7 @@
 # project's chroot (scripts/trixie_chroot.sh), the extension zip installed with Blender's own
 # CLI, assets/splash.blend saved into a fresh folder, Export Farm Job pressed there
 # (bpy.ops.keyframe_implicit.export_farm_job in `blender -b`), and the job it wrote run whole
-# with `openjd run` inside the chroot: its core stages under the Python the template names
+# with `openjd run` inside the chroot: its core stages under the Python the job template names
 # (Blender's), its Prepare and Assemble under the Blender it names. Needs root.
 #
 #   scripts/farm_chroot.sh [RESOLUTION]     # default 34
@@ -31,7 +31,7 @@ bpy.context.scene.keyframe_implicit.resolution = $RES
 bpy.ops.wm.save_mainfile()
 assert bpy.ops.keyframe_implicit.export_farm_job() == {'FINISHED'}
 " >&2
-echo "[farm_chroot] template written by Export Farm Job:" >&2
+echo "[farm_chroot] job template written by Export Farm Job:" >&2
 grep -A2 -E 'name: "(Python|PythonPath|Blender)"' "$run/shot/splash_farm/template.yaml" | grep default >&2
 set +e
 in_chroot PYTHONPATH="$inside/openjd" python3 -c "import sys; from openjd.cli import main; sys.exit(main())" \

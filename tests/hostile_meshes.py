@@ -10,7 +10,7 @@ distance grid on the bake's grid has an inside, the fact every other check must 
 import numpy as np
 from hypothesis import strategies as st
 
-from keyframe_implicit.core.bake.checks import surface_vertices
+from keyframe_implicit.core.bake.checks import checked_mesh
 from keyframe_implicit.core.bake.gridfit import fit_grid
 from keyframe_implicit.core.bake.pipeline import Keyframe
 from keyframe_implicit.core.fields.mesh import triangulate
@@ -93,9 +93,9 @@ def grid_has_inside(vertices, faces, resolution=48):
 
 def core_bakes(vertices, faces, resolution=48):
     """The core's verdict on this keyframe: it passes the core's own check before the grid
-    (`checks.surface_vertices`) and its distance grid has an inside (`grid_has_inside`)."""
+    (`checks.checked_mesh`) and its distance grid has an inside (`grid_has_inside`)."""
     try:
-        surface_vertices(0, Keyframe(vertices, faces, 1, "Generated"))
+        checked_mesh(0, Keyframe(vertices, faces, 1, "Generated"))
     except ValueError:
         return False
     return grid_has_inside(vertices, faces, resolution)

@@ -29,9 +29,9 @@ _registered = []
 _HANDLERS = ("depsgraph_update_post", "load_post")
 
 
-def _forget_surfaces(scene=None, depsgraph=None):
+def _forget_readings(scene=None, depsgraph=None):
     """Handler: kept pre-bake surface checks are stale after geometry updates and loads."""
-    scene_io.forget_surfaces(scene, depsgraph)
+    scene_io.forget_readings(scene, depsgraph)
 
 
 def _class_lists():
@@ -48,9 +48,9 @@ def register() -> None:
             _registered.append(cls)
     props.register_properties()
     bpy.types.VIEW3D_MT_object.append(ops.menu_func)
-    bpy.app.handlers.persistent(_forget_surfaces)  # kept across file loads
+    bpy.app.handlers.persistent(_forget_readings)  # kept across file loads
     for name in _HANDLERS:
-        getattr(bpy.app.handlers, name).append(_forget_surfaces)
+        getattr(bpy.app.handlers, name).append(_forget_readings)
     props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled)
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)
@@ -62,9 +62,9 @@ def unregister() -> None:
         return
     for name in _HANDLERS:
         handlers = getattr(bpy.app.handlers, name)
-        if _forget_surfaces in handlers:
-            handlers.remove(_forget_surfaces)
-    _forget_surfaces()
+        if _forget_readings in handlers:
+            handlers.remove(_forget_readings)
+    _forget_readings()
     preview.stop()
     for name, handler in preview.HANDLERS:
         handlers = getattr(bpy.app.handlers, name)

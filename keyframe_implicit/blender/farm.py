@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..farm import stages, store
-from ..farm.template import write_template
+from ..farm.job_template import write_job_template
 from . import bake
 
 if TYPE_CHECKING:  # read by type checkers only
@@ -33,7 +33,7 @@ def prepare_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None,
                   progress: Callable[[float, str], None] | None = None) -> dict[str, Any]:
     """Write ``scene``'s bake into ``job_dir`` (`farm.stages.prepare`); the scene is only read.
 
-    ``segments``: the number of segments the job was written for (its template's task
+    ``segments``: the number of segments the job was written for (its job template's task
     ranges); ValueError when the scene has another.
     """
     inputs = bake.collect(scene, depsgraph, resolution)
@@ -79,6 +79,6 @@ def export_job(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, bl
     bake could not start."""
     inputs = bake.collect(scene, depsgraph, resolution)
     job_dir = job_dir or job_dir_of(blend_path)
-    write_template(job_dir, blend_path, len(inputs.keyframes) - 1, inputs.resolution,
+    write_job_template(job_dir, blend_path, len(inputs.keyframes) - 1, inputs.resolution,
                    blender=blender_path)
     return job_dir

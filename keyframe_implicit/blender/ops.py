@@ -344,7 +344,7 @@ class KFI_OT_bake(bpy.types.Operator):
 
     def _hints(self, context: bpy.types.Context, notes: "Iterable[str]" = ()) -> None:
         for p in validate.problems(context.scene):
-            if p.level == validate.WARNING:
+            if p.severity == validate.WARNING:
                 self.report({"WARNING"}, p.message)
         for note in notes:
             self.report({"WARNING"}, note)
@@ -495,7 +495,7 @@ class KFI_OT_bake(bpy.types.Operator):
 
 
 class KFI_OT_export_farm_job(bpy.types.Operator):
-    """Write this bake as a render-farm job beside the saved .blend: an Open Job Description template (openjd run, AWS Deadline Cloud) whose tasks are the bake's stages"""
+    """Write this bake as a render-farm job beside the saved .blend: an Open Job Description job template (openjd run, AWS Deadline Cloud) whose tasks are the bake's stages"""
 
     bl_idname = "keyframe_implicit.export_farm_job"
     bl_label = "Export Farm Job"

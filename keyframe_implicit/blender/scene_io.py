@@ -32,8 +32,8 @@ import numpy as np
 from ..core.surface.attributes import MeshAttributes
 from ..core.bake.options import BakeOptions
 from ..core.bake.keyframe import Keyframe
-from ..core.fields.measure import Surface
-from ..core.fields.measure import read_surface as measure_surface
+from ..core.fields.measure import MeshReading
+from ..core.fields.measure import read_mesh as measure_mesh
 from . import features, volumes
 
 if TYPE_CHECKING:
@@ -59,8 +59,8 @@ class ListedKeyframe:
         Its object's type ("MESH", "CURVE", ...); "" without an object.
     in_scene : bool
         Whether the object is in the scene that is read.
-    surface : core.fields.measure.Surface or None
-        Its evaluated mesh as the bake reads it (`cached_surface`), for a mesh object in
+    reading : core.fields.measure.MeshReading or None
+        Its evaluated mesh as the bake reads it (`cached_reading`), for a mesh object in
         the scene; else None.
     modified : bool
         Whether that mesh is the object's after its modifiers.
@@ -70,7 +70,7 @@ class ListedKeyframe:
     name: str | None = None
     kind: str = ""
     in_scene: bool = False
-    surface: Surface | None = None
+    reading: MeshReading | None = None
     modified: bool = False
 
     @property
@@ -258,9 +258,9 @@ def mesh_arrays(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, attribute
     return verts, tris.astype(np.int64)
 
 
-def read_surface(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Surface:
+def read_mesh(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> MeshReading:
     """``obj``'s evaluated mesh in world space as the bake reads it: faces only, each part
-    facing one way (`core.fields.measure.read_surface`, the measure the bake's own check uses).
+    facing one way (`core.fields.measure.read_mesh`, the measure the bake's own check uses).
 
     Parameters
     ----------
@@ -271,39 +271,39 @@ def read_surface(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Surfa
 
     Returns
     -------
-    core.fields.measure.Surface
+    core.fields.measure.MeshReading
         With no triangles when the mesh has no faces. The panel asks through
-        `cached_surface`.
+        `cached_reading`.
     """
     verts, tris = mesh_arrays(obj, depsgraph)
     try:
-        return measure_surface(verts, tris)
+        return measure_mesh(verts, tris)
     except ValueError:  # no faces
-        return Surface(triangles=0)
+        return MeshReading(triangles=0)
 
 
-_surfaces: dict[tuple, Surface] = {}  # cheap state of a keyframe object -> read_surface's answer
+_readings: dict[tuple, MeshReading] = {}  # cheap state of a keyframe object -> read_mesh's answer
 
 
-def cached_surface(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Surface:
-    """`read_surface`, kept per cheap state of ``obj`` (its mesh, counts and modifiers)
+def cached_reading(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> MeshReading:
+    """`read_mesh`, kept per cheap state of ``obj`` (its mesh, counts and modifiers)
     and its world transform (the measure is in world units).
 
     The panel and the Bake button's poll read the setup on every redraw; the readings are
-    kept until a depsgraph update changes some geometry (`forget_surfaces`).
+    kept until a depsgraph update changes some geometry (`forget_readings`).
     """
     mesh = obj.data
     key = (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
            tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers),
            tuple(map(tuple, obj.matrix_world)))
-    if key not in _surfaces:
-        _surfaces[key] = read_surface(obj, depsgraph)
-    return _surfaces[key]
+    if key not in _readings:
+        _readings[key] = read_mesh(obj, depsgraph)
+    return _readings[key]
 
 
-def forget_surfaces(scene: bpy.types.Scene | None = None,
+def forget_readings(scene: bpy.types.Scene | None = None,
                     depsgraph: bpy.types.Depsgraph | None = None) -> None:
-    """Drop the kept surface readings: after a geometry update, a file load, re-registering.
+    """Drop the kept mesh readings: after a geometry update, a file load, re-registering.
 
     Parameters
     ----------
@@ -314,7 +314,7 @@ def forget_surfaces(scene: bpy.types.Scene | None = None,
         them in any case.
     """
     if depsgraph is None or any(u.is_updated_geometry for u in depsgraph.updates):
-        _surfaces.clear()
+        _readings.clear()
 
 
 def _world(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> tuple[float, ...]:
@@ -427,8 +427,8 @@ def _listed_keyframe(scene: bpy.types.Scene, kf: KFI_Keyframe,
     if obj is None:
         return ListedKeyframe(int(kf.frame))
     in_scene = obj.name in scene.objects
-    surface = cached_surface(obj, depsgraph) if obj.type == "MESH" and in_scene else None
-    return ListedKeyframe(int(kf.frame), obj.name, obj.type, in_scene, surface,
+    reading = cached_reading(obj, depsgraph) if obj.type == "MESH" and in_scene else None
+    return ListedKeyframe(int(kf.frame), obj.name, obj.type, in_scene, reading,
                           len(obj.modifiers) > 0)
 
 

@@ -8,15 +8,15 @@ scene's objects can tell (a keyframe object's kind, its surface as the bake read
 feature Empty's parent) comes as plain facts of the reading. `problems` reads a scene's
 setup and checks it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
 
-The surface checks (`surface_problems`) judge each keyframe's evaluated mesh by the
-bake's own measure (`core.fields.measure.read_surface`: faces only, each part facing one
+The mesh checks (`mesh_problems`) judge each keyframe's evaluated mesh by the
+bake's own measure (`core.fields.measure.read_mesh`: faces only, each part facing one
 way): a keyframe that encloses no volume (a plane) is refused, in the words the bake's own
 refusal uses; what the bake reads correctly as it is (faces facing inward, loose vertices,
 holes, non-manifold edges) is a warning that says so. The core words what to fix in the
 mesh's own terms (`core.bake.checks.FIXES`); `with_menu_paths` adds where Blender does it,
 here and wherever the core's refusals and notes reach the artist. The panel and the Bake
 button's poll ask on every redraw, so the readings are kept until a depsgraph update
-changes some geometry (`scene_io.cached_surface`). Keyframes are numbered from 1 in list order, as the
+changes some geometry (`scene_io.cached_reading`). Keyframes are numbered from 1 in list order, as the
 core's messages number them; repeated problems of one kind are one line with a count.
 """
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, THICKEN, no_volume_words
-from ..core.fields.measure import Surface
+from ..core.fields.measure import MeshReading
 from . import scene_io
 
 if TYPE_CHECKING:
@@ -67,7 +67,7 @@ class Problem:
 
     Attributes
     ----------
-    level : str
+    severity : str
         `ERROR` (blocks the bake) or `WARNING` (a hint).
     message : str
         What is wrong and what to do.
@@ -75,14 +75,14 @@ class Problem:
         The segment it concerns, -1 for the whole setup.
     """
 
-    level: str
+    severity: str
     message: str
     segment: int = -1
 
     @property
     def icon(self) -> str:
-        """The panel's icon for its level."""
-        return "ERROR" if self.level == ERROR else "INFO"
+        """The panel's icon for its severity."""
+        return "ERROR" if self.severity == ERROR else "INFO"
 
 
 def problems(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
@@ -128,7 +128,7 @@ def check(inputs: scene_io.BakeInput) -> list[Problem]:
     out += _motion_problems(inputs.motion_resolution, inputs.resolution)
     if inputs.volume_problem:
         out.append(Problem(ERROR, inputs.volume_problem))
-    out.sort(key=lambda p: p.level != ERROR)
+    out.sort(key=lambda p: p.severity != ERROR)
     return out
 
 
@@ -161,8 +161,8 @@ def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe]) -> list[Proble
             out.append(Problem(ERROR, f"{name} is not in this scene: link it into the scene or "
                                       "pick another object."))
         else:
-            out += [Problem(level, f"{name} {text}")
-                    for level, text in surface_problems(kf.surface, kf.modified)]
+            out += [Problem(severity, f"{name} {text}")
+                    for severity, text in mesh_problems(kf.reading, kf.modified)]
     return out
 
 
@@ -243,12 +243,12 @@ def _off_keyframe(seg: int, number: int, parent: str | None, empties: Sequence[s
             f"'{listed[number - 1].name}' (Ctrl+P > Keep Transform).")
 
 
-def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str, str]]:
-    """``(level, message)`` of each problem of a keyframe's surface (none when it is sound).
+def mesh_problems(reading: MeshReading, modified: bool = False) -> list[tuple[str, str]]:
+    """``(severity, message)`` of each problem of a keyframe's mesh (none when it is sound).
 
     Parameters
     ----------
-    surface : core.fields.measure.Surface
+    reading : core.fields.measure.MeshReading
         The keyframe object's evaluated mesh as the bake reads it.
     modified : bool
         Whether that mesh is the object's after its modifiers.
@@ -263,28 +263,28 @@ def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str
         they are: `WARNING` s that say so and how to clean the mesh. Each message follows
         the keyframe's name ("Keyframe 2 'Plane' ...").
     """
-    if surface.triangles == 0:
+    if reading.triangles == 0:
         after = " after its modifiers" if modified else ""
         return [(ERROR, f"has no faces{after}: a keyframe must be a closed surface.")]
-    if not surface.encloses_volume:
-        return [(ERROR, with_menu_paths(no_volume_words(surface)))]
+    if not reading.encloses_volume:
+        return [(ERROR, with_menu_paths(no_volume_words(reading)))]
     out: list[tuple[str, str]] = []
-    if surface.reoriented:
+    if reading.reoriented:
         out.append((WARNING, with_menu_paths(
-            f"has {count(surface.reoriented, 'triangle')} facing inward: the bake reads it "
+            f"has {count(reading.reoriented, 'triangle')} facing inward: the bake reads it "
             f"correctly as it is; to clean the mesh, {FACE_OUTWARD}.")))
-    if surface.loose:
-        where = (f"up to {surface.loose_reach:.3g} units outside its faces" if
-                 surface.loose_reach > 0 else "among its faces")
-        out.append((WARNING, f"has {count(surface.loose, 'loose vertex', 'loose vertices')} "
+    if reading.loose:
+        where = (f"up to {reading.loose_reach:.3g} units outside its faces" if
+                 reading.loose_reach > 0 else "among its faces")
+        out.append((WARNING, f"has {count(reading.loose, 'loose vertex', 'loose vertices')} "
                              f"(in no face), {where}: the bake ignores "
-                             f"{'it' if surface.loose == 1 else 'them'}; Select > Select All by "
-                             f"Trait > Loose Geometry finds {'it' if surface.loose == 1 else 'them'}."))
-    if surface.open_edges:
-        out.append((WARNING, with_menu_paths(f"has holes ({surface.open_edges} open edges): the "
+                             f"{'it' if reading.loose == 1 else 'them'}; Select > Select All by "
+                             f"Trait > Loose Geometry finds {'it' if reading.loose == 1 else 'them'}."))
+    if reading.open_edges:
+        out.append((WARNING, with_menu_paths(f"has holes ({reading.open_edges} open edges): the "
                                              f"bake fills small ones; to be sure, {CLOSE_HOLES}.")))
-    if surface.shared_edges:
-        out.append((WARNING, f"is non-manifold ({surface.shared_edges} edges shared by 3 or more "
+    if reading.shared_edges:
+        out.append((WARNING, f"is non-manifold ({reading.shared_edges} edges shared by 3 or more "
                              "faces): if its parts come out wrong, find them with Select > Select "
                              "All by Trait > Non Manifold."))
     return out
@@ -292,7 +292,7 @@ def surface_problems(surface: Surface, modified: bool = False) -> list[tuple[str
 
 def errors(found: Iterable[Problem]) -> list[Problem]:
     """The `ERROR` problems among ``found`` (those that block a bake), in order."""
-    return [p for p in found if p.level == ERROR]
+    return [p for p in found if p.severity == ERROR]
 
 
 def raise_on_errors(inputs: scene_io.BakeInput) -> None:

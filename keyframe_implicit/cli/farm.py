@@ -24,7 +24,7 @@ import subprocess
 import sys
 
 from ..farm import stages, store
-from ..farm.template import TEMPLATE, write_template
+from ..farm.job_template import JOB_TEMPLATE, write_job_template
 from . import check_paths, failure_line, open_file, percent_log, save_copy
 
 __all__ = ["main"]
@@ -121,7 +121,7 @@ def _assemble(args):
                          "Keyframe Implicit setup: give the .blend the job was prepared from.")
 
 
-def _template(args):
+def _job_template(args):
     if args.scene:  # read the scene (as Bake checks it), nothing baked yet
         from ..blender.farm import export_job
 
@@ -133,8 +133,8 @@ def _template(args):
             break
     else:
         m = store.read_manifest(args.dir)
-        write_template(args.dir, m["scene"], m["segments"], m["resolution"])
-    path = os.path.join(args.dir, TEMPLATE)
+        write_job_template(args.dir, m["scene"], m["segments"], m["resolution"])
+    path = os.path.join(args.dir, JOB_TEMPLATE)
     print(f"wrote {path}: run it with 'openjd run {path}'")
 
 
@@ -150,7 +150,7 @@ def _run(args):
     elif args.stage == "assemble":
         _assemble(args)
     else:
-        _template(args)
+        _job_template(args)
 
 
 def main(argv: list[str]) -> int:

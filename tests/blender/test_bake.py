@@ -446,7 +446,7 @@ def test_a_bake_reads_the_scene_once_then_checks_and_bakes_that_reading(scene, k
 def test_the_problem_list_reads_each_mesh_once_per_state(scene, kfi, monkeypatch):
     kfi.build_spheres(TWO)
     scene.frame_end = 5  # keyframe B on frame 7: a problem to find
-    scene_io.forget_surfaces()
+    scene_io.forget_readings()
     meshes, frames = [], []
     monkeypatch.setattr(scene_io, "mesh_arrays", _spy(meshes, scene_io.mesh_arrays))
     handlers = bpy.app.handlers.frame_change_pre

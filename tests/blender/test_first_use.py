@@ -30,7 +30,7 @@ def _state(scene):
 def test_bake_selects_result_hides_keyframes_covers_range_and_undo_restores(scene, kfi):
     a, b = kfi.build_spheres(TWO)
     scene.frame_end = 5  # keyframe B (frame 7) lies outside: warned, then covered by the bake
-    assert any(p.level == validate.WARNING and "Keyframe 2 is on frame 7, outside the scene's "
+    assert any(p.severity == validate.WARNING and "Keyframe 2 is on frame 7, outside the scene's "
                "frames 1-5" in p.message for p in validate.problems(scene))
     bpy.ops.ed.undo_push(message="set up")
     before = _state(scene)
@@ -199,9 +199,9 @@ def test_open_plane_is_refused_before_any_work(scene, kfi, monkeypatch):
                for p in found)
 
 
-def _surface_check(obj, depsgraph):
-    """The surface checks of one object: its mesh read as the bake reads it, then judged."""
-    return validate.surface_problems(scene_io.read_surface(obj, depsgraph))
+def _mesh_check(obj, depsgraph):
+    """The mesh checks of one object: its mesh read as the bake reads it, then judged."""
+    return validate.mesh_problems(scene_io.read_mesh(obj, depsgraph))
 
 
 def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, kfi):
@@ -222,15 +222,15 @@ def test_surface_checks_refuse_flat_and_point_out_holes_and_non_manifold(scene, 
     bm.to_mesh(holed.data)
     bm.free()
     dg = bpy.context.evaluated_depsgraph_get()
-    [(level, msg)] = _surface_check(bow, dg)
-    assert level == validate.WARNING  # the core reads it as a solid
+    [(severity, msg)] = _mesh_check(bow, dg)
+    assert severity == validate.WARNING  # the core reads it as a solid
     assert msg.startswith("is non-manifold (1 edges shared by 3") and "Non Manifold" in msg
-    [(level, msg)] = _surface_check(holed, dg)
-    assert level == validate.WARNING and msg.startswith("has holes (8 open edges)"), msg
-    [(level, msg)] = _surface_check(pillow, dg)
-    assert level == validate.ERROR and msg.startswith("encloses no volume (it is flat"), msg
+    [(severity, msg)] = _mesh_check(holed, dg)
+    assert severity == validate.WARNING and msg.startswith("has holes (8 open edges)"), msg
+    [(severity, msg)] = _mesh_check(pillow, dg)
+    assert severity == validate.ERROR and msg.startswith("encloses no volume (it is flat"), msg
     assert msg.endswith("give it thickness (Solidify modifier).")
-    assert _surface_check(ball, dg) == []
+    assert _mesh_check(ball, dg) == []
     _keyframe(bow, 1)
     _keyframe(pillow, 9)
     errs = [p.message for p in validate.errors(validate.problems(scene))]

@@ -39,7 +39,7 @@ def test_the_panel_refuses_what_the_core_refuses(scene, kfi, value, words):
     settings = scene.keyframe_implicit
     settings.resolution = 40
     settings.motion_resolution = value
-    errors = [p.message for p in validate.problems(scene) if p.level == validate.ERROR]
+    errors = [p.message for p in validate.problems(scene) if p.severity == validate.ERROR]
     assert any(words in m and "0: automatic" in m for m in errors), errors
     settings.motion_resolution = 0
     assert not [p for p in validate.problems(scene) if "Motion Resolution" in p.message]

@@ -153,7 +153,7 @@ def test_remove_keyframe_drops_its_pairs_and_renumbers(scene, kfi):
 
 
 def test_validation_messages_say_what_to_do(scene, kfi):
-    msgs = lambda: [(p.level, p.message) for p in validate.problems(scene)]  # noqa: E731
+    msgs = lambda: [(p.severity, p.message) for p in validate.problems(scene)]  # noqa: E731
     assert any("add at least two" in m for _, m in msgs())
     a, b = kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (3, 0, 0), 1, 5)], pairs=False)
     found = msgs()

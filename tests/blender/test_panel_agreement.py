@@ -1,6 +1,6 @@
 """The panel refuses exactly the keyframes the bake cannot bake, and says why in words an
-artist can act on: its verdict, read from a Blender mesh (`scene_io.read_surface`,
-`validate.surface_problems`), against the core's on generated meshes (tests/hostile_meshes.py).
+artist can act on: its verdict, read from a Blender mesh (`scene_io.read_mesh`,
+`validate.mesh_problems`), against the core's on generated meshes (tests/hostile_meshes.py).
 benchmarks/bench_panel_agreement.py runs the same comparison on 500 meshes."""
 
 import bpy
@@ -28,8 +28,8 @@ def mesh_object(name, vertices, faces):
 def panel_refuses(obj):
     """Whether the panel's checks of ``obj`` as a keyframe block the bake."""
     dg = bpy.context.evaluated_depsgraph_get()
-    return any(level == validate.ERROR
-               for level, _ in validate.surface_problems(scene_io.read_surface(obj, dg)))
+    return any(severity == validate.ERROR
+               for severity, _ in validate.mesh_problems(scene_io.read_mesh(obj, dg)))
 
 
 @FIXED

@@ -26,6 +26,10 @@ def test_each_keyword_reaches_the_stage_that_reads_it():
     assert BakeOptions.from_keywords(volume_weight=5.0, weights={"volume": 7.0}).map.weights[
         "volume"] == 7.0
     assert BakeOptions.from_keywords() == BakeOptions()
+    # ``template`` is animate's keyword for the field that says which mesh is tracked
+    assert BakeOptions.from_keywords(template="grid").tracked_mesh == "grid"
+    with pytest.raises(ValueError, match="unknown option 'tracked_mesh'"):
+        BakeOptions.from_keywords(tracked_mesh="grid")
 
 
 def test_an_unknown_option_is_refused_before_any_work():

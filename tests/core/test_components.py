@@ -1,5 +1,5 @@
 """Each component of an in-between keeps the volume of the material arriving in it
-(`motion.components`, `motion.isovolume.component_offsets`; docs/method.md, section 13)."""
+(`motion.components`, `motion.isovolume.component_iso_values`; docs/method.md, section 13)."""
 
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ from scipy import ndimage
 
 from inbetween_cases import make_grid, sd_sphere, unequal_balls
 from keyframe_implicit.core import inbetween
-from keyframe_implicit.core.motion.isovolume import component_offsets
+from keyframe_implicit.core.motion.isovolume import component_iso_values
 from keyframe_implicit.core.motion.components import (_fitted_shares, component_labels,
                                                       component_volumes)
 
@@ -59,7 +59,7 @@ def test_one_iso_value_for_the_total_fails_the_part_bound(balls):
     assert worst > 2 * BOUND
 
 
-def test_component_offsets_give_each_part_its_target_and_leave_far_nodes():
+def test_component_iso_values_give_each_part_its_target_and_leave_far_nodes():
     g = make_grid(3, 40, -1.0, 1.0)
     P = g.points()
     field = np.minimum(sd_sphere(P, (-0.45, 0, 0), 0.25), sd_sphere(P, (0.4, 0, 0), 0.3))
@@ -67,10 +67,10 @@ def test_component_offsets_give_each_part_its_target_and_leave_far_nodes():
     before = component_volumes(field, g, labels, count)
     targets = before * np.array([1.06, 0.96])  # one component grows, the other shrinks
     out = field.copy()
-    c, err = component_offsets(out, g, labels, targets)
+    iso_values, err = component_iso_values(out, g, labels, targets)
     after = component_volumes(out, g, labels, count)
     np.testing.assert_allclose(after, targets, rtol=2e-3)
-    assert c[0] > 0 > c[1]  # grown outward, shrunk inward
+    assert iso_values[0] > 0 > iso_values[1]  # grown outward, shrunk inward
     far = field > 6 * g.spacing
     np.testing.assert_array_equal(out[far], field[far])
 

@@ -58,14 +58,14 @@ def test_estimate_grows_with_the_grid_and_adds_up():
     small = estimate_memory(fit_grid(pts, 16))
     big = estimate_memory(fit_grid(pts, 32))
     for est in (small, big):
-        assert est["peak"] == est["process"] + est["grid_nodes"] + est["active"]
+        assert est["peak"] == est["process"] + est["grid_nodes"] + est["solves"]
         assert 0 < est["active_nodes"] < est["nodes"]
     ratio = big["nodes"] / small["nodes"]
     assert big["peak"] > small["peak"] and big["process"] == small["process"]
-    for part in ("grid_nodes", "active"):  # linear in the nodes at most: no factorisation
+    for part in ("grid_nodes", "solves"):  # linear in the nodes at most: no factorisation
         assert 0.5 * ratio < big[part] / small[part] <= ratio * 1.01
     more = estimate_memory(fit_grid(pts, 32), material_fraction=0.8)
-    assert more["active"] > big["active"] and more["active_nodes"] > big["active_nodes"]
+    assert more["solves"] > big["solves"] and more["active_nodes"] > big["active_nodes"]
     assert estimate_memory(fit_grid(pts, 32), n_keyframes=4)["peak"] > big["peak"]
     with pytest.raises(ValueError, match="material_fraction"):
         estimate_memory(fit_grid(pts, 16), material_fraction=1.5)

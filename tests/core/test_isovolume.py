@@ -5,7 +5,7 @@ import pytest
 
 from inbetween_cases import sphere_field
 from keyframe_implicit.core import Grid
-from keyframe_implicit.core.motion.isovolume import _gradient_norm, volume_offset
+from keyframe_implicit.core.motion.isovolume import _gradient_norm, volume_iso_value
 from keyframe_implicit.core.surface.extract import enclosed_volume
 
 
@@ -23,10 +23,10 @@ def test_offset_gives_the_volume_of_the_sphere_it_asks_for():
     f = sphere_field(g, (0, 0, 0), 0.5)
     v = enclosed_volume(f, g)
     grown = enclosed_volume(f - 0.03, g)  # the surface 0.03 further out: about 0.7 cells
-    c, err = volume_offset(f, g, grown)
+    iso_value, err = volume_iso_value(f, g, grown)
     assert abs(err) <= 1e-3
-    assert abs(c - 0.03) < 0.1 * g.spacing
-    assert volume_offset(f, g, v) == (0.0, 0.0)
+    assert abs(iso_value - 0.03) < 0.1 * g.spacing
+    assert volume_iso_value(f, g, v) == (0.0, 0.0)
 
 
 def test_a_truncated_fields_plateau_is_not_read_and_gives_the_same_offset(monkeypatch):
@@ -44,11 +44,11 @@ def test_a_truncated_fields_plateau_is_not_read_and_gives_the_same_offset(monkey
     real = isovolume._gradient_norm
     monkeypatch.setattr(isovolume, "_gradient_norm",
                         lambda field, grid, nodes: read.append(len(nodes)) or real(field, grid, nodes))
-    c_cut, err_cut = volume_offset(cut, g, target)
+    iso_value_cut, err_cut = volume_iso_value(cut, g, target)
     assert sum(read) == np.count_nonzero((cut < cut.max()) & (cut > -5 * g.spacing)) < 0.1 * cut.size
-    c, err = volume_offset(f, g, target)
-    assert abs(err_cut) <= 1e-3 and abs(c_cut - c) < 0.01 * g.spacing
+    iso_value, err = volume_iso_value(f, g, target)
+    assert abs(err_cut) <= 1e-3 and abs(iso_value_cut - iso_value) < 0.01 * g.spacing
     # a volume only a shift past the plateau could give: the shift stops half a cell under it
     huge = enclosed_volume(f - 2.5 * g.spacing, g)
-    c_far, _ = volume_offset(cut, g, huge)
-    assert c_far <= 1.4 * g.spacing + 1e-12
+    iso_value_far, _ = volume_iso_value(cut, g, huge)
+    assert iso_value_far <= 1.4 * g.spacing + 1e-12

@@ -86,7 +86,7 @@ def test_far_field_stays_outside(rigid):
         far = np.abs(rigid_expected(grid.points(), s, info)) > 6 * grid.spacing
         outside = far & (rigid_expected(grid.points(), s, info) > 0)
         # in-betweens: the truncation, less the iso-value that keeps the volume
-        offset = ib.stats["volume_offset_h"][s] * grid.spacing if 0 < s < 1 else 0.0
+        offset = ib.stats["iso_value_h"][s] * grid.spacing if 0 < s < 1 else 0.0
         floor = ib.outside_value - offset
         assert floor > 0.5 * ib.outside_value
         assert np.all(ls[outside] >= floor - 1e-12)

@@ -120,16 +120,16 @@ def test_features_closer_than_a_motion_cell_raise_the_automatic_motion_resolutio
     motion cell: the automatic choice goes finer than it would without them; a given
     Motion Resolution is refused."""
     kfs, feats = turning_sphere()
-    surfaces = [pipeline.surface_vertices(k, kf) for k, kf in enumerate(kfs)]
-    _, plain, plain_grid = pipeline._bake_grid(kfs, surfaces, feats, None, 64, None, 4, None)
+    meshes = [pipeline.checked_mesh(k, kf) for k, kf in enumerate(kfs)]
+    _, plain, plain_grid = pipeline._bake_grid(kfs, meshes, feats, None, 64, None, 4, None)
     fa, fb = (np.array(f, dtype=float) for f in feats[0])
     fa[1] = fa[0] + 0.015 * (fa[1] - fa[0]) / np.linalg.norm(fa[1] - fa[0])
     close = [(fa, fb)]
-    grid, m, mg = pipeline._bake_grid(kfs, surfaces, close, None, 64, None, 4, None)
+    grid, m, mg = pipeline._bake_grid(kfs, meshes, close, None, 64, None, 4, None)
     assert plain_grid is not None and plain_grid.spacing > 0.015  # they would share a cell
     assert m > plain and (mg is None or mg.spacing <= 0.015)
     with pytest.raises(ValueError, match="motion grid cell.*Motion Resolution"):
-        pipeline._bake_grid(kfs, surfaces, close, None, 64, 8, 4, None)
+        pipeline._bake_grid(kfs, meshes, close, None, 64, 8, 4, None)
 
 
 def test_the_memory_estimate_counts_the_motion_grid():

@@ -320,11 +320,11 @@ def test_helper_takes_a_distance_grid_only_once_it_has_started(started):
     from keyframe_implicit.core import Reporter, fit_grid
 
     kfs, _ = turning_sphere(n=16, last=11)
-    surfaces = [checks.surface_vertices(k, kf) for k, kf in enumerate(kfs)]
+    meshes = [checks.checked_mesh(k, kf) for k, kf in enumerate(kfs)]
     grid = fit_grid([kf.vertices for kf in kfs], 20)
     helper = _CountingHelper(started)
-    alone, _ = pipeline._distance_grids(kfs, surfaces, grid, Reporter())
-    phis, _ = pipeline._distance_grids(kfs, surfaces, grid, Reporter(), helper=helper)
+    alone, _ = pipeline._distance_grids(kfs, meshes, grid, Reporter())
+    phis, _ = pipeline._distance_grids(kfs, meshes, grid, Reporter(), helper=helper)
     assert helper.calls == (1 if started else 0)
     assert len(phis) == len(kfs) and all(np.array_equal(a, b) for a, b in zip(phis, alone))
 

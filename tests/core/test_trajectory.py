@@ -62,7 +62,7 @@ def test_edge_operators_are_the_least_squares_of_every_cell_edge(d):
     from keyframe_implicit.core.motion.trajectory import _edge_operators, _edge_pairs
 
     grid = Grid((0.0,) * d, 1.0, (5,) * d)
-    region = np.zeros(grid.shape, dtype=bool)  # two overlapping boxes: a ragged band
+    region = np.zeros(grid.shape, dtype=bool)  # two overlapping boxes: a ragged region
     region[(slice(1, 4),) * d] = True
     region[(slice(3, 5), slice(0, 3)) + (slice(2, 4),) * (d - 2)] = True
     _, nodes, lc = elements.cells_within(grid, region.reshape(-1))
@@ -199,7 +199,7 @@ def test_bad_input_is_refused_with_a_message():
 
 
 def test_per_grid_node_only_the_map_the_region_and_the_body_are_kept():
-    """Band-only storage: of the arrays as large as the grid, a Trajectories keeps the map
+    """Region-only storage: of the arrays as large as the grid, a Trajectories keeps the map
     (d floats a node) and two bytes a node (region, body); everything else is per active
     node, or computed for the nodes asked about."""
     grid, phi_a, _, mapped, _ = bend_case(d=3, n=24)

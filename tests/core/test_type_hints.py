@@ -68,7 +68,7 @@ ANNOTATED = (
     "farm/__init__.py",
     "farm/stages.py",
     "farm/store.py",
-    "farm/template.py",
+    "farm/job_template.py",
     "cli/__init__.py",
     "cli/bake.py",
     "cli/farm.py",

@@ -1,4 +1,4 @@
-"""The farm job end to end: the command line's stages, the Open Job Description template
+"""The farm job end to end: the command line's stages, the Open Job Description job template
 checked, parsed and run whole with ``openjd run`` on the four-keyframe splash, and its
 result compared with a bake on one machine, array by array as Blender holds them."""
 
@@ -14,7 +14,7 @@ import pytest
 import yaml
 from openjd.model import create_job, decode_job_template
 
-from keyframe_implicit.farm.template import PAIRS_PER_TASK
+from keyframe_implicit.farm.job_template import PAIRS_PER_TASK
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SPLASH = ROOT / "assets" / "splash.blend"
@@ -38,7 +38,7 @@ def _openjd(*args, cwd):
 
 @pytest.fixture(scope="module")
 def job(tmp_path_factory):
-    """The splash's job directory after ``openjd run`` of its template, and the run's log."""
+    """The splash's job directory after ``openjd run`` of its job template, and the run's log."""
     work = tmp_path_factory.mktemp("farm")
     job_dir = work / "job"
     done = _command("farm", "template", job_dir, "--scene", SPLASH, "--resolution", RESOLUTION,

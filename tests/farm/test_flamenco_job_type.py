@@ -1,5 +1,5 @@
 """The Flamenco job type compiled by node with a stand-in for Flamenco's ``author`` API: the
-same stages, in the same order, as the Open Job Description template. (No Flamenco
+same stages, in the same order, as the Open Job Description job template. (No Flamenco
 Manager runs here; this checks the script's syntax and the task graph it builds.)"""
 
 import json
@@ -9,9 +9,9 @@ import subprocess
 
 import pytest
 
-from keyframe_implicit.farm import template
+from keyframe_implicit.farm import job_template
 
-SCRIPT = (pathlib.Path(template.__file__).parent / "flamenco" / "keyframe_implicit_bake.js")
+SCRIPT = (pathlib.Path(job_template.__file__).parent / "flamenco" / "keyframe_implicit_bake.js")
 
 HARNESS = """
 const fs = require("fs"), vm = require("vm");
@@ -67,7 +67,7 @@ def test_the_job_type_compiles_into_the_stages_with_their_dependencies():
 
 @pytest.mark.parametrize("chunk,maps", [(2, {"maps-1-2": "1-2", "maps-3": "3"}),
                                         (3, {"maps-1-3": "1-3"}), (5, {"maps-1-3": "1-3"})])
-def test_maps_tasks_take_pairs_per_task_pairs_as_the_template_chunks_them(chunk, maps):
+def test_maps_tasks_take_pairs_per_task_pairs_as_the_job_template_chunks_them(chunk, maps):
     settings = {"blendfile": "s.blend", "job_dir": "d", "output_file": "o.blend",
                 "resolution": 48, "segments": 3, "pairs_per_task": chunk}
     done = _compile(settings)

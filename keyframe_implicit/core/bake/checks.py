@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
     from ..base.grid import Grid
-    from ..fields.measure import Surface
+    from ..fields.measure import MeshReading
     from .animation import Animation
     from .keyframe import Keyframe
 
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     FeatureNames = Sequence[Sequence[tuple[str, str]]]
 
 
-__all__ = ["check_motion_resolution", "keyframe_label", "surface_vertices", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes", "CLOSE_HOLES", "THICKEN", "FACE_OUTWARD", "FIXES"]
+__all__ = ["check_motion_resolution", "keyframe_label", "checked_mesh", "no_volume_words", "check_inputs", "check_feature_reach", "rigid_sweep", "check_feature_spacing", "no_volume_message", "check_result", "notes", "CLOSE_HOLES", "THICKEN", "FACE_OUTWARD", "FIXES"]
 
 #: What a refusal or a note asks the artist to do to a keyframe's mesh, in the mesh's own
 #: terms. Each is worded here only; an application adds where its tools do it (the Blender
@@ -48,11 +48,11 @@ def _segment_label(i: int) -> str:
     return f"keyframes {i + 1} → {i + 2}"
 
 
-def surface_vertices(k: int, kf: Keyframe) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+def checked_mesh(k: int, kf: Keyframe) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """(vertices (V, 3), triangles, loose, face vertices) of a keyframe; loose counts vertices
     of no face. Refuses, before any grid work, a keyframe that encloses no volume
-    (`fields.measure.read_surface`, the measure the Blender panel judges it by too)."""
-    from ..fields.measure import read_surface
+    (`fields.measure.read_mesh`, the measure the Blender panel judges it by too)."""
+    from ..fields.measure import read_mesh
     from ..fields.mesh import check_vertices, triangulate
 
     label = keyframe_label(k, kf)
@@ -61,27 +61,27 @@ def surface_vertices(k: int, kf: Keyframe) -> tuple[np.ndarray, np.ndarray, int,
         tris = triangulate(kf.faces, len(v))
     except ValueError as exc:
         raise ValueError(f"{label}: {exc}") from None
-    surface = read_surface(v, tris)
-    if not surface.encloses_volume:
-        raise ValueError(f"{label} {no_volume_words(surface)}")
+    reading = read_mesh(v, tris)
+    if not reading.encloses_volume:
+        raise ValueError(f"{label} {no_volume_words(reading)}")
     used = np.zeros(len(v), dtype=bool)
     used[tris.reshape(-1)] = True
-    return v, tris, surface.loose, v[used]
+    return v, tris, reading.loose, v[used]
 
 
-def no_volume_words(surface: Surface) -> str:
-    """What is wrong with a surface that encloses no volume and what to do (`FIXES`), after
+def no_volume_words(reading: MeshReading) -> str:
+    """What is wrong with a keyframe mesh that encloses no volume and what to do (`FIXES`), after
     the keyframe's name ("Keyframe 2 'Plane' is open and ...").
 
     Parameters
     ----------
-    surface : fields.measure.Surface
+    reading : fields.measure.MeshReading
         A reading whose ``encloses_volume`` is False.
     """
-    if surface.triangles == 0:
+    if reading.triangles == 0:
         return "has only faces of zero area: a keyframe must be a closed surface."
-    if surface.open_edges:
-        return (f"is open ({surface.open_edges} open edges) and encloses no volume: "
+    if reading.open_edges:
+        return (f"is open ({reading.open_edges} open edges) and encloses no volume: "
                 f"{CLOSE_HOLES}, or {THICKEN}.")
     return ("encloses no volume (it is flat, or made of parts that cancel, such as a copy "
             f"turned inside out on top of it): {THICKEN}.")
@@ -234,9 +234,9 @@ def no_volume_message(k: int, kf: Keyframe, v: np.ndarray, tris: np.ndarray, gri
         return (f"{label} is only {cells:.1f} grid cells across: the grid spans all keyframes and "
                 "feature points, which are far apart compared to this keyframe. Move them closer "
                 "together or raise the resolution.")
-    from ..fields.measure import read_surface
+    from ..fields.measure import read_mesh
 
-    open_edges = read_surface(v, tris).open_edges
+    open_edges = read_mesh(v, tris).open_edges
     if open_edges:
         return (f"{label} encloses no volume: its surface has {open_edges} open edges; "
                 f"{CLOSE_HOLES}.")

@@ -99,7 +99,7 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
     dict
         ``nodes``, ``active_nodes`` (M), ``region_nodes`` (R), ``process`` (the fixed
         part), ``grid_nodes``, ``motion`` and ``region`` (the parts per node, both copies
-        together), ``active`` (those two) and ``peak``, in bytes (ints).
+        together), ``solves`` (those two) and ``peak``, in bytes (ints).
     """
     if not isinstance(grid, Grid):
         raise ValueError(f"grid must be a keyframe_implicit.core.Grid, got {type(grid).__name__}.")
@@ -118,8 +118,8 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
         "motion": int(P * M * _MOTION_BYTES[d]),
         "region": int(P * R * _REGION_BYTES[d]),
     }
-    out["active"] = out["motion"] + out["region"]
-    out["peak"] = out["process"] + out["grid_nodes"] + out["active"]
+    out["solves"] = out["motion"] + out["region"]
+    out["peak"] = out["process"] + out["grid_nodes"] + out["solves"]
     return out
 
 

@@ -22,6 +22,9 @@ __all__ = ["BakeOptions"]
 
 #: The fields holding one stage's options each, and the class of each.
 _STAGES = {"map": MapOptions, "motion": MotionOptions, "surface": SurfaceOptions}
+#: `pipeline.animate`'s keywords whose field has another name: the keyword stays as the
+#: public API has it, the field says what it holds.
+_FIELDS = {"template": "tracked_mesh"}
 
 
 @dataclass(frozen=True)
@@ -41,10 +44,11 @@ class BakeOptions:
         Empty cells around the keyframes' bounding box (4).
     max_bytes : int or None
         Memory limit of the bake; None (default): 75 % of the physical memory.
-    template : {"keyframe", "grid"}
-        The mesh carried through the frames: the first keyframe's own mesh with its
-        attributes and sub-cell detail (default; `template.DetailTrack`; the grid's when it
-        has loose vertices), or marching cubes of its distance grid.
+    tracked_mesh : {"keyframe", "grid"}
+        Which mesh is the template carried through the frames (`animate`'s ``template``):
+        the first keyframe's own mesh with its attributes and sub-cell detail (default;
+        `template.DetailTrack`; the grid's when it has loose vertices), or marching cubes
+        of its distance grid.
     key_interpolation : str, sequence of str, or None
         Per keyframe, how the motion passes it (`spline.KEY_INTERPOLATIONS`): "smooth"
         (None, the default: continuous velocity), "linear" or "ease".
@@ -63,7 +67,7 @@ class BakeOptions:
     motion_resolution: int | None = None
     padding_cells: int = 4
     max_bytes: int | None = None
-    template: str = "keyframe"
+    tracked_mesh: str = "keyframe"
     key_interpolation: str | tuple | list | None = None
     processes: int = 1
     map: MapOptions = field(default_factory=MapOptions)
@@ -73,14 +77,15 @@ class BakeOptions:
     @classmethod
     def from_keywords(cls, *, weights: dict | None = None, **keywords) -> BakeOptions:
         """The options `pipeline.animate`'s keywords ask for, each keyword given to the one
-        class that names it: this one's own fields, then `SurfaceOptions`',
-        `MotionOptions`' and `MapOptions`' (``volume_weight`` and the like included).
-        ``weights`` ({"volume": 30.0, ...}, by term name) sets the map's weights over any
-        ``<term>_weight`` keyword.
+        class that names it: this one's own fields (``template`` for ``tracked_mesh``), then
+        `SurfaceOptions`', `MotionOptions`' and `MapOptions`' (``volume_weight`` and the
+        like included). ``weights`` ({"volume": 30.0, ...}, by term name) sets the map's
+        weights over any ``<term>_weight`` keyword.
 
         ValueError names an unknown keyword or weight and lists the known ones.
         """
-        own = {f.name for f in dataclasses.fields(cls)} - set(_STAGES)
+        own = ({f.name for f in dataclasses.fields(cls)} - set(_STAGES) - set(_FIELDS.values())
+               | set(_FIELDS))
         known = {"": own, "surface": SurfaceOptions.names(), "motion": MotionOptions.names(),
                  "map": MapOptions.names()}
         parts = {name: {} for name in known}
@@ -91,7 +96,8 @@ class BakeOptions:
                                  f"{sorted(set().union(*known.values()) | {'weights'})}.")
             parts[owner][key] = value
         parts["map"].update(_weight_keywords(weights))
-        return cls(**parts[""], map=MapOptions.from_keywords(**parts["map"]),
+        own_fields = {_FIELDS.get(key, key): value for key, value in parts[""].items()}
+        return cls(**own_fields, map=MapOptions.from_keywords(**parts["map"]),
                    motion=MotionOptions(**parts["motion"]),
                    surface=SurfaceOptions(**parts["surface"]))
 

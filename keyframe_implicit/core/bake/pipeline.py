@@ -20,7 +20,7 @@ from ..base.progress import Reporter
 from .animation import Animation
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
-                     keyframe_label, no_volume_message, notes, rigid_sweep, surface_vertices)
+                     keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
 from .keyframe import Keyframe
 from .options import BakeOptions
 
@@ -31,7 +31,7 @@ __all__ = ["Keyframe", "animate", "bake", "BakePlan", "plan_bake", "bake_grids",
            "distance_fields", "distance_grid", "finish_bake"]
 
 
-def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
+def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
     """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each.
 
     With a ``helper`` process the two share them (`parallel.share`): this process takes
@@ -43,14 +43,14 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
 
     n = len(keyframes)
     if helper is None or n < 2:
-        done = dict(enumerate(distance_grid(keyframes, surfaces, grid, k, rep, cancel)
+        done = dict(enumerate(distance_grid(keyframes, meshes, grid, k, rep, cancel)
                               for k in range(n)))
     else:
         def here(k, stop):
-            return distance_grid(keyframes, surfaces, grid, k, rep, stop)
+            return distance_grid(keyframes, meshes, grid, k, rep, stop)
 
         def there(k):
-            return distance_grid, (keyframes, surfaces, grid, k), {}
+            return distance_grid, (keyframes, meshes, grid, k), {}
 
         done, _, theirs = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
                                 last_first=True, when_started=True)
@@ -60,14 +60,15 @@ def _distance_grids(keyframes, surfaces, grid, rep, cancel=None, helper=None):
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
-def distance_grid(keyframes, surfaces, grid: Grid, k: int, rep=None, cancel=None) -> tuple:
-    """(field, figures) of keyframe ``k``; ValueError naming the keyframe on bad input."""
+def distance_grid(keyframes, meshes, grid: Grid, k: int, rep=None, cancel=None) -> tuple:
+    """(field, figures) of keyframe ``k`` from its checked mesh (``meshes[k]``,
+    `checks.checked_mesh`); ValueError naming the keyframe on bad input."""
     from ..fields.sdf import mesh_to_sdf
 
     n = len(keyframes)
     sub = (rep or Reporter()).sub(k / n, (k + 1) / n)
     sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
-    kf, (v, tris) = keyframes[k], surfaces[k][:2]
+    kf, (v, tris) = keyframes[k], meshes[k][:2]
     figures = {}
     try:
         phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
@@ -187,7 +188,7 @@ def bake(keyframes, features, options: BakeOptions, *, feature_names=None, progr
 @dataclass
 class BakePlan:
     """What a bake settles before any grid work (`plan_bake`): the checked keyframes and
-    feature pairs, each keyframe's surface (`checks.surface_vertices`: vertices,
+    feature pairs, each keyframe's checked mesh (`checks.checked_mesh`: vertices,
     triangles, loose vertices, points the grid must hold), the surface grid at
     ``resolution`` and the motion grid (None: the surface grid), the artist's template
     (vertices, triangles, `attributes.MeshAttributes`; None: the grid's), the bake's
@@ -198,7 +199,7 @@ class BakePlan:
     resolution: int
     grid: Grid
     motion_grid: Grid | None
-    surfaces: list
+    checked_meshes: list
     artist: tuple | None
     options: BakeOptions
     stats: dict
@@ -216,7 +217,7 @@ class BakePlan:
         artist = self.artist
         return Chain(phis, self.grid, self.features, self.frames, self.options,
                      template=None if artist is None else artist[:2],
-                     keyframe_meshes=None if artist is None else [s[:2] for s in self.surfaces],
+                     keyframe_meshes=None if artist is None else [m[:2] for m in self.checked_meshes],
                      motion_grid=self.motion_grid, cancel=cancel)
 
 
@@ -242,10 +243,10 @@ def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, 
 
     Reporter(progress)(0.0, "Choosing the grid")
     stats = {}
-    surfaces = [surface_vertices(k, kf) for k, kf in enumerate(keyframes)]
+    meshes = [checked_mesh(k, kf) for k, kf in enumerate(keyframes)]
 
     def fit(resolution, motion_resolution, max_bytes):
-        return _bake_grid(keyframes, surfaces, features, feature_names, resolution,
+        return _bake_grid(keyframes, meshes, features, feature_names, resolution,
                           motion_resolution, options.padding_cells, max_bytes)
 
     resolution, (grid, stats["motion_resolution"], motion) = (grid_rule or bake_grids)(
@@ -253,8 +254,8 @@ def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, 
     stats.update(grid_shape=tuple(grid.shape), grid_spacing=grid.spacing)
     if motion is not None:
         stats["motion_grid_shape"] = tuple(motion.shape)
-    artist = _artist_template(keyframes[0], surfaces[0], options.template)
-    return BakePlan(keyframes, features, resolution, grid, motion, surfaces, artist, options,
+    artist = _artist_template(keyframes[0], meshes[0], options.tracked_mesh)
+    return BakePlan(keyframes, features, resolution, grid, motion, meshes, artist, options,
                     stats)
 
 
@@ -271,7 +272,7 @@ def bake_grids(fit, options: BakeOptions) -> tuple:
 def distance_fields(plan, rep, cancel=None, helper=None):
     """The keyframes' signed distance grids on ``plan.grid`` (`sdf.mesh_to_sdf`, shared with
     a ``helper`` process when given); their figures go to ``plan.stats["sdf"]``."""
-    phis, plan.stats["sdf"] = _distance_grids(plan.keyframes, plan.surfaces, plan.grid, rep,
+    phis, plan.stats["sdf"] = _distance_grids(plan.keyframes, plan.checked_meshes, plan.grid, rep,
                                               cancel, helper)
     return phis
 
@@ -284,7 +285,7 @@ def finish_bake(plan, chain, t0, rep):
     check_result(chain, plan.grid, keyframes)
     stats = dict(plan.stats)
     stats.update(chain.stats)
-    stats["loose_vertices"] = [s[2] for s in plan.surfaces]
+    stats["loose_vertices"] = [m[2] for m in plan.checked_meshes]
     stats["notes"] = notes(keyframes, stats["loose_vertices"], stats["sdf"])
     if "quality" in stats:
         rep(0.98, "Measuring the keyframe frames")
@@ -297,10 +298,10 @@ def finish_bake(plan, chain, t0, rep):
         faces=np.asarray(chain.faces, dtype=np.int64), stats=stats,
         attributes=None if artist is None else artist[2],
         keyframe_attributes={} if artist is None else
-        _keyframe_attributes(keyframes, plan.surfaces, artist[2]))
+        _keyframe_attributes(keyframes, plan.checked_meshes, artist[2]))
 
 
-def _bake_grid(keyframes, surfaces, features, feature_names, resolution, motion_resolution,
+def _bake_grid(keyframes, meshes, features, feature_names, resolution, motion_resolution,
                padding_cells, max_bytes):
     """The bake's surface grid (`gridfit.fit_grid`), its Motion Resolution and motion grid
     (`_motion_grid`). The grid holds every keyframe's faces (loose vertices are ignored),
@@ -310,7 +311,7 @@ def _bake_grid(keyframes, surfaces, features, feature_names, resolution, motion_
     from .gridfit import fit_grid
     from .memory import MemoryLimitError, check_memory, largest_fitting
 
-    pts = [s[3] for s in surfaces]
+    pts = [m[3] for m in meshes]
     lo = np.min([p.min(axis=0) for p in pts], axis=0)
     hi = np.max([p.max(axis=0) for p in pts], axis=0)
     check_feature_reach(features, lo, hi, feature_names)
@@ -401,15 +402,15 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
     stats["output"], stats["output_reason"] = choose_output(chain.frames, quality)
 
 
-def _artist_template(keyframe, surface, template):
+def _artist_template(keyframe, mesh, tracked_mesh):
     """(vertices, triangles, MeshAttributes) of the first keyframe's own mesh, or None for
     the grid's template (asked for, or loose vertices that no surface carries)."""
     from ..surface.attributes import MeshAttributes
 
-    if template not in ("keyframe", "grid"):
-        raise ValueError(f'template must be "keyframe" or "grid", got {template!r}.')
-    v, tris, loose = surface[:3]
-    if template == "grid" or loose:
+    if tracked_mesh not in ("keyframe", "grid"):
+        raise ValueError(f'template must be "keyframe" or "grid", got {tracked_mesh!r}.')
+    v, tris, loose = mesh[:3]
+    if tracked_mesh == "grid" or loose:
         return None
     attrs = keyframe.attributes
     if attrs is None:
@@ -456,21 +457,21 @@ def _keyframes_are_reference(per_frame, frames, key_frames):
                                              keyframe_mean=0.0, keyframe_max=0.0)
 
 
-def _keyframe_attributes(keyframes, surfaces, first):
+def _keyframe_attributes(keyframes, meshes, first):
     """Per keyframe frame, the `MeshAttributes` of its own mesh: the first keyframe's are the
     template's (``first``); another keyframe's are its own when they fit its mesh, else its
     triangles."""
     from ..surface.attributes import MeshAttributes
 
     out = {}
-    for k, (kf, surface) in enumerate(zip(keyframes, surfaces)):
+    for k, (kf, mesh) in enumerate(zip(keyframes, meshes)):
         attrs = first if k == 0 else kf.attributes
         try:
             if attrs is not None:
-                attrs.check(len(surface[0]))
+                attrs.check(len(mesh[0]))
         except ValueError:
             attrs = None
-        out[int(kf.frame)] = attrs if attrs is not None else MeshAttributes.from_triangles(surface[1])
+        out[int(kf.frame)] = attrs if attrs is not None else MeshAttributes.from_triangles(mesh[1])
     return out
 
 

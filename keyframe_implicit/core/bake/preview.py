@@ -93,13 +93,13 @@ class Preview:
         """Every keyframe's distance grid on the plan's grid (`pipeline.distance_grid`),
         those of an unchanged mesh on an unchanged grid kept from before; and how many were
         kept."""
-        keys = [_field_key(plan.grid, s) for s in plan.surfaces]
+        keys = [_field_key(plan.grid, m) for m in plan.checked_meshes]
         phis, kept = [], 0
         for k, key in enumerate(keys):
             if key in self._phis:
                 kept += 1
             else:
-                self._phis[key] = distance_grid(plan.keyframes, plan.surfaces, plan.grid, k,
+                self._phis[key] = distance_grid(plan.keyframes, plan.checked_meshes, plan.grid, k,
                                                 rep, cancel)[0]
             phis.append(self._phis[key])
         self._phis = {key: self._phis[key] for key in keys}  # only the current ones stay
@@ -152,9 +152,9 @@ def preview_grids(fit, options: BakeOptions) -> tuple:
         res = min(top, int(np.ceil(1.25 * res)))
 
 
-def _field_key(grid, surface):
+def _field_key(grid, mesh):
     """What a keyframe's distance grid depends on: the grid and the mesh's triangles."""
-    v, tris = surface[:2]
+    v, tris = mesh[:2]
     digest = hashlib.blake2b(np.ascontiguousarray(v, dtype=np.float64).tobytes())
     digest.update(np.ascontiguousarray(tris, dtype=np.int64).tobytes())
     return (tuple(np.asarray(grid.origin, float)), float(grid.spacing), tuple(grid.shape),

@@ -2,13 +2,13 @@
 
 The trajectory solve (`trajectory.Trajectories`, the Poisson problem of
 thesis section 3.1 in its global form) is a weighted graph Laplacian L of the
-grid edges inside a band around the material. A direct factorisation fills in
-faster than the band grows and cannot be interrupted; conjugate gradients cost
+grid edges inside the region (material and margin). A direct factorisation fills in
+faster than the region grows and cannot be interrupted; conjugate gradients cost
 one sparse product per iteration and stop between any two.
 
 The preconditioner is one V-cycle of smoothed-aggregation multigrid whose
 aggregates are the 2 x 2 x 2 blocks of grid nodes (2 x 2 in 2D), level after
-level: the grid's own coarse levels, with the band's ragged edge handled
+level: the grid's own coarse levels, with the region's ragged edge handled
 algebraically (Vanek, Mandel and Brezina, 1996). The tentative prolongation
 P0 copies a coarse value onto its block; one damped Jacobi step smooths it,
 P = (I - w D^-1 L) P0, and the coarse operator is P^T L P (Galerkin). Jacobi

@@ -1,4 +1,4 @@
-"""A keyframe mesh measured the way the distance field reads it (`read_surface`): its faces
+"""A keyframe mesh measured the way the distance field reads it (`read_mesh`): its faces
 only (loose vertices are no part of the surface), cleaned and oriented as `mesh` makes
 them, its volume taken where the winding number (`winding`) reads inside when holes leave
 no other. It is the one measure both the bake's checks and the Blender panel judge a
@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 from .mesh import check_vertices, clean_triangles, orient_faces, triangulate
 from .winding import WindingTree
 
-__all__ = ["Surface", "read_surface", "VOLUME_SHARE"]
+__all__ = ["MeshReading", "read_mesh", "VOLUME_SHARE"]
 
 #: A surface encloses no volume when its volume is below this share of the cube on its
 #: faces' largest side: a plane, a closed sheet folded onto itself, a part cancelled by an
@@ -25,8 +25,8 @@ VOLUME_SHARE = 1e-6
 
 
 @dataclass(frozen=True)
-class Surface:
-    """A keyframe mesh as the distance field reads it (`read_surface`).
+class MeshReading:
+    """A keyframe mesh as the distance field reads it (`read_mesh`).
 
     Attributes
     ----------
@@ -67,8 +67,8 @@ class Surface:
         return self.triangles > 0 and self.volume > VOLUME_SHARE * self.extent ** 3
 
 
-def read_surface(vertices: ArrayLike,
-                 faces: ArrayLike | Sequence[Sequence[int]]) -> Surface:
+def read_mesh(vertices: ArrayLike,
+              faces: ArrayLike | Sequence[Sequence[int]]) -> MeshReading:
     """Measure a keyframe mesh as the bake reads it: faces only, cleaned and oriented.
 
     Parameters
@@ -78,7 +78,7 @@ def read_surface(vertices: ArrayLike,
 
     Returns
     -------
-    Surface
+    MeshReading
 
     Raises
     ------
@@ -98,15 +98,15 @@ def read_surface(vertices: ArrayLike,
     try:
         tris = clean_triangles(v, tris, stats)
     except ValueError:
-        return Surface(0, **counts)
+        return MeshReading(0, **counts)
     tris, reoriented, non_orientable = orient_faces(v, tris)
     open_edges, shared_edges = _edge_counts(tris)
     a, b, c = (v[tris[:, k]] - on_faces.mean(axis=0) for k in range(3))
     volume = abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
     if open_edges or not volume > VOLUME_SHARE * counts["extent"] ** 3:
         volume = _inside_volume(v, tris, lo, hi)  # holes; parts that cancel only in sum
-    return Surface(len(tris), volume, open_edges=open_edges, shared_edges=shared_edges,
-                   reoriented=reoriented, non_orientable=non_orientable, **counts)
+    return MeshReading(len(tris), volume, open_edges=open_edges, shared_edges=shared_edges,
+                       reoriented=reoriented, non_orientable=non_orientable, **counts)
 
 
 def _inside_volume(v, tris, lo, hi, cells=16):

@@ -73,7 +73,7 @@ class ElementBatch:
     """E cells of the solved region.
 
     Y : (E, 2**d, d) mapped corner positions.
-    weight : (E,) region weight of each cell (1 in A's material, less in the band).
+    weight : (E,) region weight of each cell (1 in A's material, less in the margin).
     gauss, centre : `Quadrature` rules of `keyframe_implicit.core.base.elements`.
     """
 

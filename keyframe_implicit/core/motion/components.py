@@ -1,14 +1,14 @@
 """The volume each component of an in-between should have, from where its material comes.
 
 The first term of eq. 2.6 asks det F = 1 in every cell: each piece of material keeps
-its volume wherever it goes. One iso-value per frame (`isovolume.volume_offset`) holds
+its volume wherever it goes. One iso-value per frame (`isovolume.volume_iso_value`) holds
 only the total: in a merge of two unequal balls the small one grew while the big one
 shrank, before they touched. Here the material is cut into atoms, one per pair of
 components (i of keyframe A, j of B) that the maps join, each with its share of the
 material fitted to both keyframes' own component volumes (`ComponentVolumes`). At time
 s each connected component p of the in-between wants the volume of the atoms whose
 material arrives in it, A's along A's paths and B's along B's; `isovolume.
-component_offsets` then gives each its own iso-value. docs/method.md, section 13.
+component_iso_values` then gives each its own iso-value. docs/method.md, section 13.
 """
 
 from __future__ import annotations

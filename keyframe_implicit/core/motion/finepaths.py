@@ -46,7 +46,7 @@ def on_motion_grid(field: ArrayLike, grid: Grid, motion_grid: Grid) -> np.ndarra
 
 
 def same_width(cells: float, grid: Grid, motion_grid: Grid) -> float:
-    """A band ``cells`` of ``grid``'s cells wide, in cells of the ``motion_grid`` (at least
+    """A margin ``cells`` of ``grid``'s cells wide, in cells of the ``motion_grid`` (at least
     one): the margins the solves add around the material keep their width in world units
     on the motion grid. A margin of motion cells is wider, and the empty gap of a merge
     resists it the more (benchmarks/results/motion_grid.md)."""

@@ -13,8 +13,8 @@ unit gradient), i.e. it is the least change of shape that fixes the volume.
 Volumes are those of the surface the artist gets (`surface.enclosed_volume`,
 marching cubes of the field). The root is found by a few secant-like steps:
 the change of volume with c comes from a smoothed Heaviside of L / |grad L|
-on the grid (cheap, monotone in c; solved by safeguarded Newton), its level
-from one surface per step.
+on the grid (cheap, monotone in c; solved by safeguarded Newton), the volume
+itself from one surface per step.
 """
 
 from __future__ import annotations
@@ -33,14 +33,14 @@ from .components import sub_grid
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-__all__ = ["volume_offset", "component_offsets"]
+__all__ = ["volume_iso_value", "component_iso_values"]
 
 _CHUNK = 1 << 18  # nodes per gradient chunk (bounds the index temporaries)
 
 
-def volume_offset(field: ArrayLike, grid: Grid, target: float, *, rtol: float = 1e-3,
-                  max_steps: int = 3, max_cells: float = 3.0) -> tuple[float, float]:
-    """Iso-value c with ``enclosed_volume(field - c) = target``.
+def volume_iso_value(field: ArrayLike, grid: Grid, target: float, *, rtol: float = 1e-3,
+                     max_steps: int = 3, max_cells: float = 3.0) -> tuple[float, float]:
+    """The iso-value with ``enclosed_volume(field - iso_value) = target``.
 
     Parameters
     ----------
@@ -54,27 +54,27 @@ def volume_offset(field: ArrayLike, grid: Grid, target: float, *, rtol: float = 
     max_steps : int
         Surfaces extracted at most.
     max_cells : float
-        |c| stays below this many grid spacings: a volume that needs a larger
+        |iso_value| stays below this many grid spacings: a volume that needs a larger
         shift is not a blending error, and is left to the caller to report.
         A truncated field (its maximum, the value where no transport reached, is
-        under the search's reach of ``max_cells + 2`` cells) keeps c half a cell
-        below that plateau, whose nodes are outside at any such c and are not read.
+        under the search's reach of ``max_cells + 2`` cells) keeps the iso-value half a
+        cell below that plateau, whose nodes are outside at any such one and are not read.
 
     Returns
     -------
-    c : float
+    iso_value : float
         World units; 0 when the field encloses the target already.
     error : float
-        Relative volume error left, (V(c) - target) / target.
+        Relative volume error left, (V(iso_value) - target) / target.
     """
     h = grid.spacing
     f = np.asarray(field, dtype=float)
     flat = f.reshape(-1)
     reach = (max_cells + 2) * h
     lim = max_cells * h
-    top = flat.max()  # under reach: a truncated field's plateau, outside at any c below it
+    top = flat.max()  # under reach: a truncated field's plateau, outside at any iso-value below it
     lim_up = lim if top >= reach else max(0.0, min(lim, top - 0.5 * h))
-    near = np.flatnonzero((flat > -reach) & (flat < min(reach, top)))  # the nodes c can cross
+    near = np.flatnonzero((flat > -reach) & (flat < min(reach, top)))  # the nodes it can cross
     fn = flat[near]
     ghn = np.empty(len(near))  # a chunk at a time: bounds the index temporaries
     for s in range(0, len(near), _CHUNK):
@@ -82,49 +82,49 @@ def volume_offset(field: ArrayLike, grid: Grid, target: float, *, rtol: float = 
         ghn[part] = np.maximum(_gradient_norm(f, grid, near[part]), 0.05) * h
     inner = (np.count_nonzero(flat < 0) - np.count_nonzero(fn < 0)) * grid.cell_volume
 
-    def smooth(c: float) -> tuple[float, float]:
-        """Smoothed-Heaviside volume of {f < c} and its derivative in c (both increasing)."""
-        ramp = 0.5 - (fn - c) / ghn
+    def smooth(iso_value: float) -> tuple[float, float]:
+        """Smoothed-Heaviside volume of {f < iso_value} and its derivative (both increasing)."""
+        ramp = 0.5 - (fn - iso_value) / ghn
         inside = (ramp > 0.0) & (ramp < 1.0)
         vol = inner + np.clip(ramp, 0.0, 1.0).sum() * grid.cell_volume
         return vol, float(np.sum(1.0 / ghn[inside])) * grid.cell_volume
 
-    c = 0.0
+    iso_value = 0.0
     err = 0.0
     for _ in range(max_steps):
-        v = enclosed_volume(f, grid, level=c)
+        v = enclosed_volume(f, grid, level=iso_value)
         err = (v - target) / target
         if abs(err) <= rtol:
             break
-        want = smooth(c)[0] + (target - v)
+        want = smooth(iso_value)[0] + (target - v)
         lo, hi = -lim, lim_up
         for _ in range(30):  # safeguarded Newton on the monotone smooth volume
-            vol, slope = smooth(c)
-            lo, hi = (c, hi) if vol < want else (lo, c)
+            vol, slope = smooth(iso_value)
+            lo, hi = (iso_value, hi) if vol < want else (lo, iso_value)
             if abs(vol - want) <= 1e-6 * abs(target):
                 break
-            step = c + (want - vol) / slope if slope > 0 else np.inf
-            c = step if lo < step < hi else 0.5 * (lo + hi)
+            step = iso_value + (want - vol) / slope if slope > 0 else np.inf
+            iso_value = step if lo < step < hi else 0.5 * (lo + hi)
     else:
-        err = (enclosed_volume(f, grid, level=c) - target) / target
-    return float(c), float(err)
+        err = (enclosed_volume(f, grid, level=iso_value) - target) / target
+    return float(iso_value), float(err)
 
 
-def component_offsets(field: np.ndarray, grid: Grid, labels: np.ndarray, targets: np.ndarray, *,
-                      max_cells: float = 3.0, passes: int = 2,
-                      **keywords: Any) -> tuple[np.ndarray, np.ndarray]:
+def component_iso_values(field: np.ndarray, grid: Grid, labels: np.ndarray,
+                         targets: np.ndarray, *, max_cells: float = 3.0, passes: int = 2,
+                         **keywords: Any) -> tuple[np.ndarray, np.ndarray]:
     """Shift each labelled component of ``field`` by its own iso-value, in place, so that
     its volume is its target (`components.ComponentVolumes.targets`).
 
     Every node within ``max_cells + 2`` cells of some component (the reach of
-    `volume_offset`) belongs to the nearest component (`skimage.segmentation.
-    expand_labels`) and is shifted by that component's iso-value c_p; nodes farther from
-    every component are outside at any such shift and keep their value. c changes only
+    `volume_iso_value`) belongs to the nearest component (`skimage.segmentation.
+    expand_labels`) and is shifted by that component's iso-value; nodes farther from
+    every component are outside at any such shift and keep their value. It changes only
     between two components, where the field is outside by half their gap. A component
-    with no target (no material arrives in it) keeps c = 0.
+    with no target (no material arrives in it) keeps an iso-value of 0.
 
-    Each c_p is found on the component's box with the other components' inside set to
-    the plateau, as if the whole box moved by c_p. Across a gap of a cell or two, some of
+    Each iso-value is found on the component's box with the other components' inside set to
+    the plateau, as if the whole box moved by it. Across a gap of a cell or two, some of
     the component's surface edges end on a node that moves with its neighbour instead,
     so a second pass corrects what the first left.
 
@@ -137,13 +137,13 @@ def component_offsets(field: np.ndarray, grid: Grid, labels: np.ndarray, targets
     targets : (P,) array
         Volume wanted of each component, world units.
     max_cells, **keywords
-        As `volume_offset`, per component.
+        As `volume_iso_value`, per component.
     passes : int
         Rounds of the per-component solves.
 
     Returns
     -------
-    c : (P,) array
+    iso_values : (P,) array
         Each component's iso-value, world units.
     error : (P,) array
         Each component's relative volume error left after the last pass, as its box
@@ -157,7 +157,7 @@ def component_offsets(field: np.ndarray, grid: Grid, labels: np.ndarray, targets
     plateau = float(field.max())
     local = field[box]  # a view: shifting it shifts ``field``
     inside = labels[box]
-    c, err = np.zeros(len(targets)), np.full(len(targets), np.nan)
+    iso_values, err = np.zeros(len(targets)), np.full(len(targets), np.nan)
     parts = ndimage.find_objects(near, max_label=len(targets))
     for _ in range(passes):
         for k, part in enumerate(parts):
@@ -168,12 +168,12 @@ def component_offsets(field: np.ndarray, grid: Grid, labels: np.ndarray, targets
             others = inside[part]
             own = np.where((others > 0) & (others != k + 1), plateau, local[part])
             origin = tuple(slice(b.start + p.start, b.start + p.stop) for b, p in zip(box, part))
-            step, err[k] = volume_offset(own, sub_grid(grid, origin), targets[k],
-                                         max_cells=max_cells, **keywords)
+            step, err[k] = volume_iso_value(own, sub_grid(grid, origin), targets[k],
+                                            max_cells=max_cells, **keywords)
             mine = local[part]  # a view of the component's box: its nodes are all in it
             mine[near[part] == k + 1] -= step
-            c[k] += step
-    return c, err
+            iso_values[k] += step
+    return iso_values, err
 
 
 def _gradient_norm(f: np.ndarray, grid: Grid, nodes: np.ndarray) -> np.ndarray:

@@ -55,7 +55,7 @@ from ..base.elements import inverse
 from ..base.grid import Grid
 from ..base.sampling import sample
 from .finepaths import FinePaths, material_mass, on_motion_grid, same_width
-from .isovolume import component_offsets, volume_offset
+from .isovolume import component_iso_values, volume_iso_value
 from .options import MotionOptions
 from .components import ComponentVolumes, component_labels
 from .spline import start_velocity
@@ -326,13 +326,13 @@ class Inbetween:
         """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,
         where the shifted in-between has several components, each by its own iso-value,
         for the volume of the material arriving in it (`components`,
-        `isovolume.component_offsets`)."""
+        `isovolume.component_iso_values`)."""
         if self._end_volumes is None:
             self._end_volumes = (enclosed_volume(self.phi_a, self.grid),
                                  enclosed_volume(self.phi_b, self.grid))
         va, vb = self._end_volumes
-        c, err = volume_offset(field, self.grid, (1.0 - s) * va + s * vb)
-        field -= c  # the blend's own array
+        iso_value, err = volume_iso_value(field, self.grid, (1.0 - s) * va + s * vb)
+        field -= iso_value  # the blend's own array
         labels, count = (component_labels(field) if self.options.volume_per_component
                          else (None, 1))
         if count > 1:
@@ -340,11 +340,11 @@ class Inbetween:
                 self._components = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
                                                     self.forward.trajectories,
                                                     self.backward.trajectories)
-            own, errors = component_offsets(field, self.grid, labels,
-                                            self._components.targets(labels, count, s))
-            c += own[np.argmax(np.abs(own))]
+            own, errors = component_iso_values(field, self.grid, labels,
+                                               self._components.targets(labels, count, s))
+            iso_value += own[np.argmax(np.abs(own))]
             err = float(np.nanmax(np.abs(errors), initial=0.0))
-        self.stats.setdefault("volume_offset_h", {})[s] = c / self.grid.spacing
+        self.stats.setdefault("iso_value_h", {})[s] = iso_value / self.grid.spacing
         self.stats.setdefault("volume_error", {})[s] = err
         return field
 

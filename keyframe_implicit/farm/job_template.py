@@ -11,14 +11,14 @@ when it is free, as the local bake does; one pair alone leaves a core idle while
 longer map ends (benchmarks/README.md, "Render farm").
 
 Paths is one short task between the two parallel steps: a segment's paths bend with its
-neighbours' maps (docs/method.md, section 12), and a segment starts from the template
+neighbours' maps (docs/method.md, section 12), and a segment starts from the tracked mesh
 where the one before it ended. Job parameters: the .blend, the job directory, the output
 .blend, the resolution, the Python that runs the stages and its PYTHONPATH, and optionally
 a Blender executable for the two stages that read and write the .blend (empty: the Python
 imports the bpy module). ``openjd run DIR/template.yaml`` runs the whole job with the
 defaults written here; ``deadline bundle submit DIR`` sends it to AWS Deadline Cloud. The
 job directory is self-contained: it holds a copy of the .blend (Open Job Description
-resolves a path's default inside the template's folder).
+resolves a path's default inside the job template's folder).
 """
 
 from __future__ import annotations
@@ -31,9 +31,9 @@ from typing import Any
 
 from ..worker import python_path as worker_path
 
-__all__ = ["job_template", "write_template", "to_yaml", "TEMPLATE"]
+__all__ = ["job_template", "write_job_template", "to_yaml", "JOB_TEMPLATE"]
 
-TEMPLATE = "template.yaml"
+JOB_TEMPLATE = "template.yaml"
 #: Default of the job parameter PairsPerTask (module docstring).
 PAIRS_PER_TASK = 3
 _PACKAGE = __package__.rsplit(".", 1)[0].rsplit(".", 1)[-1]  # as `python -m` names it
@@ -61,7 +61,7 @@ def job_template(job_dir: str, blend_path: str, segments: int, resolution: int,
     """The job template as a dict (see the module docstring)."""
     job_dir = os.path.abspath(job_dir)
     params = [
-        # a PATH's default lies in the template's folder, the job directory
+        # a PATH's default lies in the job template's folder, the job directory
         dict(name="BlendFile", type="PATH", objectType="FILE", dataFlow="IN",
              default=os.path.basename(blend_path),
              description="The scene to bake (a copy of the scene the job was written for)."),
@@ -134,14 +134,14 @@ def to_yaml(value: object, indent: int = 0) -> str:
     return pad + json.dumps(value)
 
 
-def write_template(job_dir: str, blend_path: str, segments: int, resolution: int,
-                   **kwargs: str | None) -> str:
+def write_job_template(job_dir: str, blend_path: str, segments: int, resolution: int,
+                       **kwargs: str | None) -> str:
     """Write DIR/template.yaml (`job_template`'s keywords); returns its path."""
     os.makedirs(job_dir, exist_ok=True)
     copy = os.path.join(job_dir, os.path.basename(blend_path))
     if not os.path.exists(copy) or not os.path.samefile(blend_path, copy):
         shutil.copyfile(blend_path, copy)  # the job's input: a farm sends the bundle whole
-    path = os.path.join(job_dir, TEMPLATE)
+    path = os.path.join(job_dir, JOB_TEMPLATE)
     with open(path, "w") as f:
         f.write(to_yaml(job_template(job_dir, blend_path, segments, resolution, **kwargs))
                 + "\n")
