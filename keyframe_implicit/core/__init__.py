@@ -25,6 +25,7 @@ keyframe_implicit.core`` stays cheap and each stage can be used on its own.
 from __future__ import annotations
 
 import importlib
+from typing import Any
 
 # public name -> module that defines it
 _EXPORTS = {
@@ -56,7 +57,7 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name):
+def __getattr__(name: str) -> Any:
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'keyframe_implicit.core' has no attribute {name!r}")
@@ -65,5 +66,5 @@ def __getattr__(name):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))

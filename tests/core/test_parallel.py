@@ -215,13 +215,14 @@ def test_a_helper_that_dies_before_it_has_started_says_so():
 def test_a_bake_uses_a_helper_it_is_given_and_leaves_it_running(monkeypatch):
     """`animate(helper=...)`: the worker starts its helper before reading its inputs; the
     bake shares its work with that one, starts none of its own, and does not end it."""
-    from keyframe_implicit.core.base import parallel
+    from keyframe_implicit.core.bake import chain, pipeline
 
     kfs, feats = turning_sphere(n=16, last=5)
     with Helper() as helper:
         def no_second(*args, **kwargs):
             raise AssertionError("the bake started a helper of its own")
-        monkeypatch.setattr(parallel, "Helper", no_second)
+        for starter in (pipeline, chain):  # each module that starts one
+            monkeypatch.setattr(starter, "Helper", no_second)
         res = animate(kfs, feats, resolution=16, processes=2, helper=helper)
         assert res.stats["helper_peak_rss_kib"] > 0
         helper.submit(pow, 2, 5)

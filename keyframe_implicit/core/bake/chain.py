@@ -29,6 +29,7 @@ import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -44,15 +45,29 @@ from ..surface.template import DetailTrack, initial_template, track_template, un
 from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
 
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable, Sequence
+
+    from numpy.typing import ArrayLike
+
+    from ..map.options import MapOptions
+    from ..motion.levelset import Inbetween, Recipe
+    from ..motion.options import MotionOptions
+
 __all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "HELPER_PRELOAD"]
 
 #: What a helper process imports as it starts: everything a chain's work sends it.
 HELPER_PRELOAD = (__name__,)
 
 
-def animate_chain(phis, grid, features, frames, *, maps=None, template=None,
-                  keyframe_meshes=None, helper=None, motion_grid=None, progress=None,
-                  cancel=None, **options) -> Animation:
+def animate_chain(phis: Sequence[ArrayLike], grid: Grid,
+                  features: Sequence[Sequence[ArrayLike]] | None, frames: ArrayLike, *,
+                  maps: Sequence[ArrayLike] | None = None,
+                  template: tuple[ArrayLike, ArrayLike] | None = None,
+                  keyframe_meshes: Sequence[tuple[ArrayLike, ArrayLike]] | None = None,
+                  helper: Helper | None = None, motion_grid: Grid | None = None,
+                  progress: Callable[[float, str], object] | None = None,
+                  cancel: Callable[[], bool] | None = None, **options: Any) -> Animation:
     """Animate a chain of keyframes given as signed distance grids.
 
     Parameters
@@ -126,8 +141,13 @@ class Chain:
     options.
     """
 
-    def __init__(self, phis, grid, features, frames, options: BakeOptions, *, maps=None,
-                 template=None, keyframe_meshes=None, motion_grid=None, cancel=None) -> None:
+    def __init__(self, phis: Sequence[ArrayLike], grid: Grid,
+                 features: Sequence[Sequence[ArrayLike]] | None, frames: ArrayLike,
+                 options: BakeOptions, *, maps: Sequence[ArrayLike] | None = None,
+                 template: tuple[ArrayLike, ArrayLike] | None = None,
+                 keyframe_meshes: Sequence[tuple[ArrayLike, ArrayLike]] | None = None,
+                 motion_grid: Grid | None = None,
+                 cancel: Callable[[], bool] | None = None) -> None:
         phis, self.frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
         kinds = check_key_interpolation(options.key_interpolation, len(phis))
         self.options, self.cancel = options, cancel
@@ -148,7 +168,8 @@ class Chain:
             return initial_template(self._first_phi, self.grid)
         return np.asarray(given[0]), np.asarray(given[1], dtype=np.int64)
 
-    def run(self, helper=None, progress=None) -> Animation:
+    def run(self, helper: Helper | None = None,
+            progress: Callable[[float, str], object] | None = None) -> Animation:
         """Every segment's frames in timeline order: `animate_chain`'s result. ``helper``
         is used instead of starting one (``processes`` > 1) and left running."""
         rep = Reporter(progress, self.cancel)
@@ -184,7 +205,8 @@ class Chain:
         return Segment(k, (f0, f1), (start, self.template[1]), self.keyframe_meshes,
                        self.outputs), local
 
-    def segment(self, k, start, helper, rep):
+    def segment(self, k: int, start: np.ndarray, helper: Helper | None, rep: Reporter
+                ) -> tuple[np.ndarray, list[dict[str, Any]], dict[str, Any]]:
         """Segment ``k``'s frames from the template's vertices ``start`` on its first frame:
         (timeline frames, one record per frame (`_frames`), the segment's figures). The
         first segment begins on the first keyframe's frame, every other one a frame after
@@ -196,7 +218,7 @@ class Chain:
         records = split.run(inb, rep.sub(0.5, 1.0))
         return local, records, dict(inb.stats, template_seconds=time.perf_counter() - t0)
 
-    def end_template(self, k, start):
+    def end_template(self, k: int, start: np.ndarray) -> np.ndarray:
         """The template's vertices on segment ``k``'s last frame (s = 1) from ``start`` on
         its first: the next segment's ``start``, without making its frames."""
         segment, _ = self._segment(k, start)
@@ -245,8 +267,15 @@ class Inbetweens:
     earlier tasks): a segment found there is not solved again.
     """
 
-    def __init__(self, phis, grid, features, maps, map_options, motion_options, cancel=None,
-                 motion_grid=None, timing=None) -> None:
+    def __init__(self, phis: Sequence[np.ndarray], grid: Grid,
+                 features: Sequence[Sequence[ArrayLike]] | None,
+                 maps: Sequence[ArrayLike] | None, map_options: MapOptions,
+                 motion_options: MotionOptions, cancel: Callable[[], bool] | None = None,
+                 motion_grid: Grid | None = None,
+                 timing: tuple[np.ndarray, Sequence[str]] | None = None) -> None:
+        # the maps and the in-betweens are imported when first needed: this module is the
+        # helper's preload and the live preview's import, which the motion stage (scipy.ndimage,
+        # scikit-image) would slow
         from .maps import solve_fields
 
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
@@ -257,7 +286,8 @@ class Inbetweens:
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
 
-    def make(self, k, helper, split, rep):
+    def make(self, k: int, helper: Helper | None, split: FrameSplit | None,
+             rep: Reporter) -> Inbetween:
         """Segment ``k``'s in-betweens; ``split`` (`FrameSplit`, or None when no other
         process makes frames) hears of them as soon as their recipe is known; progress to
         0.5 of ``rep``."""
@@ -286,7 +316,7 @@ class Inbetweens:
         rep(0.5, "in-betweens ready")
         return inb
 
-    def solve(self, window, helper, rep):
+    def solve(self, window: Iterable[int], helper: Helper | None, rep: Reporter) -> None:
         """The maps of the segments in ``window``, into ``solved``."""
         from .maps import on_solve_grid, solve_maps_shared
 
@@ -319,7 +349,7 @@ class Inbetweens:
         rep(0.5, "in-betweens ready")
         return inb
 
-    def bend_all(self, helper, rep):
+    def bend_all(self, helper: Helper | None, rep: Reporter) -> None:
         """Every segment's maps (solved or given), the velocities of the paths that meet at
         the keyframes (`spline.velocities_needed`, two at a time: one per core), and every
         segment's `Bend`s."""
@@ -365,7 +395,8 @@ class Kept:
     vertices, the per-frame figures in ``stats``, and as ``outputs`` (`SurfaceOptions`)
     asks the level sets, the frames' own meshes and their velocities."""
 
-    def __init__(self, frames, template_shape, outputs):
+    def __init__(self, frames: np.ndarray, template_shape: tuple[int, ...],
+                 outputs: SurfaceOptions) -> None:
         self.frames, self.outputs = frames, outputs
         self.vertices = np.empty((frames.size,) + tuple(template_shape))
         self.stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [],
@@ -374,7 +405,7 @@ class Kept:
             self.stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
         self.meshes, self.velocities, self.fields = [], [], []
 
-    def add(self, rows, records):
+    def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
         """Keep ``records``, those of the frames at ``rows`` of ``frames``, in order."""
         outputs, st = self.outputs, self.stats
         for row, rec in zip(rows, records):
@@ -391,7 +422,7 @@ class Kept:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
 
-    def animation(self, chain, seconds):
+    def animation(self, chain: Chain, seconds: float) -> Animation:
         """The `animation.Animation` of the frames kept, ``chain`` (`Chain`) their source."""
         verts, faces = self.vertices[-1], chain.template[1]
         self.stats.update(seconds=seconds, vertices=int(len(verts)), faces=int(len(faces)))
@@ -431,7 +462,7 @@ class FrameSplit:
     them first). So the split halves the in-betweens, the odd one to this process.
     """
 
-    def __init__(self, helper, frames, segment):
+    def __init__(self, helper: Helper | None, frames: np.ndarray, segment: Segment) -> None:
         self.helper = helper if helper is not None and len(frames) >= 4 else None
         self.frames, self.segment = frames, segment
         ends = segment.ends
@@ -439,13 +470,13 @@ class FrameSplit:
         self.half = int(np.count_nonzero(frames <= ends[0])) + (int(inner.sum()) + 1) // 2
         self.started = False
 
-    def start(self, inbetweens):
+    def start(self, inbetweens: Inbetween | Recipe) -> None:
         """Submit the later half to the helper (``inbetweens`` an `Inbetween` or its recipe)."""
         if self.helper is not None and not self.started:
             self.helper.submit(_half, inbetweens, self.frames[self.half:], self.segment)
             self.started = True
 
-    def run(self, inb, rep):
+    def run(self, inb: Inbetween, rep: Reporter) -> list[dict[str, Any]]:
         """Every frame's record, in order."""
         if self.helper is None:
             return _frames(inb, self.frames, self.segment, rep)
@@ -527,7 +558,9 @@ def _frame_outputs(inb, s, segment, p, rep):
     return out
 
 
-def frame_mesh(surface, keyframe_meshes, k: int, s: float) -> tuple:
+def frame_mesh(surface: tuple[np.ndarray, np.ndarray] | None,
+               keyframe_meshes: Sequence[tuple[ArrayLike, ArrayLike]] | None, k: int,
+               s: float) -> tuple[np.ndarray, np.ndarray]:
     """A frame's own mesh for the mesh sequence: on a keyframe's frame (s = 0 of the first
     segment, s = 1 of every segment) the keyframe mesh the artist modelled, when given;
     else the frame's grid surface."""

@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any
 
 from ..base.parallel import cores, share
 from ..base.progress import Reporter
@@ -22,13 +23,29 @@ from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
 from .options import BakeOptions
 
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    import numpy as np
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
+    from ..base.parallel import Helper
+    from ..map.options import MapOptions
+    from ..map.result import MapResult
+    from ..motion.options import MotionOptions
+    from ..motion.spline import Bend
+
 __all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "solve_fields", "on_solve_grid",
            "from_solved"]
 
 
-def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, cancel=None,
-              on_maps=None, parallel=True, helper=None, motion_grid=None,
-              **options) -> Inbetween:
+def inbetween(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayLike,
+              features_b: ArrayLike, *, progress: Callable[[float, str], object] | None = None,
+              cancel: Callable[[], bool] | None = None,
+              on_maps: Callable[[Recipe], object] | None = None, parallel: bool = True,
+              helper: Helper | None = None, motion_grid: Grid | None = None,
+              **options: Any) -> Inbetween:
     """Solve the maps between two keyframes and return their in-betweens.
 
     ``inbetween = solve_map (A -> B, and B -> A with the feature pairs swapped
@@ -69,9 +86,14 @@ def inbetween(phi_a, phi_b, grid, features_a, features_b, *, progress=None, canc
                            cancel=cancel, on_maps=on_maps, motion_grid=motion_grid)
 
 
-def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *,
-                    parallel=True, helper=None, progress=None, cancel=None, on_maps=None,
-                    motion_grid=None):
+def pair_inbetweens(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid,
+                    features: Sequence[ArrayLike], map_options: MapOptions,
+                    motion_options: MotionOptions, *, parallel: bool = True,
+                    helper: Helper | None = None,
+                    progress: Callable[[float, str], object] | None = None,
+                    cancel: Callable[[], bool] | None = None,
+                    on_maps: Callable[[Recipe], object] | None = None,
+                    motion_grid: Grid | None = None) -> Inbetween:
     """`inbetween` with its options as the two stages' objects (``features``: the pair
     (points_a, points_b))."""
     rep = Reporter(progress, cancel)
@@ -93,7 +115,7 @@ def pair_inbetweens(phi_a, phi_b, grid, features, map_options, motion_options, *
     return out
 
 
-def on_solve_grid(map_options, grid, solve_grid):
+def on_solve_grid(map_options: MapOptions, grid: Grid, solve_grid: Grid) -> MapOptions:
     """``map_options`` for a solve on ``solve_grid``: the map's margin keeps its width in
     world units (``margin_cells`` counts the surface grid's cells; `finepaths.same_width`)."""
     if solve_grid == grid:
@@ -102,7 +124,8 @@ def on_solve_grid(map_options, grid, solve_grid):
         map_options, margin_cells=same_width(map_options.margin_cells, grid, solve_grid))
 
 
-def solve_fields(phis, grid, motion_grid):
+def solve_fields(phis: Sequence[ArrayLike], grid: Grid,
+                 motion_grid: Grid | None) -> Sequence[ArrayLike]:
     """The keyframes' fields on the grid their maps are solved on: ``phis`` themselves, or
     read at the nodes of the ``motion_grid`` (`OnMotionGrid`)."""
     if motion_grid is None:
@@ -115,21 +138,24 @@ class OnMotionGrid(Sequence):
     each the first time it is asked for: a task that solves one pair's maps reads two,
     one that only builds trajectories from solved maps none."""
 
-    def __init__(self, phis, grid, motion_grid):
+    def __init__(self, phis: Sequence[ArrayLike], grid: Grid, motion_grid: Grid) -> None:
         self.phis, self.grid, self.motion_grid = phis, grid, motion_grid
         self._read = {}
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.phis)
 
-    def __getitem__(self, k):
+    def __getitem__(self, k: int) -> np.ndarray:
         if k not in self._read:  # two threads may both read it: the same array either way
             self._read[k] = on_motion_grid(self.phis[k], self.grid, self.motion_grid)
         return self._read[k]
 
 
-def from_solved(phi_a, phi_b, grid, res, back, motion_options, seconds, on_maps=None,
-                cancel=None, bends=None):
+def from_solved(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, res: MapResult,
+                back: MapResult | None, motion_options: MotionOptions, seconds: float,
+                on_maps: Callable[[Recipe], object] | None = None,
+                cancel: Callable[[], bool] | None = None,
+                bends: tuple[Bend | None, Bend | None] | None = None) -> Inbetween:
     """The `Inbetween` of solved maps: ``res`` A -> B and ``back`` B -> A (None: one-sided)
     `result.MapResult`, solved on ``grid`` or on a motion grid (``res.grid``); ``seconds``
     the time the maps took, for its stats. ``on_maps`` as in `inbetween`; ``bends`` as in
@@ -185,8 +211,11 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
         return res, job.result()
 
 
-def solve_maps_shared(phis, grid, features, window, two_sided, helper, rep, cancel,
-                      map_options):
+def solve_maps_shared(phis: Sequence[ArrayLike], grid: Grid,
+                      features: Sequence[Sequence[ArrayLike]], window: Sequence[int],
+                      two_sided: bool, helper: Helper | None, rep: Reporter,
+                      cancel: Callable[[], bool] | None, map_options: MapOptions
+                      ) -> dict[int, tuple[MapResult, MapResult | None, float]]:
     """The maps of the segments in ``window`` of a chain (keyframe fields ``phis``, feature
     pairs ``features`` per segment), shared by this process and the ``helper``.
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Any
 
 from ..map.options import MapOptions, weight_options
 from ..motion.options import MotionOptions
@@ -75,7 +76,7 @@ class BakeOptions:
     surface: SurfaceOptions = field(default_factory=SurfaceOptions)
 
     @classmethod
-    def from_keywords(cls, *, weights: dict | None = None, **keywords) -> BakeOptions:
+    def from_keywords(cls, *, weights: dict | None = None, **keywords: Any) -> BakeOptions:
         """The options `pipeline.animate`'s keywords ask for, each keyword given to the one
         class that names it: this one's own fields (``template`` for ``tracked_mesh``), then
         `SurfaceOptions`', `MotionOptions`' and `MapOptions`' (``volume_weight`` and the

@@ -11,21 +11,38 @@ import dataclasses
 import os
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..base.grid import Grid
+from ..base.parallel import Helper, one_blas_thread, share
 from ..base.progress import Reporter
+from ..motion.spline import check_key_interpolation
+from ..surface.attributes import MeshAttributes
+from ..surface.extract import mesh_volume
+from ..surface.quality import choose_output, keyframe_distance
 from .animation import Animation
+from .chain import HELPER_PRELOAD, Chain
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
+from .gridfit import auto_motion_resolution, fit_grid, motion_grid
 from .keyframe import Keyframe
+from .memory import MemoryLimitError, check_memory, largest_fitting
 from .options import BakeOptions
 
 if TYPE_CHECKING:
-    from .chain import Chain
+    from collections.abc import Callable, Sequence
+
+    from numpy.typing import ArrayLike
+
+    from .checks import FeatureNames
+
+    #: What a grid rule (`plan_bake`'s ``grid_rule``) is given: (surface grid, Motion
+    #: Resolution, motion grid or None) of the keyframes at (resolution, motion resolution or
+    #: None, memory limit or None).
+    GridFit = Callable[[int, int | None, int | None], tuple[Grid, int, Grid | None]]
 
 __all__ = ["Keyframe", "animate", "bake", "BakePlan", "plan_bake", "bake_grids",
            "distance_fields", "distance_grid", "finish_bake"]
@@ -39,8 +56,6 @@ def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
     A process takes 0.5-1 s to start, more than a small grid's distance grids take, so
     the helper only joins in where that pays.
     """
-    from ..base.parallel import share
-
     n = len(keyframes)
     if helper is None or n < 2:
         done = dict(enumerate(distance_grid(keyframes, meshes, grid, k, rep, cancel)
@@ -60,9 +75,13 @@ def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
-def distance_grid(keyframes, meshes, grid: Grid, k: int, rep=None, cancel=None) -> tuple:
+def distance_grid(keyframes: Sequence[Keyframe], meshes: Sequence[tuple], grid: Grid, k: int,
+                  rep: Reporter | None = None, cancel: Callable[[], bool] | None = None
+                  ) -> tuple[np.ndarray, dict[str, Any]]:
     """(field, figures) of keyframe ``k`` from its checked mesh (``meshes[k]``,
     `checks.checked_mesh`); ValueError naming the keyframe on bad input."""
+    # the distance fields' modules (scipy.ndimage, scipy.spatial, scipy.sparse) are imported
+    # when first needed: the live preview imports this module as it starts
     from ..fields.sdf import mesh_to_sdf
 
     n = len(keyframes)
@@ -89,7 +108,6 @@ def _physical_memory():
 def _material_fraction(keyframe, grid):
     """Share of the grid box enclosed by a keyframe mesh (from its volume, before any grid work)."""
     from ..fields.mesh import triangulate
-    from ..surface.extract import mesh_volume
 
     v = np.asarray(keyframe.vertices, dtype=float).reshape(-1, 3)
     try:
@@ -99,8 +117,11 @@ def _material_fraction(keyframe, grid):
     return float(min(1.0, vol / np.prod(grid.upper - grid.origin)))
 
 
-def animate(keyframes, features, *, feature_names=None, progress=None, cancel=None, helper=None,
-            **options) -> Animation:
+def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]], *,
+            feature_names: FeatureNames | None = None,
+            progress: Callable[[float, str], object] | None = None,
+            cancel: Callable[[], bool] | None = None, helper: Helper | None = None,
+            **options: Any) -> Animation:
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -160,14 +181,13 @@ def animate(keyframes, features, *, feature_names=None, progress=None, cancel=No
                 feature_names=feature_names, progress=progress, cancel=cancel, helper=helper)
 
 
-def bake(keyframes, features, options: BakeOptions, *, feature_names=None, progress=None,
-         cancel=None, helper=None) -> Animation:
+def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
+         options: BakeOptions, *, feature_names: FeatureNames | None = None,
+         progress: Callable[[float, str], object] | None = None,
+         cancel: Callable[[], bool] | None = None, helper: Helper | None = None) -> Animation:
     """`animate` with its options as one `BakeOptions`: what the Blender side's worker and
     every other caller that built its options once run. The other parameters, the result
     and the errors are `animate`'s."""
-    from .chain import HELPER_PRELOAD
-    from ..base.parallel import Helper, one_blas_thread
-
     t0 = time.perf_counter()
     rep = Reporter(progress, cancel)
     plan = plan_bake(keyframes, features, options, feature_names=feature_names, progress=rep)
@@ -209,11 +229,9 @@ class BakePlan:
         """The keyframes' timeline frames."""
         return [kf.frame for kf in self.keyframes]
 
-    def chain(self, phis, cancel=None) -> Chain:
+    def chain(self, phis: Sequence[np.ndarray], cancel: Callable[[], bool] | None = None) -> Chain:
         """The `chain.Chain` of this plan's keyframes, given their distance grids ``phis``
         on ``grid``: the artist's mesh as the template when there is one."""
-        from .chain import Chain
-
         artist = self.artist
         return Chain(phis, self.grid, self.features, self.frames, self.options,
                      template=None if artist is None else artist[:2],
@@ -221,8 +239,12 @@ class BakePlan:
                      motion_grid=self.motion_grid, cancel=cancel)
 
 
-def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, progress=None,
-              grid_rule=None) -> BakePlan:
+def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
+              options: BakeOptions, *, feature_names: FeatureNames | None = None,
+              progress: Callable[[float, str], object] | None = None,
+              grid_rule: Callable[[GridFit, BakeOptions],
+                                  tuple[int, tuple[Grid, int, Grid | None]]] | None = None
+              ) -> BakePlan:
     """`bake`'s inputs checked and its grids chosen, before any grid work: a `BakePlan`.
 
     ``grid_rule`` chooses the grids: called as ``grid_rule(fit, options)``, it returns
@@ -235,8 +257,6 @@ def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, 
     The other parameters are `bake`'s; ValueError (and `memory.MemoryLimitError`) on
     input the user must fix.
     """
-    from ..motion.spline import check_key_interpolation
-
     keyframes, features = check_inputs(keyframes, features, feature_names)
     check_motion_resolution(options.motion_resolution, options.resolution)
     check_key_interpolation(options.key_interpolation, len(keyframes))
@@ -259,7 +279,7 @@ def plan_bake(keyframes, features, options: BakeOptions, *, feature_names=None, 
                     stats)
 
 
-def bake_grids(fit, options: BakeOptions) -> tuple:
+def bake_grids(fit: GridFit, options: BakeOptions) -> tuple[int, tuple[Grid, int, Grid | None]]:
     """The bake's grid rule (`plan_bake`'s ``grid_rule``): the grids at the options'
     resolutions, refused over the options' memory limit (None: 75 % of physical memory)."""
     max_bytes = options.max_bytes
@@ -269,7 +289,8 @@ def bake_grids(fit, options: BakeOptions) -> tuple:
     return options.resolution, fit(options.resolution, options.motion_resolution, max_bytes)
 
 
-def distance_fields(plan, rep, cancel=None, helper=None):
+def distance_fields(plan: BakePlan, rep: Reporter, cancel: Callable[[], bool] | None = None,
+                    helper: Helper | None = None) -> list[np.ndarray]:
     """The keyframes' signed distance grids on ``plan.grid`` (`sdf.mesh_to_sdf`, shared with
     a ``helper`` process when given); their figures go to ``plan.stats["sdf"]``."""
     phis, plan.stats["sdf"] = _distance_grids(plan.keyframes, plan.checked_meshes, plan.grid, rep,
@@ -277,7 +298,7 @@ def distance_fields(plan, rep, cancel=None, helper=None):
     return phis
 
 
-def finish_bake(plan, chain, t0, rep):
+def finish_bake(plan: BakePlan, chain: Animation, t0: float, rep: Reporter) -> Animation:
     """`animate`'s result from the chain's `Animation`: checked against the keyframes, its
     figures and notes gathered, the output chosen, arrays in their final types; ``t0``
     the `time.perf_counter` the bake began at."""
@@ -308,9 +329,6 @@ def _bake_grid(keyframes, meshes, features, feature_names, resolution, motion_re
     every feature point and the rigid sweeps between them. Refused before any work, with
     the resolution that would fit, when `memory.estimate_memory` puts it over
     ``max_bytes`` (None: no limit)."""
-    from .gridfit import fit_grid
-    from .memory import MemoryLimitError, check_memory, largest_fitting
-
     pts = [m[3] for m in meshes]
     lo = np.min([p.min(axis=0) for p in pts], axis=0)
     hi = np.max([p.max(axis=0) for p in pts], axis=0)
@@ -347,8 +365,6 @@ def _bake_grid(keyframes, meshes, features, feature_names, resolution, motion_re
 def _motion_rule(motion_resolution, fraction):
     """The motion grid a bake at resolution r on grid g would use, as (r, g) -> grid or
     None: the given Motion Resolution (no finer than r) or the automatic one."""
-    from .gridfit import auto_motion_resolution, motion_grid
-
     def motion_of(r, g):
         m = (auto_motion_resolution(r, fraction, g) if motion_resolution is None
              else min(int(motion_resolution), r))
@@ -362,8 +378,6 @@ def _motion_grid(features, feature_names, grid, resolution, motion_resolution, f
     the surface grid). Automatic: `gridfit.auto_motion_resolution` for the largest
     keyframe's ``fraction`` of the box, raised where two feature points would share a
     motion cell; given: refused in that case."""
-    from .gridfit import auto_motion_resolution, motion_grid
-
     def grid_of(m):
         return motion_grid(grid, resolution, m)
 
@@ -390,8 +404,6 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
     meshes), then the output chosen (`quality.choose_output`), into ``stats``. With the
     artist's mesh as the template (``artist``) its shape keys are judged relative to the
     keyframes' own figures, and the mesh sequence is the keyframes' meshes there."""
-    from ..surface.quality import choose_output
-
     quality = stats["quality"]
     key_frames = [kf.frame for kf in keyframes]
     if artist:
@@ -405,8 +417,6 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
 def _artist_template(keyframe, mesh, tracked_mesh):
     """(vertices, triangles, MeshAttributes) of the first keyframe's own mesh, or None for
     the grid's template (asked for, or loose vertices that no surface carries)."""
-    from ..surface.attributes import MeshAttributes
-
     if tracked_mesh not in ("keyframe", "grid"):
         raise ValueError(f'template must be "keyframe" or "grid", got {tracked_mesh!r}.')
     v, tris, loose = mesh[:3]
@@ -461,8 +471,6 @@ def _keyframe_attributes(keyframes, meshes, first):
     """Per keyframe frame, the `MeshAttributes` of its own mesh: the first keyframe's are the
     template's (``first``); another keyframe's are its own when they fit its mesh, else its
     triangles."""
-    from ..surface.attributes import MeshAttributes
-
     out = {}
     for k, (kf, mesh) in enumerate(zip(keyframes, meshes)):
         attrs = first if k == 0 else kf.attributes
@@ -478,7 +486,6 @@ def _keyframe_attributes(keyframes, meshes, first):
 def _measure_keyframes(quality, keyframes, chain, spacing, outputs):
     """Add, for each of ``outputs``, the two-way distance to the keyframe mesh the artist
     gave on every keyframe frame."""
-    from ..surface.quality import keyframe_distance
     from ..fields.mesh import triangulate
 
     for kf in keyframes:

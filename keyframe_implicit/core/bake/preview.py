@@ -20,14 +20,26 @@ from __future__ import annotations
 
 import hashlib
 import time
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..base.parallel import one_blas_thread
 from ..base.progress import Reporter
+from ..surface.extract import extract_surface
 from .chain import frame_mesh
 from .options import BakeOptions
 from .pipeline import distance_grid, plan_bake
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from numpy.typing import ArrayLike
+
+    from ..base.grid import Grid
+    from .checks import FeatureNames
+    from .keyframe import Keyframe
+    from .pipeline import GridFit
 
 __all__ = ["Preview", "preview_grids", "PREVIEW_RESOLUTION", "PREVIEW_MOTION_RESOLUTION"]
 
@@ -49,13 +61,15 @@ class Preview:
         ``distance_grids_kept`` (how many keyframes' distance grids were not recomputed).
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._phis = {}  # (grid, mesh) key -> distance grid
         self._solved = None
         self.figures = {}
 
-    def solve(self, keyframes, features, options: BakeOptions | None = None, *,
-              feature_names=None, progress=None, cancel=None) -> dict:
+    def solve(self, keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
+              options: BakeOptions | None = None, *, feature_names: FeatureNames | None = None,
+              progress: Callable[[float, str], object] | None = None,
+              cancel: Callable[[], bool] | None = None) -> dict[str, Any]:
         """Solve every segment's maps and in-betweens at the preview's resolutions.
 
         The parameters are `pipeline.bake`'s: the bake's own ``options`` (None: the
@@ -106,19 +120,17 @@ class Preview:
         return phis, kept
 
     @property
-    def solved(self):
+    def solved(self) -> bool:
         """Whether the maps of a setup are solved (`frame` can answer)."""
         return self._solved is not None
 
-    def frame(self, f):
+    def frame(self, f: int) -> tuple[np.ndarray, np.ndarray]:
         """Timeline frame ``f``'s own surface, as the bake's mesh sequence has it.
 
         Returns (vertices (V, 3) float32, triangles (F, 3) int32), world units. Frames
         before the first keyframe or after the last show that keyframe's. RuntimeError
         before a solve.
         """
-        from ..surface.extract import extract_surface
-
         if self._solved is None:
             raise RuntimeError("nothing solved yet: call solve first.")
         grid, frames, inbetweens, meshes = self._solved
@@ -133,7 +145,7 @@ class Preview:
         return np.asarray(v, dtype=np.float32), np.asarray(tris, dtype=np.int32)
 
 
-def preview_grids(fit, options: BakeOptions) -> tuple:
+def preview_grids(fit: GridFit, options: BakeOptions) -> tuple[int, tuple[Grid, int, Grid | None]]:
     """The preview's grid rule (`pipeline.plan_bake`'s ``grid_rule``): `PREVIEW_RESOLUTION`
     cells and a motion grid of `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one
     where two feature points would share a motion cell; raised by a quarter at a time, up

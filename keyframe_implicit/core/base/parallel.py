@@ -30,20 +30,26 @@ import sys
 import threading
 import time
 from collections import deque
+from typing import TYPE_CHECKING, Any
 
 from .wire import follow_parent, receive, send
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Hashable, Iterable, Sequence
+
+    from threadpoolctl import threadpool_limits
 
 __all__ = ["Helper", "HelperError", "cores", "can_start_helper", "one_blas_thread",
            "release_memory", "share"]
 
 
-def cores():
+def cores() -> int:
     """The machine's cores (`os.cpu_count`; 1 when unknown): whether a second process, a
     second thread for the other map, or half of each Hessian product has a core of its own."""
     return os.cpu_count() or 1
 
 
-def can_start_helper():
+def can_start_helper() -> bool:
     """Whether a `Helper` can start from this process: a ``spawn`` child runs the parent's
     main module again, by its module name or from its file. Code run by ``blender -b
     --python-expr`` has neither (its main "file" is "<blender string>"); a worker started
@@ -53,7 +59,7 @@ def can_start_helper():
     return getattr(main, "__spec__", None) is not None or path is None or os.path.isfile(path)
 
 
-def one_blas_thread():
+def one_blas_thread() -> threadpool_limits:
     """BLAS limited to one thread in this process (a `threadpoolctl.threadpool_limits`:
     a context manager, or in force until its ``restore_original_limits``).
 
@@ -65,6 +71,8 @@ def one_blas_thread():
     they spin while they wait for the next call. The limit covers the BLAS libraries
     loaded when it is set, so scipy's own is loaded first.
     """
+    # imported here, not at the top: the worker imports this module as it starts (to start
+    # its helper at once), long before a bake limits BLAS
     import scipy.linalg  # noqa: F401  (loads scipy's BLAS, which numpy's limit would miss)
     from threadpoolctl import threadpool_limits
 
@@ -84,7 +92,7 @@ def _malloc_trim():
 _TRIM = _malloc_trim()
 
 
-def release_memory():
+def release_memory() -> bool:
     """Give the free pages of this process's heap back to the system (glibc's
     ``malloc_trim``; nothing where there is none). Returns whether it could.
 
@@ -116,7 +124,7 @@ class Helper:
         does not wait for them (the bake names `chain.HELPER_PRELOAD`).
     """
 
-    def __init__(self, preload=()):
+    def __init__(self, preload: Sequence[str] = ()) -> None:
         ctx = multiprocessing.get_context("spawn")
         self._conn, theirs = ctx.Pipe()
         lifeline, their_lifeline = ctx.Pipe()
@@ -128,7 +136,7 @@ class Helper:
         their_lifeline.close()
         self._ready = False
 
-    def ready(self):
+    def ready(self) -> bool:
         """Whether the helper has started (imported its ``preload``): it then takes a call
         at once. Does not wait; not while another thread waits in `result`."""
         if not self._ready and self._conn.poll():
@@ -145,11 +153,12 @@ class Helper:
             raise HelperError(f"the helper's first message was {value!r}, not that it started")
         self._ready = True
 
-    def submit(self, fn, *args, **kwargs):
+    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
         """Start ``fn(*args, **kwargs)`` in the helper; `result` gives its value."""
         send(self._conn, (fn, args, kwargs))
 
-    def result(self, check=None, poll_seconds=0.05):
+    def result(self, check: Callable[[], object] | None = None,
+               poll_seconds: float = 0.05) -> Any:
         """The value of the call `submit` started; re-raises its exception.
 
         ``check`` (e.g. a `progress.Reporter`'s) is called while waiting, so a
@@ -172,7 +181,7 @@ class Helper:
             raise value
         return value
 
-    def peak_rss_kib(self):
+    def peak_rss_kib(self) -> int | None:
         """The helper's peak resident set (VmHWM) so far, KiB (Linux; None elsewhere)."""
         try:
             with open(f"/proc/{self._proc.pid}/status") as fh:
@@ -183,7 +192,7 @@ class Helper:
             return None
         return None
 
-    def close(self):
+    def close(self) -> None:
         """End the helper now, whether or not a call is running."""
         if self._proc.is_alive():
             self._proc.kill()
@@ -191,15 +200,18 @@ class Helper:
         self._conn.close()
         self._lifeline.close()
 
-    def __enter__(self):
+    def __enter__(self) -> Helper:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def share(jobs, here, there, helper, check=None, cancel=None, last_first=False,
-          when_started=False):
+def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], Any],
+          there: Callable[[Any], tuple[Callable[..., Any], tuple, dict[str, Any]]],
+          helper: Helper, check: Callable[[], object] | None = None,
+          cancel: Callable[[], bool] | None = None, last_first: bool = False,
+          when_started: bool = False) -> tuple[dict, dict[Any, float], list]:
     """Run ``jobs`` in this process and in ``helper``, each taking the next job when free.
 
     This process runs ``here(job, stop)`` (``stop()`` is true once the helper has failed

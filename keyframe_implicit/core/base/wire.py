@@ -72,7 +72,8 @@ class Stream:
         (the bake's progress, reported from the threads of its two maps) go whole.
     """
 
-    def __init__(self, reader: BinaryIO | None = None, writer: BinaryIO | None = None):
+    def __init__(self, reader: BinaryIO | None = None,
+                 writer: BinaryIO | None = None) -> None:
         self.reader, self.writer = reader, writer
         self.lock = threading.Lock()
 

@@ -10,12 +10,19 @@ disappears (docs/method.md, section 3). What such a mesh encloses is measured in
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["check_vertices", "triangulate", "clean_triangles", "orient_faces"]
 
 
-def check_vertices(vertices, dim=3):
+def check_vertices(vertices: ArrayLike, dim: int = 3) -> np.ndarray:
     """``vertices`` as a float (N, dim) array, or ValueError saying what to fix."""
     try:
         v = np.asarray(vertices, dtype=float)
@@ -35,7 +42,7 @@ def check_vertices(vertices, dim=3):
     return v
 
 
-def triangulate(faces, n_vertices):
+def triangulate(faces: ArrayLike, n_vertices: int) -> np.ndarray:
     """Triangles (T, 3) from triangles, quads or polygons, as fans around each first corner.
 
     Parameters
@@ -106,7 +113,7 @@ def _as_index(a):
     raise ValueError(f"face indices must be integers, got dtype {a.dtype}.")
 
 
-def clean_triangles(v, tris, stats):
+def clean_triangles(v: np.ndarray, tris: np.ndarray, stats: dict[str, int] | None) -> np.ndarray:
     """Drop zero-area triangles (relative to the mesh size); raise if none is left."""
     a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
     area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
@@ -123,7 +130,7 @@ def clean_triangles(v, tris, stats):
     return tris[good]
 
 
-def orient_faces(vertices, tris):
+def orient_faces(vertices: np.ndarray, tris: ArrayLike) -> tuple[np.ndarray, int, int]:
     """Make the triangles of every connected part face the same way, outward where repaired.
 
     The winding number reads a closed part as inside only when its faces agree
@@ -154,9 +161,6 @@ def orient_faces(vertices, tris):
     non_orientable : int
         Faces in parts that cannot be oriented consistently.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     tris = np.asarray(tris, dtype=np.int64)
     nt = len(tris)
     a = tris.reshape(-1)

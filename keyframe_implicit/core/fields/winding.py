@@ -4,10 +4,15 @@ parts and overlapping loose parts."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .mesh import check_vertices, clean_triangles, triangulate
 from .triangles import row_dot
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["WindingTree", "winding_number"]
 
@@ -56,7 +61,8 @@ class WindingTree:
 
     DEPTH = 10  #: the octree's deepest clusters share all 3 * DEPTH bits of the Morton code
 
-    def __init__(self, v, tris, beta=2.0, leaf=8):
+    def __init__(self, v: np.ndarray, tris: np.ndarray, beta: float = 2.0,
+                 leaf: int = 8) -> None:
         self.beta = float(beta)
         self.leaf = int(leaf)
         a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
@@ -106,7 +112,7 @@ class WindingTree:
         off = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
         return rep, np.repeat(starts, counts) + off
 
-    def __call__(self, points, beta=None):
+    def __call__(self, points: ArrayLike, beta: float | None = None) -> np.ndarray:
         """Winding numbers at ``points`` (P, 3); ``beta`` overrides the opening criterion."""
         points = np.asarray(points, dtype=float)
         beta = self.beta if beta is None else float(beta)
@@ -116,7 +122,8 @@ class WindingTree:
             out[s:s + _CHUNK // 4] = self._eval(points[s:s + _CHUNK // 4], R2)
         return out
 
-    def sign(self, points, coarse_beta=1.3, doubt=0.4):
+    def sign(self, points: ArrayLike, coarse_beta: float = 1.3,
+             doubt: float = 0.4) -> np.ndarray:
         """Winding numbers good enough for the test w >= 0.5, at about half the cost.
 
         A cheap pass with ``coarse_beta`` (errors ~0.15 on typical meshes) settles
@@ -172,7 +179,8 @@ class WindingTree:
         return w
 
 
-def winding_number(vertices, faces, points, *, beta=2.0):
+def winding_number(vertices: ArrayLike, faces: ArrayLike, points: ArrayLike, *,
+                   beta: float = 2.0) -> np.ndarray:
     """Generalised winding number of a triangle/polygon mesh at ``points`` (P, 3).
 
     1 inside a closed outward-oriented mesh, 0 outside, smooth across holes,

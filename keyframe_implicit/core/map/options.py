@@ -9,15 +9,19 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import terms
 
+if TYPE_CHECKING:
+    from ..base.grid import Grid
+
 __all__ = ["MapOptions", "weight_options"]
 
 
-def weight_options():
+def weight_options() -> dict[str, str]:
     """{option name: term name} of every term registered in `terms.TERMS`, read now, so
     that a term appended there is taken (``"volume_weight": "volume"``, ...)."""
     return {t.weight_option: t.name for t in terms.TERMS}
@@ -101,7 +105,7 @@ class MapOptions:
     tear: bool = False
 
     @classmethod
-    def from_keywords(cls, **keywords):
+    def from_keywords(cls, **keywords: Any) -> MapOptions:
         """The options `solve_map`'s keywords ask for: ``<term>_weight`` keywords set
         ``weights``, the others the fields of the same name. ValueError names an unknown
         keyword and lists the known ones."""
@@ -124,7 +128,7 @@ class MapOptions:
         return frozenset(f.name for f in dataclasses.fields(cls) if f.name != "weights") \
             | frozenset(weight_options())
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         by_name = {name: option for option, name in weight_options().items()}
         weights = {}
         for name, w in self.weights.items():
@@ -149,7 +153,7 @@ class MapOptions:
                                  "coarse_space_from is the smallest system with a coarse "
                                  "correction, coarse_space_size the most coarse unknowns).")
 
-    def on_grid(self, grid):
+    def on_grid(self, grid: Grid) -> MapOptions:
         """These options with what depends on the grid settled: ``feature_radius`` from the
         grid's extent when None, ``initial`` checked as a finite map of every node."""
         radius = self.feature_radius

@@ -56,6 +56,7 @@ import dataclasses
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -70,6 +71,11 @@ from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
 from .result import MapResult
 from .tear import find_tear, prolong_pieces
 from . import terms
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["MapResult", "solve_map", "DEFAULTS"]
 
@@ -323,8 +329,10 @@ def _level(pa, pb, g, xa, yb, options, base, corr, tear, rep, timing, pool, refi
 DEFAULT_WEIGHTS = {t.name: t.default for t in terms.TERMS}
 
 
-def solve_map(phi_a, phi_b, grid, features_a, features_b, *, options=None, progress=None,
-              cancel=None, **keywords) -> MapResult:
+def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayLike,
+              features_b: ArrayLike, *, options: MapOptions | None = None,
+              progress: Callable[[float, str], object] | None = None,
+              cancel: Callable[[], bool] | None = None, **keywords: Any) -> MapResult:
     """Map keyframe A's grid nodes onto keyframe B (thesis chapter 2).
 
     Parameters

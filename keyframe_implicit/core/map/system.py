@@ -9,6 +9,7 @@ step keeps.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,6 +20,12 @@ from ..base.sampling import cell_weights
 from .constraints import FeatureConstraints
 from . import terms
 from .terms import ElementBatch, NodeBatch, heaviside
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Mapping, Sequence
+    from concurrent.futures import Executor
+
+    from .options import MapOptions
 
 __all__ = ["HESSIAN_DTYPE", "MapSystem", "constrained_system", "det_floor"]
 
@@ -87,8 +94,9 @@ class MapSystem:
     """Eq. 2.6 on one grid of the hierarchy: the solved region (its nodes `active`, its
     cells `elem`), the elements' quadrature, the node stencil and the feature constraints."""
 
-    def __init__(self, phi_a, phi_b, grid: Grid, xa, yb, margin_cells, margin_weight, radius,
-                 patch_rigidity, crack=None) -> None:
+    def __init__(self, phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, xa: np.ndarray,
+                 yb: np.ndarray, margin_cells: float, margin_weight: float, radius: float,
+                 patch_rigidity: float, crack: np.ndarray | None = None) -> None:
         d = grid.dim
         self.grid, self.d = grid, d
         self.phi_b = phi_b
@@ -124,12 +132,15 @@ class MapSystem:
         self.patch_cell = np.all(self.cons.patch_of_node[self.elem] >= 0, axis=1)
         self.term_weight = {"rigidity": np.where(self.patch_cell, float(patch_rigidity), 1.0) * self.cell_weight}
 
-    def cell_weights_of(self, name):
+    def cell_weights_of(self, name: str) -> np.ndarray:
         """Per-cell weight of term ``name`` (region weight, times ``patch_rigidity`` in patch cells for rigidity)."""
         return self.term_weight.get(name, self.cell_weight)
 
     # -- energy ----------------------------------------------------------------
-    def evaluate(self, y, weights, chunk, hessian=True, check=None, pool=None):
+    def evaluate(self, y: np.ndarray, weights: Mapping[str, float], chunk: int,
+                 hessian: bool = True, check: Callable[[], None] | None = None,
+                 pool: Executor | None = None
+                 ) -> tuple[float, dict[str, float], np.ndarray, np.ndarray | None]:
         """Total energy, per-term energies, node gradient (n, d), stencil Hessian.
 
         ``check`` (optional) is called before every chunk of elements (cancellation).
@@ -240,7 +251,7 @@ class MapSystem:
         scatter = sp.csc_matrix((np.ones(len(rows)), rows - lo, indptr), shape=(hi - lo, len(rows)))
         Hs.reshape(-1, dd)[lo:hi] += scatter @ hess.reshape(-1, dd)
 
-    def det_stats(self, y, chunk):
+    def det_stats(self, y: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
         """min det F over every quadrature point, and centre det F, of the material cells."""
         el_all = self.elem[self.cell_material]
         G = np.concatenate([self.gauss.G, self.centre.G])
@@ -254,7 +265,7 @@ class MapSystem:
             return np.zeros(0), np.zeros(0)
         return np.concatenate(mins), np.concatenate(centres)
 
-    def bsr(self, Hs, lo=0, hi=None):
+    def bsr(self, Hs: np.ndarray, lo: int = 0, hi: int | None = None) -> sp.bsr_matrix:
         """Rows ``lo`` to ``hi`` (nodes; default all) of the Hessian of stencil blocks ``Hs``
         (n, 3**d, d, d) as a BSR matrix, sharing ``Hs``'s memory."""
         d, k = self.d, len(self.offsets)
@@ -263,7 +274,8 @@ class MapSystem:
         return sp.bsr_matrix((data, self.bsr_indices[lo * k:hi * k], self.bsr_indptr[:hi - lo + 1]),
                              shape=((hi - lo) * d, self.n * d), copy=False)
 
-    def product(self, Hs, pool=None):
+    def product(self, Hs: np.ndarray,
+                pool: Executor | None = None) -> Callable[[np.ndarray], np.ndarray]:
         """x -> H x for the stencil blocks ``Hs``. With a ``pool`` (one thread) the first
         half of the rows is multiplied there: scipy's BSR product releases the GIL, so when
         the bake's other process is idle (its map solved first) a product takes about 0.6
@@ -280,7 +292,9 @@ class MapSystem:
         return apply
 
 
-def constrained_system(pa, pb, g, xa, yb, options, base, crack=None):
+def constrained_system(pa: np.ndarray, pb: np.ndarray, g: Grid, xa: np.ndarray, yb: np.ndarray,
+                       options: MapOptions, base: np.ndarray,
+                       crack: np.ndarray | None = None) -> MapSystem:
     """The `MapSystem` of grid ``g`` with feature patches no larger than the start allows
     (without the cells of a ``crack``, `tear.find_tear`).
 
@@ -308,7 +322,7 @@ def constrained_system(pa, pb, g, xa, yb, options, base, crack=None):
         rad = rad / 2 if rad / 2 >= diag else 0.0
 
 
-def det_floor(dets, min_det):
+def det_floor(dets: Sequence[np.ndarray], min_det: float) -> float:
     """What a step may not lower: the material's smallest det F, counted up to ``min_det``.
 
     A step is refused if it takes any quadrature point of the material below

@@ -47,9 +47,11 @@ from __future__ import annotations
 import dataclasses
 import time
 from concurrent.futures import ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from ..base.elements import inverse
 from ..base.grid import Grid
@@ -63,21 +65,28 @@ from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
 
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
+
+    from .finepaths import FinePaths
+    from .spline import Bend
+
 __all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
            "back_map", "path_start_velocity"]
 
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
 
 
-def idw_resample(grid: Grid, positions, values, *, fill, radius=MotionOptions.idw_radius,
-                 eps=0.25) -> tuple:
+def idw_resample(grid: Grid, positions: np.ndarray, values: np.ndarray, *, fill: float,
+                 radius: float = MotionOptions.idw_radius,
+                 eps: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
     """Thesis eq. 3.2-3.3: inverse-distance weights 1 / (r^2 + eps^2) of nearby moved nodes.
 
     ``radius`` and ``eps`` are in cells. Grid nodes with no moved node within
     ``radius`` get ``fill``. Returns the field and a mask of the nodes reached, both of grid.shape.
     """
-    from scipy.spatial import cKDTree
-
     h = grid.spacing
     tree = cKDTree(positions)
     z = grid.points().reshape(-1, grid.dim)
@@ -93,7 +102,7 @@ def idw_resample(grid: Grid, positions, values, *, fill, radius=MotionOptions.id
     return out.reshape(grid.shape), covered.reshape(grid.shape)
 
 
-def invert_map(grid: Grid, forward: Transport):
+def invert_map(grid: Grid, forward: Transport) -> np.ndarray:
     """The map B -> A as the inverse of the map A -> B (``forward``'s trajectories at t = 1).
 
     Every node z in the image of A's region gets the source x with y(x) = z
@@ -146,8 +155,10 @@ class Inbetween:
         level sets (timings in seconds, coverage, map agreement).
     """
 
-    def __init__(self, phi_a, phi_b, grid, forward, backward=None, *, options=None, stats=None,
-                 map_result=None, map_result_back=None):
+    def __init__(self, phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, forward: Transport,
+                 backward: Transport | None = None, *, options: MotionOptions | None = None,
+                 stats: dict[str, Any] | None = None, map_result: object = None,
+                 map_result_back: object = None) -> None:
         self.grid = grid
         self.phi_a = phi_a
         self.phi_b = phi_b
@@ -177,10 +188,14 @@ class Inbetween:
 
     # ------------------------------------------------------------------
     @classmethod
-    def from_map(cls, phi_a, phi_b, grid, mapped, *, mapped_back=None, material=None,
-                 components=None, motion_grid=None, bends=None, cracks=None, options=None,
-                 stats=None, map_result=None, map_result_back=None, cancel=None,
-                 **keywords) -> Inbetween:
+    def from_map(cls, phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, mapped: ArrayLike, *,
+                 mapped_back: ArrayLike | None = None, material: np.ndarray | None = None,
+                 components: np.ndarray | None = None, motion_grid: Grid | None = None,
+                 bends: tuple[Bend | None, Bend | None] | None = None,
+                 cracks: tuple[np.ndarray | None, np.ndarray | None] | None = None,
+                 options: MotionOptions | None = None, stats: dict[str, Any] | None = None,
+                 map_result: object = None, map_result_back: object = None,
+                 cancel: Callable[[], bool] | None = None, **keywords: Any) -> Inbetween:
         """In-betweens from given maps.
 
         Parameters
@@ -255,16 +270,16 @@ class Inbetween:
         return out
 
     @property
-    def mapped(self):
+    def mapped(self) -> np.ndarray:
         """The map A -> B on the surface grid, grid.shape + (d,)."""
         return self.forward.trajectories.mapped
 
     @property
-    def mapped_back(self):
+    def mapped_back(self) -> np.ndarray | None:
         """The map B -> A on the surface grid (None for the one-sided transport)."""
         return None if self.backward is None else self.backward.trajectories.mapped
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple:
         """Pickled as the inputs of `from_map` (maps, fields, options), which rebuilds it
         in the other process (`parallel.Helper`): trajectories and transports are not sent."""
         if not hasattr(self, "_recipe"):
@@ -272,7 +287,7 @@ class Inbetween:
         return self._recipe.__reduce__()
 
     # ------------------------------------------------------------------
-    def levelset(self, s):
+    def levelset(self, s: float) -> np.ndarray:
         """The in-between signed distance field at time s in [0, 1], array of grid.shape.
 
         Negative inside; Phi at s = 0 and Psi at s = 1 exactly; equal to
@@ -376,14 +391,15 @@ class Inbetween:
         self.stats["covered_nodes"] = int(covered.sum())
         return field
 
-    def trajectory(self, points, s):
+    def trajectory(self, points: ArrayLike, s: float) -> np.ndarray:
         """Positions at time s of points of keyframe A given at time 0: (P, d) -> (P, d).
 
         Multilinear interpolation of A's node trajectories.
         """
         return self.trajectories(points, s)
 
-    def velocity(self, points, s, ds=1e-3, near_cells=2.5, neighbours=12):
+    def velocity(self, points: ArrayLike, s: float, ds: float = 1e-3, near_cells: float = 2.5,
+                 neighbours: int = 12) -> np.ndarray:
         """Velocity dx/ds (world units per unit s) at world points on the level set at time s.
 
         The surface at time s is made of the material each transport carries:
@@ -413,8 +429,6 @@ class Inbetween:
         (P, d) array, world units per unit s (divide by the frames of the segment for
         units per frame).
         """
-        from scipy.spatial import cKDTree
-
         s = float(s)
         if not 0.0 <= s <= 1.0:
             raise ValueError(f"time s must lie in [0, 1], got {s}.")
@@ -523,8 +537,10 @@ def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, 
     return forward, backward
 
 
-def back_map(phi_a, phi_b, grid, mapped, *, material=None, components=None, motion_grid=None,
-             options=None, cancel=None):
+def back_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, mapped: ArrayLike, *,
+             material: np.ndarray | None = None, components: np.ndarray | None = None,
+             motion_grid: Grid | None = None, options: MotionOptions | None = None,
+             cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """The map B -> A of a segment given only its map A -> B: `invert_map` of the forward
     paths, on the maps' grid (as `Inbetween.from_map` makes it when not given)."""
     options = options or MotionOptions()
@@ -538,8 +554,10 @@ def back_map(phi_a, phi_b, grid, mapped, *, material=None, components=None, moti
     return paths.back_map(forward)
 
 
-def path_start_velocity(field, grid, mapped, *, material=None, components=None,
-                        motion_grid=None, options=None, cancel=None):
+def path_start_velocity(field: np.ndarray, grid: Grid, mapped: ArrayLike, *,
+                        material: np.ndarray | None = None, components: np.ndarray | None = None,
+                        motion_grid: Grid | None = None, options: MotionOptions | None = None,
+                        cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """The velocity (per unit s) as they leave their keyframe of the paths a segment's
     transport of ``field`` follows along ``mapped`` (``material``, ``components`` on the
     maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them, on the
@@ -559,14 +577,15 @@ class Recipe:
     """The inputs of `Inbetween.from_map` (maps, fields, options): pickled, it becomes the
     in-betweens where it is unpickled (`parallel.Helper`), built there."""
 
-    def __init__(self, args, kwargs):
+    def __init__(self, args: tuple, kwargs: dict[str, Any]) -> None:
         self.args, self.kwargs = args, kwargs
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Callable[..., Inbetween], tuple[tuple, dict[str, Any]]]:
         return _from_recipe, (self.args, self.kwargs)
 
 
-def map_agreement(grid, forward, backward, material):
+def map_agreement(grid: Grid, forward: Trajectories | FinePaths, backward: Trajectories | FinePaths,
+                  material: np.ndarray) -> tuple[float, float]:
     """|y_BA(y_AB(x)) - x| in grid spacings over A's material nodes: (mean, max), from the
     two maps' paths at s = 1 (`Trajectories` or `finepaths.FinePaths`)."""
     nodes = np.flatnonzero(material)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 __all__ = ["MotionOptions", "TRANSPORTS", "RESAMPLES"]
 
@@ -65,7 +66,7 @@ class MotionOptions:
     newton_steps: int = 6
     interpolation: str = "cubic"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.resample not in RESAMPLES:
             raise ValueError(f'resample must be "lookup" or "idw", got {self.resample!r}.')
         if self.transport not in TRANSPORTS:
@@ -75,20 +76,20 @@ class MotionOptions:
                              'use it with transport="one-sided".')
 
     @property
-    def two_sided(self):
+    def two_sided(self) -> bool:
         """Whether both keyframes are carried: the pair then needs both maps."""
         return self.transport == "two-sided"
 
     @classmethod
-    def names(cls):
+    def names(cls) -> frozenset[str]:
         """The keyword names these options take."""
         return frozenset(f.name for f in dataclasses.fields(cls))
 
-    def trajectory_keywords(self):
+    def trajectory_keywords(self) -> dict[str, Any]:
         """`trajectory.Trajectories`' keywords from these options."""
         return dict(method=self.trajectory_method, margin_cells=self.trajectory_margin_cells,
                     margin_weight=self.trajectory_margin_weight)
 
-    def lookup_keywords(self):
+    def lookup_keywords(self) -> dict[str, Any]:
         """`transport.Transport`'s keywords from these options."""
         return dict(interpolation=self.interpolation, newton_steps=self.newton_steps)

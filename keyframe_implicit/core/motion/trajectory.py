@@ -66,6 +66,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -79,6 +80,11 @@ from ..base.progress import Reporter
 from ..base.rotations import polar, rigid_fit, rotation_exp, rotation_log
 from ..base.sampling import cell_weights, sample
 from .options import MotionOptions
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["Trajectories"]
 
@@ -158,7 +164,7 @@ class EdgeSums:
     n : int, the number of nodes.
     """
 
-    def __init__(self, lc, weight, n):
+    def __init__(self, lc: ArrayLike, weight: ArrayLike, n: int) -> None:
         lc = np.asarray(lc)
         self._corners = lc.reshape(-1).astype(np.intp)  # cell-major, as B's columns hold them
         self._weight = np.asarray(weight, dtype=float)
@@ -166,7 +172,7 @@ class EdgeSums:
         self._signs = 2.0 * elements.corners(d).T - 1.0  # (d, 2^d)
         self.shape = (int(n), lc.shape[0] * d)
 
-    def __matmul__(self, T):
+    def __matmul__(self, T: ArrayLike) -> np.ndarray:
         T = np.asarray(T, dtype=float)
         nc, d = self._weight.size, self._signs.shape[0]
         if T.ndim != 2 or T.shape[0] != nc * d:
@@ -266,11 +272,13 @@ class Trajectories:
         ``cg_iterations`` (one entry per solve).
     """
 
-    def __init__(self, grid: Grid, mapped, material, components=None, *,
-                 method=MotionOptions.trajectory_method,
-                 margin_cells=MotionOptions.trajectory_margin_cells,
-                 margin_weight=MotionOptions.trajectory_margin_weight, mass=None,
-                 tolerance=1e-5, cancel=None) -> None:
+    def __init__(self, grid: Grid, mapped: ArrayLike, material: ArrayLike,
+                 components: ArrayLike | None = None, *,
+                 method: str = MotionOptions.trajectory_method,
+                 margin_cells: float = MotionOptions.trajectory_margin_cells,
+                 margin_weight: float = MotionOptions.trajectory_margin_weight,
+                 mass: ArrayLike | None = None, tolerance: float = 1e-5,
+                 cancel: Callable[[], bool] | None = None) -> None:
         y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
                                       margin_weight)
         d = grid.dim
@@ -316,7 +324,7 @@ class Trajectories:
             self._unset = dist.reshape(-1)[self._region]  # at the region's nodes only
             self._setup_lock = threading.Lock()
 
-    def setup(self):
+    def setup(self) -> None:
         """Build the global method's Poisson problem, its multigrid and Y(1); done the first
         time a time strictly between 0 and 1 is asked, since the ends need only the map
         (the template on a segment's last frame, made alone, needs no solve)."""
@@ -331,11 +339,11 @@ class Trajectories:
 
     # ------------------------------------------------------------------
     @property
-    def mapped(self):
+    def mapped(self) -> np.ndarray:
         """The map y(x), array of grid.shape + (d,)."""
         return self._y.reshape(self.grid.shape + (self.dim,))
 
-    def region_nodes(self):
+    def region_nodes(self) -> np.ndarray:
         """Flat bool mask of the region's nodes: the material and its margin."""
         return self._region
 
@@ -526,7 +534,7 @@ class Trajectories:
                 self._cache.pop(next(iter(self._cache)))
         return self._cache[key]
 
-    def node_positions(self, s, nodes):
+    def node_positions(self, s: float, nodes: ArrayLike) -> np.ndarray:
         """Positions x(s) of the grid nodes with the given flat indices, (len(nodes), d):
         the as-rigid-as-possible paths, plus the ``bend`` when one is set."""
         s = self._check_s(s)
@@ -555,12 +563,12 @@ class Trajectories:
             out[~act] = self._body_path(s, nodes[~act])
         return out
 
-    def positions(self, s):
+    def positions(self, s: float) -> np.ndarray:
         """Positions x(s) of every grid node, array of shape grid.shape + (d,)."""
         out = self.node_positions(s, np.arange(self.grid.size))
         return out.reshape(self.grid.shape + (self.dim,))
 
-    def __call__(self, points, s):
+    def __call__(self, points: ArrayLike, s: float) -> np.ndarray:
         """Positions at time s of points given at time 0 ((P, d) -> (P, d)).
 
         Multilinear interpolation of the node trajectories (only the nodes of
