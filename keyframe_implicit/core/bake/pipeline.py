@@ -33,7 +33,7 @@ from .memory import MemoryLimitError, check_memory, largest_fitting
 from .options import BakeOptions
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Callable, Mapping, Sequence
 
     from numpy.typing import ArrayLike
 
@@ -118,10 +118,18 @@ def _material_fraction(keyframe, grid):
 
 
 def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]], *,
+            resolution: int = BakeOptions.resolution,
+            motion_resolution: int | None = BakeOptions.motion_resolution,
+            weights: Mapping[str, float] | None = None,
+            key_interpolation: str | Sequence[str] | None = BakeOptions.key_interpolation,
+            template: str = BakeOptions.tracked_mesh,
+            padding_cells: int = BakeOptions.padding_cells,
+            max_bytes: int | None = BakeOptions.max_bytes,
+            processes: int = BakeOptions.processes,
             feature_names: FeatureNames | None = None,
             progress: Callable[[float, str], object] | None = None,
             cancel: Callable[[], bool] | None = None, helper: Helper | None = None,
-            **options: Any) -> Animation:
+            **stage_options: Any) -> Animation:
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -135,6 +143,31 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
     keyframes : sequence of `Keyframe`, at least two, frames strictly increasing.
     features : sequence of (points_a, points_b) pairs, one per segment (keyframe i -> i+1);
         (N, 3) arrays in world units, row j of points_a pairs with row j of points_b.
+    resolution : int
+        Grid cells along the longest side of the keyframes' bounding box (48).
+    motion_resolution : int or None
+        Cells along the same side of the motion grid, on which the maps and the
+        trajectories are solved (docs/method.md, section 11); from 8 to ``resolution``,
+        which reproduces a bake on one grid. None (default): chosen from a cost budget
+        (`gridfit.auto_motion_resolution`).
+    weights : mapping, optional
+        The weights of eq. 2.6's terms by name ("volume", "rigidity", "levelset", and any
+        term registered in `map.terms.TERMS`); the others keep their defaults.
+    key_interpolation : str or sequence of str, optional
+        Per keyframe, how the motion passes it: "smooth" (default: continuous velocity),
+        "linear" (a corner) or "ease" (coming to rest); one string for every keyframe.
+    template : {"keyframe", "grid"}
+        The mesh carried through the frames (`BakeOptions.tracked_mesh`): the first
+        keyframe's own mesh with its attributes and sub-cell detail (default; the grid's
+        when it has loose vertices), or marching cubes of its distance grid.
+    padding_cells : int
+        Empty cells around the keyframes' bounding box (4).
+    max_bytes : int, optional
+        Memory limit of the bake; default: 75 % of physical memory. A resolution over it
+        is refused before any work (`memory.MemoryLimitError`).
+    processes : int
+        1 (default): everything in this process; 2: a helper process shares the maps and
+        the frames.
     feature_names : per segment, a sequence of (name_a, name_b) per feature row, optional;
         used in messages (e.g. the Empties' names).
     progress : callable(fraction, message), optional.
@@ -143,27 +176,16 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
         A helper process already started (and left running): it takes the place of the
         one ``processes=2`` starts here, whose interpreter then loads while this one
         checks the keyframes (the worker process starts it before reading its inputs).
-    **options
-        The bake's options (`options.BakeOptions.from_keywords`, whose fields hold the
-        defaults), checked before any work:
+    **stage_options
+        The stages' own settings, each the field of the same name, checked before any
+        work (an unknown one is refused with a ValueError that lists the known ones):
 
-        - the bake's own: ``resolution`` (grid cells along the longest side of the
-          keyframes' bounding box), ``motion_resolution`` (the motion grid's, None:
-          automatic; docs/method.md, section 11), ``padding_cells``, ``max_bytes`` (the
-          memory limit; None: 75 % of physical memory), ``template`` ("keyframe": the
-          first keyframe's own mesh is tracked, or "grid": marching cubes of its distance
-          grid), ``key_interpolation`` (per keyframe "smooth", "linear" or "ease", how the
-          motion passes it), ``processes`` (2 shares the bake with a helper process);
-        - ``weights``: a dict with optional keys "volume", "rigidity", "levelset" (the
-          weights of the three terms of eq. 2.6);
-        - what each frame yields (`SurfaceOptions`): ``coverage``, ``surfaces``,
-          ``levelsets``;
-        - the map solve's settings, the fields of `map.options.MapOptions`
-          (``volume_weight``, ``margin_cells``, ``feature_radius``, ``tear``, ...);
-        - the in-betweens' settings, the fields of `motion.options.MotionOptions`
-          (``transport``, ``keep_volume``, ``trajectory_margin_cells``, ...).
-
-        An unknown one is refused with a ValueError that lists the known ones.
+        - the map solve's, `map.options.MapOptions` (``volume_weight``, ``margin_cells``,
+          ``feature_radius``, ``tear``, ...);
+        - the in-betweens', `motion.options.MotionOptions` (``transport``,
+          ``keep_volume``, ``trajectory_margin_cells``, ...);
+        - what each frame yields, `surface.options.SurfaceOptions` (``coverage``,
+          ``surfaces``, ``levelsets``).
 
     Returns
     -------
@@ -177,8 +199,12 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
     Cancelled
         When ``cancel()`` returned True.
     """
-    return bake(keyframes, features, BakeOptions.from_keywords(**options),
-                feature_names=feature_names, progress=progress, cancel=cancel, helper=helper)
+    options = BakeOptions.from_keywords(
+        resolution=resolution, motion_resolution=motion_resolution, weights=weights,
+        key_interpolation=key_interpolation, template=template, padding_cells=padding_cells,
+        max_bytes=max_bytes, processes=processes, **stage_options)
+    return bake(keyframes, features, options, feature_names=feature_names, progress=progress,
+                cancel=cancel, helper=helper)
 
 
 def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
