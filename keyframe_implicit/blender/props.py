@@ -22,7 +22,7 @@ from bpy.props import (
 )
 
 from ..core.bake.options import BakeOptions
-from ..core.map.solver import DEFAULT_WEIGHTS
+from ..core.map.options import default_weights
 
 
 def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
@@ -101,18 +101,18 @@ class KFI_Settings(bpy.types.PropertyGroup):
     )
     # Weights of the three terms of thesis eq. 2.6 (core/map/terms.py), in an artist's words.
     volume_weight: FloatProperty(
-        name="Volume", default=DEFAULT_WEIGHTS["volume"], min=0.0, soft_max=100.0,
+        name="Volume", default=default_weights()["volume"], min=0.0, soft_max=100.0,
         description="How strictly every part keeps its volume while it moves. Raise it when "
         "in-betweens shrink or swell (thesis eq. 2.6: the volume term (det F - 1)^2)",
     )
     rigidity_weight: FloatProperty(
-        name="Rigidity", default=DEFAULT_WEIGHTS["rigidity"], min=0.0, soft_max=100.0,
+        name="Rigidity", default=default_weights()["rigidity"], min=0.0, soft_max=100.0,
         description="How stiffly the parts move, without stretching or shearing. Raise it when "
         "in-betweens look rubbery; lower it for soft, fluid shapes (thesis eq. 2.6: the "
         "rigidity term ||F^T F - I||^2)",
     )
     levelset_weight: FloatProperty(
-        name="Shape Match", default=DEFAULT_WEIGHTS["levelset"], min=0.0, soft_max=100.0,
+        name="Shape Match", default=default_weights()["levelset"], min=0.0, soft_max=100.0,
         description="How closely the first keyframe's shape is pulled onto the next one's. "
         "Raise it when parts of the motion miss the next keyframe's shape (thesis eq. 2.6: "
         "the level-set matching term)",

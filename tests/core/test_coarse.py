@@ -7,6 +7,7 @@ from inbetween_cases import nudged_spheres, sphere_to_ellipsoid, unit_grid
 from keyframe_implicit.core import solve_map
 from keyframe_implicit.core.map import solver, system
 from keyframe_implicit.core.map.coarse import CoarseSpace
+from keyframe_implicit.core.map.options import MapOptions
 
 
 def _level(n, d):
@@ -78,7 +79,7 @@ def test_a_map_solved_with_the_correction_matches_block_jacobi_in_fewer_iteratio
     map up to CG's loose tolerance, in fewer CG iterations; off by default on a small grid."""
     g, phi_a, phi_b, fa, fb = sphere_to_ellipsoid(36)
     plain = solve_map(phi_a, phi_b, g, fa, fb)
-    assert plain.stats["unknowns"] < solver.DEFAULTS["coarse_space_from"]
+    assert plain.stats["unknowns"] < MapOptions.coarse_space_from
     both = solve_map(phi_a, phi_b, g, fa, fb, coarse_space_from=0)
     assert both.stats["cg_iterations"] < 0.7 * plain.stats["cg_iterations"]
     assert abs(both.stats["energy"] / plain.stats["energy"] - 1) < 0.01

@@ -18,7 +18,7 @@ from . import terms
 if TYPE_CHECKING:
     from ..base.grid import Grid
 
-__all__ = ["MapOptions", "weight_options"]
+__all__ = ["MapOptions", "default_weights", "weight_options"]
 
 
 def weight_options() -> dict[str, str]:
@@ -27,7 +27,9 @@ def weight_options() -> dict[str, str]:
     return {t.weight_option: t.name for t in terms.TERMS}
 
 
-def _default_weights():
+def default_weights() -> dict[str, float]:
+    """{term name: default weight} of every term registered in `terms.TERMS`, read now:
+    the one place the weights' defaults are read from (the options, the Blender panel)."""
     return {t.name: float(t.default) for t in terms.TERMS}
 
 
@@ -84,7 +86,7 @@ class MapOptions:
         that tear"). False: one continuous map, which stretches across the gap.
     """
 
-    weights: dict = field(default_factory=_default_weights)
+    weights: dict = field(default_factory=default_weights)
     max_iterations: int = 20
     tolerance: float = 1e-2
     margin_cells: float = 3.0
@@ -110,7 +112,7 @@ class MapOptions:
         ``weights``, the others the fields of the same name. ValueError names an unknown
         keyword and lists the known ones."""
         by_option = weight_options()
-        weights, values = _default_weights(), {}
+        weights, values = default_weights(), {}
         for key, value in keywords.items():
             if key in by_option:
                 weights[by_option[key]] = value

@@ -52,7 +52,6 @@ it. Nodes outside the region carry a smooth extension of the solved correction.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
@@ -70,18 +69,13 @@ from .rbf import initial_map
 from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
 from .result import MapResult
 from .tear import find_tear, prolong_pieces
-from . import terms
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     from numpy.typing import ArrayLike
 
-__all__ = ["MapResult", "solve_map", "DEFAULTS"]
-
-#: Default options of `solve_map` besides the term weights (`options.MapOptions`).
-DEFAULTS = {f.name: getattr(MapOptions(), f.name) for f in dataclasses.fields(MapOptions)
-            if f.name != "weights"}
+__all__ = ["MapResult", "solve_map"]
 
 
 # ----------------------------------------------------------------------------
@@ -324,9 +318,6 @@ def _level(pa, pb, g, xa, yb, options, base, corr, tear, rep, timing, pool, refi
 # ----------------------------------------------------------------------------
 # public entry point
 # ----------------------------------------------------------------------------
-#: Default weights of the terms of eq. 2.6 (`terms.TERMS`; measured choice: see the module
-#: docstring). The Blender panel takes its defaults from here.
-DEFAULT_WEIGHTS = {t.name: t.default for t in terms.TERMS}
 
 
 def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayLike,
