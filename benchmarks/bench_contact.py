@@ -12,9 +12,10 @@ keyframe frames included.
 Columns (lengths in the bake's cell h):
 
 - pre: before contact (`contact_frame`: fewer pieces than keyframe A, or two within 1 h),
-  the largest movement of a part's surface where the other is about to arrive, against
-  its keyframe carried by its own motion (`pre_contact_movement`; parts whose feature
-  points do not move rigidly are not measured: the drop's and splash's ball);
+  the largest movement of each part's surface where the other is about to arrive, against
+  its keyframe carried by its own motion (`pre_contact_movement`), the parts in keyframe
+  A's order (the pool, the left ball, the lower plate first); "-" for a part whose feature
+  points do not move rigidly (the drop's ball);
 - follow: the worst frame's mean distance of a part's vertices from its own rigid motion,
   before contact (all frames of the scissors);
 - still: `stillness` where both keyframes agree, every segment;
@@ -153,7 +154,7 @@ def measure(case, anim, keyframe_meshes):
         times = (anim.frames[:end] - anim.frames[0]) / (anim.frames[key[1]] - anim.frames[0])
         worst, follow = cm.pre_contact_movement(shipped[:end], times, case.grid, fields,
                                                 centroids, paths, carried, h, reaches)
-        row["pre"] = _nanmax(worst)
+        row["pre"] = [float(w) for w in worst]
         row["follow"] = _nanmax(follow)
         row["part_vol"] = _part_volume_error(pieces[:end], shipped[:end], times, carried,
                                              extract_surface(anim.levelsets[0], anim.grid))
@@ -251,7 +252,8 @@ def print_table(rows):
             print(f"| {r['case']} | {r['resolution']} | refused: {r['error']} |")
             continue
         folds = r.get("folds") or [None] * len(FOLD_AFTER)
-        cells = [r["case"], str(r["resolution"]), str(r["motion"]), _fmt(r.get("pre")),
+        pre = "/".join(_fmt(w).replace("n/a", "-") for w in r["pre"]) if "pre" in r else "n/a"
+        cells = [r["case"], str(r["resolution"]), str(r["motion"]), pre,
                  _fmt(r.get("follow")), _fmt(r.get("still")), _fmt(r["event"], "d"),
                  *[("n/a" if f is None else f"{f[0]:.0f}/{f[1]:.0f}") for f in folds],
                  _fmt(r.get("settle"), "d"), f"{r['extra']}/{r['tiny']}",
