@@ -36,8 +36,13 @@ import argparse
 import os
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from cases import Case
+    from keyframe_implicit.core import Animation, Keyframe
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [os.path.dirname(HERE), HERE]
@@ -49,7 +54,7 @@ FOLD_LIMIT = 45.0
 TINY = 10.0  # h^3
 
 
-def keyframes(case):
+def keyframes(case: Case) -> list[Keyframe]:
     """The case's keyframes as meshes on their timeline frames."""
     from keyframe_implicit.core import Keyframe
     from keyframe_implicit.core.surface.extract import extract_surface
@@ -132,7 +137,7 @@ def _event(shipped, case, h, pieces):
     return None
 
 
-def measure(case, anim, keyframe_meshes):
+def measure(case: Case, anim: Animation, keyframe_meshes: list[tuple]) -> dict:
     """The row of one bake (see the module's columns) of ``case`` from its keyframes'
     meshes (vertices, faces); ``anim`` keeps its level sets."""
     import contact_metrics as cm
@@ -215,7 +220,7 @@ def _part_volume_error(pieces, shipped, times, carried, reading):
     return float(worst)
 
 
-def run_case(name, resolution, motion):
+def run_case(name: str, resolution: int, motion: str) -> dict:
     """Bake case ``name`` and measure it: one row."""
     from contact_cases import make_contact_case
     from keyframe_implicit.core import animate
@@ -240,7 +245,7 @@ def _fmt(v, spec=".2f"):
     return "n/a" if v is None or (isinstance(v, float) and not np.isfinite(v)) else format(v, spec)
 
 
-def print_table(rows):
+def print_table(rows: list[dict]) -> None:
     """One markdown table of the rows."""
     head = ["case", "res", "motion", "pre h", "follow h", "still h", "event",
             "fold e±1", "fold e±3", "fold e±8", "<=45 at", "extra/tiny", "bubbles (h^3)",
@@ -262,7 +267,7 @@ def print_table(rows):
         print("| " + " | ".join(cells) + " |", flush=True)
 
 
-def main():
+def main() -> None:
     import json
 
     from contact_cases import CONTACT_CASES

@@ -83,7 +83,7 @@ def _torus(grid):
 SCISSORS_PLATE = (0.6, 0.12)  # half length (x), half width (y)
 
 
-def scissors_plates(h=SCISSORS_H):
+def scissors_plates(h: float = SCISSORS_H) -> list[tuple[np.ndarray, np.ndarray]]:
     """(centre, half extents) of the two plates: 6 ``h`` thick, 1.5 ``h`` apart along z."""
     half_z, gap = 3 * h, 1.5 * h
     length, width = SCISSORS_PLATE

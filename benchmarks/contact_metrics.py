@@ -15,9 +15,12 @@ it (`shipped_frames`). Lengths are in the bake's cell h unless a docstring says 
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage, sparse
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
@@ -25,12 +28,15 @@ from scipy.spatial.transform import Rotation
 from keyframe_implicit.core.base.sampling import sample
 from keyframe_implicit.core.surface.quality import mesh_distance
 
+if TYPE_CHECKING:
+    from keyframe_implicit.core import Animation, Grid
+
 __all__ = ["Pieces", "shipped_frames", "mesh_pieces", "fold_angles", "neck_fold",
            "contact_frame", "rigid_path", "part_fields", "piece_owners", "pre_contact_movement",
            "agreement_points", "stillness"]
 
 
-def shipped_frames(animation) -> list:
+def shipped_frames(animation: Animation) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per frame, the (vertices, faces) the bake ships in the output it chose
     (``stats["output"]``): each frame's own surface for a mesh sequence, the tracked
     template's vertices with its faces for shape keys."""
@@ -64,7 +70,7 @@ class Pieces:
         return np.flatnonzero(self.volumes < 0)
 
 
-def mesh_pieces(vertices, faces) -> Pieces:
+def mesh_pieces(vertices: ArrayLike, faces: ArrayLike) -> Pieces:
     """The pieces of a mesh: vertices joined by faces' edges (`Pieces`).
 
     Volume is the divergence theorem's sum over each piece's faces; genus comes from
@@ -89,7 +95,7 @@ def mesh_pieces(vertices, faces) -> Pieces:
     return Pieces(remap[labels], volumes[keep], ((2 - chi[keep]) // 2).astype(int))
 
 
-def fold_angles(vertices, faces, min_area: float = 0.0) -> np.ndarray:
+def fold_angles(vertices: ArrayLike, faces: ArrayLike, min_area: float = 0.0) -> np.ndarray:
     """The fold at every concave edge of a mesh, in degrees: the angle between the normals
     of the edge's two faces (0 flat, 180 folded flat onto itself).
 
@@ -120,7 +126,8 @@ def fold_angles(vertices, faces, min_area: float = 0.0) -> np.ndarray:
     return np.degrees(np.arccos(cos[outside]))
 
 
-def neck_fold(vertices, faces, h: float, percentile: float = 99.0) -> tuple[float, float]:
+def neck_fold(vertices: ArrayLike, faces: ArrayLike, h: float,
+              percentile: float = 99.0) -> tuple[float, float]:
     """(``percentile``, max) of `fold_angles` over a frame's concave edges, in degrees,
     faces below 1e-4 h^2 left out; (0, 0) without a concave edge. A crease where two
     solids interpenetrate reads near 180, a neck rounded over a few cells a few tens."""
@@ -130,7 +137,8 @@ def neck_fold(vertices, faces, h: float, percentile: float = 99.0) -> tuple[floa
     return float(np.percentile(folds, percentile)), float(folds.max())
 
 
-def contact_frame(frames, parts: int, h: float, touch: float = 1.0) -> int | None:
+def contact_frame(frames: Sequence[tuple[np.ndarray, np.ndarray]], parts: int, h: float,
+                  touch: float = 1.0) -> int | None:
     """Index of the first frame on which parts that were apart touch: it has fewer pieces
     enclosing material than ``parts`` (the keyframe's), or two of its pieces come within
     ``touch`` h of each other (nearest vertices). None if that never happens."""
@@ -147,7 +155,7 @@ def contact_frame(frames, parts: int, h: float, touch: float = 1.0) -> int | Non
     return None
 
 
-def rigid_path(points_a, points_b):
+def rigid_path(points_a: ArrayLike, points_b: ArrayLike) -> tuple[Callable, float]:
     """A part's own motion from its feature points: the rigid fit (Kabsch) of ``points_a``
     (N, 3) onto ``points_b``, travelled at constant speed: the rotation's angle grows
     linearly about its axis through the points' centroid, which moves on a straight line.
@@ -169,7 +177,7 @@ def rigid_path(points_a, points_b):
     return motion, residual
 
 
-def part_fields(phi, grid):
+def part_fields(phi: np.ndarray, grid: Grid) -> tuple[list[np.ndarray], np.ndarray]:
     """Each part of keyframe field ``phi`` (6-connected inside nodes) as a field of its own,
     the other parts' inside made outside (|phi|), and each part's centroid: (fields,
     centroids (P, 3))."""
@@ -190,7 +198,7 @@ def _footprint(q, own, other, reach):
     return facing & (np.linalg.norm(off, axis=1) < reach)
 
 
-def piece_owners(vertices, pieces, places) -> np.ndarray:
+def piece_owners(vertices: ArrayLike, pieces: Pieces, places: ArrayLike) -> np.ndarray:
     """The part (0-based) each vertex belongs to: its piece's, the part whose place
     (``places`` (P, 3), e.g. each part's centroid carried along its motion) is nearest to
     the piece's vertices' mean. Before contact every part is a piece of its own."""
@@ -200,8 +208,10 @@ def piece_owners(vertices, pieces, places) -> np.ndarray:
     return nearest[pieces.labels]
 
 
-def pre_contact_movement(frames, times, fine, part_phis, centroids, paths, carried, h,
-                         reaches):
+def pre_contact_movement(frames: Sequence[tuple[np.ndarray, np.ndarray]], times: ArrayLike,
+                         fine: Grid, part_phis: Sequence[np.ndarray], centroids: np.ndarray,
+                         paths: Sequence[Callable | None], carried: Sequence[Callable],
+                         h: float, reaches: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
     """Before contact, how far each part's surface moved where another part is about to
     arrive, against its own keyframe carried by its own motion, in h.
 
@@ -239,8 +249,10 @@ def pre_contact_movement(frames, times, fine, part_phis, centroids, paths, carri
     return worst, follow
 
 
-def agreement_points(vertices_a, phi_a, phi_b, fine, features, h, reading=None,
-                     radius: float = 6.0, agree: float = 0.1, limit: int = 4000):
+def agreement_points(vertices_a: ArrayLike, phi_a: np.ndarray, phi_b: np.ndarray, fine: Grid,
+                     features: tuple[ArrayLike, ArrayLike], h: float,
+                     reading: tuple[np.ndarray, np.ndarray] | None = None,
+                     radius: float = 6.0, agree: float = 0.1, limit: int = 4000) -> np.ndarray:
     """Points where both keyframes agree and nothing asks for motion: vertices of keyframe
     A's mesh within ``agree`` h of B's surface (|phi_b| read on ``fine``), farther than
     ``radius`` h from every feature point that moves (by more than h/2, at either end) and
@@ -262,7 +274,8 @@ def agreement_points(vertices_a, phi_a, phi_b, fine, features, h, reading=None,
     return v[np.linspace(0, len(v) - 1, min(limit, len(v))).astype(int)] if len(v) else v
 
 
-def stillness(frames, points, h) -> float:
+def stillness(frames: Sequence[tuple[np.ndarray, np.ndarray]], points: np.ndarray,
+              h: float) -> float:
     """Largest distance, over ``frames`` (vertices, faces), from the agreement ``points``
     (`agreement_points`) to the frame's surface, in h; NaN without points: how far the
     in-between surface moved where both keyframes agree."""
