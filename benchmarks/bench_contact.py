@@ -172,7 +172,7 @@ def measure(case: Case, anim: Animation, keyframe_meshes: list[tuple]) -> dict:
         still.append(cm.stillness(shipped[key[k]:key[k + 1] + 1], pts, h))
     row["still"] = _nanmax(still)
     row["still_each"] = still  # per segment, with each segment's largest iso-value shift
-    row["offset_h"] = [max(map(abs, seg.get("volume_offset_h", {0: 0.0}).values()))
+    row["iso_value_h"] = [max(map(abs, seg.get("iso_value_h", {0: 0.0}).values()))
                        for seg in anim.stats["segments"]]
     if event is not None:
         sign = 1 if kind == "merge" else -1
