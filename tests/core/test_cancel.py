@@ -1,15 +1,13 @@
-"""Cancel takes effect within a second in the middle of every long stage of `animate`.
+"""Cancel takes effect within the stage that is running, in every long stage of `animate`.
 
-The bake runs in a thread; once a stage's progress message has been seen, the test
-waits a little (so the stage is under way and its own progress report is past),
-then flips cancel and measures the wall time until `Cancelled` arrives. The stage
-must still be the one running when the bake stops: no later stage reported progress
-(the event that shows cancel is seen within the stage); the wall time has a bound with
-room for a loaded machine (`LATENCY`).
+The bake runs in a thread. Cancel is flipped from the progress callback as soon as a
+stage reports (so the stage is under way, and it is flipped at the same point of the
+bake on every run), and the bake must raise `Cancelled` before any later stage reports
+progress: the event that shows cancel is seen within the stage. No wall time is measured;
+a bound of ten minutes only keeps a hang from stopping the suite.
 """
 
 import threading
-import time
 
 import pytest
 
@@ -17,28 +15,19 @@ from keyframe_implicit.core import Cancelled, animate
 
 from inbetween_cases import turning_sphere
 
-#: Bound on the seconds from the flip to `Cancelled`. Issue 14 promises about a second;
-#: measured 0.01-0.03 s, alone and beside two busy processes on 2 cores. CI runs two test
-#: stages side by side on 2 cores: the bound leaves room for that and more, so that it fails
-#: on a cancel nobody looks at (a hang), not on a loaded machine. A stage that ran to its end
-#: before stopping fails the check on later stages' reports instead.
-LATENCY = 5.0
 
-
-def _bake_and_cancel(stage, later, delay):
-    """Bake a turning, squashed sphere; cancel ``delay`` s after ``stage`` is reported.
-
-    Returns the seconds from the flip to `Cancelled` and the messages reported after it.
-    """
+def _bake_and_cancel(stage):
+    """Bake a turning, squashed sphere; cancel when ``stage`` is reported. Returns the
+    messages reported after the flip."""
     keyframes, features = turning_sphere()
-    seen, flipped = threading.Event(), threading.Event()
+    flipped = threading.Event()
     after, outcome = [], {}
 
     def progress(fraction, message):
         if flipped.is_set():
             after.append(message)
-        if stage in message:
-            seen.set()
+        elif stage in message:
+            flipped.set()
 
     def bake():
         try:
@@ -46,27 +35,23 @@ def _bake_and_cancel(stage, later, delay):
                     progress=progress, cancel=flipped.is_set, template="grid")
             outcome["finished"] = True
         except Cancelled:
-            outcome["cancelled"] = time.perf_counter()
+            outcome["cancelled"] = True
 
     worker = threading.Thread(target=bake, daemon=True)
     worker.start()
-    assert seen.wait(600), f"the bake never reported {stage!r}"
-    time.sleep(delay)
-    t_flip = time.perf_counter()
-    flipped.set()
-    worker.join(60)
-    assert not worker.is_alive(), "the bake ignored cancel for a minute"
+    worker.join(600)
+    assert not worker.is_alive(), "the bake neither ended nor was cancelled in ten minutes"
+    assert flipped.is_set(), f"the bake never reported {stage!r}"
     assert "cancelled" in outcome, "the bake finished although cancel was set"
+    return after
+
+
+@pytest.mark.parametrize("stage, later", [
+    ("Gauss-Newton iteration", ("trajectories", "frame")),
+    ("trajectories", ("in-betweens ready", "frame")),
+    ("frame 2 ", ("frame 3 ", "frame 4 ", "Measuring")),
+])
+def test_cancel_is_seen_within_the_stage_it_is_asked_in(stage, later):
+    after = _bake_and_cancel(stage)
     stopped_later = [m for m in after if any(word in m for word in later)]
     assert not stopped_later, f"cancelled only at a later stage: {stopped_later}"
-    return outcome["cancelled"] - t_flip
-
-
-@pytest.mark.parametrize("stage, later, delay", [
-    ("Gauss-Newton iteration", ("trajectories", "frame"), 0.3),
-    ("trajectories", ("in-betweens ready", "frame"), 0.05),
-    ("frame 2 ", ("frame 4 ", "Measuring"), 0.2),
-])
-def test_cancel_in_the_middle_of_a_stage_within_a_second(stage, later, delay):
-    latency = _bake_and_cancel(stage, later, delay)
-    assert latency < LATENCY, f"cancel took {latency:.2f} s during {stage!r}"
