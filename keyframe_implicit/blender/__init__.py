@@ -21,25 +21,32 @@ Module map (operators and panels are thin; logic lives in plain functions):
 
 from __future__ import annotations
 
-import bpy
-
-from . import ops, panel, preview, props, result_view, scene_io
-
+# The Blender side's modules and bpy are imported inside the functions below, not when this
+# package is: with them imported at its import, a bpy 4.2 LTS process that enabled the
+# extension ends with a segmentation fault at exit (tests/blender/test_extension_zip.py).
 _registered = []
 _HANDLERS = ("depsgraph_update_post", "load_post")
 
 
 def _forget_readings(scene=None, depsgraph=None):
-    """Handler: kept pre-bake surface checks are stale after geometry updates and loads."""
+    """Handler: kept mesh readings are stale after geometry updates and loads."""
+    from . import scene_io
+
     scene_io.forget_readings(scene, depsgraph)
 
 
 def _class_lists():
+    from . import ops, panel, props
+
     return (props.classes, ops.classes, panel.classes)
 
 
 def register() -> None:
     """Register the property groups, operators and panels (idempotent after unregister)."""
+    import bpy
+
+    from . import ops, preview, props, result_view
+
     if _registered:
         return
     for group in _class_lists():
@@ -58,6 +65,10 @@ def register() -> None:
 
 def unregister() -> None:
     """Undo `register` in reverse order."""
+    import bpy
+
+    from . import ops, preview, props
+
     if not _registered:
         return
     for name in _HANDLERS:
