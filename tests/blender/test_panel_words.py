@@ -106,3 +106,11 @@ def test_the_bake_after_baking_says_what_was_made_and_keeps_the_figures(scene, k
 def test_bake_tooltip_says_what_auto_makes():
     tip = ops.KFI_OT_bake.__doc__
     assert "shape keys" in tip and "mesh sequence" in tip and "Auto" in tip
+
+
+def test_every_fix_the_core_asks_for_has_its_menu_path():
+    from keyframe_implicit.core.bake.checks import FIXES
+
+    assert set(validate.MENU_PATHS) == set(FIXES)
+    for fix in FIXES:
+        assert validate.with_menu_paths(f"x: {fix}.") == f"x: {fix} ({validate.MENU_PATHS[fix]})."

@@ -63,3 +63,19 @@ def test_the_map_solve_and_the_inbetweens_take_options_one_way_at_a_time():
     with pytest.raises(TypeError, match="not both"):
         Inbetween.from_map(phi_a, phi_b, g, g.points(), options=MotionOptions(),
                            transport="one-sided")
+
+
+@pytest.mark.parametrize("name", ["inbetween", "animate_chain"])
+@pytest.mark.parametrize("option", ["resolution", "padding_cells", "max_bytes"])
+def test_a_pair_or_a_chain_refuses_a_bake_option_it_would_not_read(name, option):
+    from keyframe_implicit import core
+
+    grid = unit_grid(3, 9)
+    phi = np.zeros(grid.shape)
+    call = getattr(core, name)
+    with pytest.raises(ValueError, match=f"does not take \\['{option}'\\]"):
+        if name == "inbetween":
+            call(phi, phi, grid, np.zeros((1, 3)), np.zeros((1, 3)), **{option: 1})
+        else:
+            call([phi, phi], grid, [(np.zeros((1, 3)), np.zeros((1, 3)))], [1, 2],
+                 **{option: 1})

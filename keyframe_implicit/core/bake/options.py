@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from collections.abc import Iterable
 from typing import Any
 
 from ..map.options import MapOptions, weight_options
 from ..motion.options import MotionOptions
 from ..surface.options import SurfaceOptions
 
-__all__ = ["BakeOptions"]
+__all__ = ["BakeOptions", "refuse_unread"]
 
 #: The fields holding one stage's options each, and the class of each.
 _STAGES = {"map": MapOptions, "motion": MotionOptions, "surface": SurfaceOptions}
@@ -101,6 +102,14 @@ class BakeOptions:
         return cls(**own_fields, map=MapOptions.from_keywords(**parts["map"]),
                    motion=MotionOptions(**parts["motion"]),
                    surface=SurfaceOptions(**parts["surface"]))
+
+
+def refuse_unread(keywords: Iterable[str], read: Iterable[str], caller: str) -> None:
+    """ValueError naming the keywords among ``keywords`` that ``caller`` does not read
+    (``read``): options a part of the bake takes but ignores would be silently lost."""
+    unread = sorted(set(keywords) - set(read))
+    if unread:
+        raise ValueError(f"{caller} does not take {unread}; it takes {sorted(read)}.")
 
 
 def _weight_keywords(weights):
