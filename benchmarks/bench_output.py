@@ -7,7 +7,7 @@ Run with the bpy venv (scripts/env.sh)::
 
 Part 1 (core only): per case and grid size, for each output (shape keys = the tracked
 template, mesh sequence = each frame's own surface), the worst frame's figures of
-`core.quality` (area ratio range, largest inverted share, smallest coverage, keyframe
+`core.surface.quality` (area ratio range, largest inverted share, smallest coverage, keyframe
 frames' two-way distance mean / max in h), and the bake time with and without the
 per-frame surfaces and velocities.
 

@@ -14,7 +14,7 @@ splash     a droplet falls into a pool: four keyframes (above, touching,    fig.
            merged bump, settled pool)
 =========  ===============================================================  ==========
 
-Every 3D example is an `Example`: a list of `keyframe_implicit.core.bake.pipeline.Keyframe`
+Every 3D example is an `Example`: a list of `keyframe_implicit.core.bake.keyframe.Keyframe`
 (world-space vertices (V, 3), closed outward-wound triangles (F, 3), a timeline frame)
 and, per segment (keyframe i -> i + 1), a pair of (N, 3) arrays of feature points, row j
 of the first pairing with row j of the second. All keyframes of one example enclose the

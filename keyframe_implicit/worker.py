@@ -5,7 +5,7 @@ GIL, so a thread stalls Blender's main loop for as long as each call lasts, and 
 an out-of-memory kill in the core would take the artist's session with it. With the work in
 another process the main loop only polls, a crash is an exit code, and cancel always ends
 the work at once (the process is killed; it holds nothing the scene depends on). The
-worker starts one helper process of its own for the second core (`core.parallel`), which
+worker starts one helper process of its own for the second core (`core.base.parallel`), which
 ends with it.
 
 The worker is the same Python (``sys.executable``: Blender's bundled Python, or the Python

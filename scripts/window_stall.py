@@ -130,7 +130,7 @@ def bake(rec, res):
     ``diagnostics``); returns the job (via StopIteration)."""
     ops = addon_module("blender.ops")
     measured = addon_module("blender.diagnostics")
-    diag = measured.current = measured.Diagnostics()
+    measured.current = measured.Diagnostics()
     win, area, _, main = view3d()
     settings = bpy.context.scene.keyframe_implicit
     settings.resolution = res or settings.resolution

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from keyframe_implicit.core.bake.checks import checked_mesh
 from keyframe_implicit.core.bake.gridfit import fit_grid
-from keyframe_implicit.core.bake.pipeline import Keyframe
+from keyframe_implicit.core.bake.keyframe import Keyframe
 from keyframe_implicit.core.fields.mesh import triangulate
 from keyframe_implicit.core.fields.sdf import mesh_to_sdf
 from keyframe_implicit.shapes import icosphere

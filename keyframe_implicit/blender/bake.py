@@ -93,8 +93,8 @@ class BakeJob:
 
     @property
     def cancel_requested(self) -> bool:
-        """Whether `cancel` was called: what a progress observer or the modal operator can
-        ask before the job has reached its end."""
+        """Whether `cancel` was called: what a progress observer can ask before the job
+        has reached its end."""
         return self._cancel.is_set()
 
     # -- running -----------------------------------------------------------

@@ -2,7 +2,7 @@
 
 Two outputs (`resolve_output` picks one: the artist's choice, or Auto, which
 takes the core's choice -- shape keys when every frame of the tracked
-template passes the cleanliness limits of `core.quality`, else the sequence).
+template passes the cleanliness limits of `core.surface.quality`, else the sequence).
 
 Shape keys:
 

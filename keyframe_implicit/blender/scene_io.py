@@ -118,7 +118,7 @@ class BakeInput:
 
     Attributes
     ----------
-    keyframes : list of core.pipeline.Keyframe
+    keyframes : list of core.bake.keyframe.Keyframe
         The keyframes' evaluated meshes in world space, each read on its frame; empty when
         the meshes were not read (`read` with ``meshes=False``, or an entry of the list
         that is not a mesh object in the scene).

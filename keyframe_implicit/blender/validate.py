@@ -25,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from ..core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, THICKEN, no_volume_words
+from ..core.bake.checks import CLOSE_HOLES, FACE_OUTWARD, FIXES, THICKEN, no_volume_words
 from ..core.fields.measure import MeshReading
 from . import scene_io
 
@@ -50,8 +50,9 @@ def with_menu_paths(message: str) -> str:
     """``message``, a refusal or note in the core's words, with Blender's menu path after
     each fix it asks for: "close its holes" becomes "close its holes (Mesh > Clean Up > Fill
     Holes)". Applied once, where the core's words reach the artist."""
-    for fix, path in MENU_PATHS.items():
-        message = message.replace(fix, f"{fix} ({path})")
+    for fix in FIXES:
+        if fix in MENU_PATHS:
+            message = message.replace(fix, f"{fix} ({MENU_PATHS[fix]})")
     return message
 
 
@@ -97,7 +98,7 @@ def problems(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = Non
     ----------
     scene : bpy.types.Scene
     depsgraph : bpy.types.Depsgraph, optional
-        Gives the evaluated meshes of keyframes with modifiers for the surface checks;
+        Gives the evaluated meshes of keyframes with modifiers for the mesh checks;
         default: the scene's first view layer's.
 
     Returns

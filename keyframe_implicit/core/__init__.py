@@ -48,6 +48,8 @@ _EXPORTS = {
     "track_template": "surface.template",
     "animate_chain": "bake.chain",
     "animate": "bake.pipeline",
+    "bake": "bake.pipeline",
+    "BakeOptions": "bake.options",
     "Keyframe": "bake.keyframe",
     "Animation": "bake.animation",
     "Cancelled": "base.progress",

@@ -1,4 +1,4 @@
-"""The output mesh as Blender's arrays (`core.meshdata`): edges made outside Blender."""
+"""The output mesh as Blender's arrays (`core.surface.meshdata`): edges made outside Blender."""
 
 import numpy as np
 import pytest

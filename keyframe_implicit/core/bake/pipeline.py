@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     #: None, memory limit or None).
     GridFit = Callable[[int, int | None, int | None], tuple[Grid, int, Grid | None]]
 
-__all__ = ["Keyframe", "animate", "bake", "BakePlan", "plan_bake", "bake_grids",
+__all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids",
            "distance_fields", "distance_grid", "finish_bake"]
 
 

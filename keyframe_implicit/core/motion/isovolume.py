@@ -10,7 +10,7 @@ interpolation (1 - s) V_A + s V_B of the keyframes' volumes. A uniform shift
 moves the whole surface along its normals by about c (a distance field has
 unit gradient), i.e. it is the least change of shape that fixes the volume.
 
-Volumes are those of the surface the artist gets (`surface.enclosed_volume`,
+Volumes are those of the surface the artist gets (`surface.extract.enclosed_volume`,
 marching cubes of the field). The root is found by a few secant-like steps:
 the change of volume with c comes from a smoothed Heaviside of L / |grad L|
 on the grid (cheap, monotone in c; solved by safeguarded Newton), the volume

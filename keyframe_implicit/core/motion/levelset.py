@@ -70,7 +70,6 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-    from .finepaths import FinePaths
     from .spline import Bend
 
 __all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",

@@ -1,7 +1,7 @@
 """How clean a baked frame is: the output mesh against the frame's own surface.
 
 The true surface of a frame is the zero set of its in-between level set
-(eq. 3.4), extracted on the same grid (`surface.extract_surface`). A baked
+(eq. 3.4), extracted on the same grid (`extract.extract_surface`). A baked
 mesh -- the tracked template (shape keys) or the frame's own surface (mesh
 sequence) -- is measured against it by three figures per frame:
 
