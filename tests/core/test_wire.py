@@ -119,3 +119,29 @@ def test_a_child_ends_at_once_with_its_parents_end():
     finally:
         child.kill()
         child.wait()
+
+
+FAILING_CHILD = """
+import time
+from keyframe_implicit.core.base.wire import Stream, follow_parent
+def take(message):
+    raise RuntimeError(f"cannot take {message!r}")
+follow_parent(Stream(open(0, "rb", buffering=0, closefd=False)), take, code=3)
+print("following", flush=True)
+time.sleep(120)
+"""
+
+
+def test_a_child_that_cannot_take_a_message_ends_and_says_why():
+    """Not a follower thread dead and a child working on for nobody: it ends at once."""
+    child = subprocess.Popen([sys.executable, "-c", FAILING_CHILD], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=False,
+                             env=dict(os.environ, PYTHONPATH=ROOT))
+    try:
+        assert child.stdout.readline() == b"following\n"
+        send(Stream(writer=child.stdin), "a message it cannot take")
+        assert child.wait(30) == 3  # the parent's end is still open
+        assert b"cannot take 'a message it cannot take'" in child.stderr.read()
+    finally:
+        child.kill()
+        child.wait()

@@ -32,6 +32,7 @@ import os
 import pickle
 import struct
 import threading
+import traceback
 from collections.abc import Callable
 from typing import Any, BinaryIO, Protocol
 
@@ -162,7 +163,10 @@ def follow_parent(conn: Connection, take: Callable[[Any], object] | None = None,
     """In a child process: a daemon thread reads its parent's messages from ``conn``,
     handing each to ``take`` (a parent that only holds its end sends none), and ends this
     process at once, with exit status ``code``, when the parent's end closes (the parent
-    has gone, or closed it). ``rename`` as in `receive`."""
+    has gone, or closed it). A message that cannot be read or taken ends it too, its
+    traceback on stderr: a child that no longer follows its parent would work on for
+    nobody, and its parent would wait for an answer that never comes. ``rename`` as in
+    `receive`."""
 
     def follow():
         try:
@@ -171,7 +175,10 @@ def follow_parent(conn: Connection, take: Callable[[Any], object] | None = None,
                 if take is not None:
                     take(message)
         except (EOFError, OSError):
-            pass
-        os._exit(code)
+            pass  # the parent's end closed
+        except BaseException:
+            traceback.print_exc()
+        finally:
+            os._exit(code)
 
     threading.Thread(target=follow, daemon=True, name="keyframe_implicit parent").start()
