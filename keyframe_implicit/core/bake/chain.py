@@ -36,8 +36,6 @@ import numpy as np
 from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
-from ..map.options import MapOptions
-from ..motion.options import MotionOptions
 from ..surface.quality import frame_quality
 from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
@@ -52,7 +50,9 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
+    from ..map.options import MapOptions
     from ..motion.levelset import Inbetween, Recipe
+    from ..motion.options import MotionOptions
 
 __all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "HELPER_PRELOAD"]
 
@@ -125,8 +125,8 @@ def animate_chain(phis: Sequence[ArrayLike], grid: Grid,
     `animation.Animation`
         ``vertices[i]`` is the template on timeline frame ``frames[0] + i``.
     """
-    refuse_unread(options, MapOptions.names() | MotionOptions.names() | SurfaceOptions.names()
-                  | {"weights", "key_interpolation", "processes"}, "animate_chain")
+    refuse_unread(options, BakeOptions.stage_names() | {"key_interpolation", "processes"},
+                  "animate_chain")
     chain = Chain(phis, grid, features, frames, BakeOptions.from_keywords(**options), maps=maps,
                   template=template, keyframe_meshes=keyframe_meshes, motion_grid=motion_grid,
                   cancel=cancel)

@@ -19,8 +19,6 @@ from typing import TYPE_CHECKING, Any
 
 from ..base.parallel import cores, share
 from ..base.progress import Reporter
-from ..map.options import MapOptions
-from ..motion.options import MotionOptions
 from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
 from .options import BakeOptions, refuse_unread
@@ -33,7 +31,9 @@ if TYPE_CHECKING:
 
     from ..base.grid import Grid
     from ..base.parallel import Helper
+    from ..map.options import MapOptions
     from ..map.result import MapResult
+    from ..motion.options import MotionOptions
     from ..motion.spline import Bend
 
 __all__ = ["inbetween", "pair_inbetweens", "solve_maps_shared", "solve_fields", "on_solve_grid",
@@ -80,7 +80,7 @@ def inbetween(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
     -------
     Inbetween
     """
-    refuse_unread(options, MapOptions.names() | MotionOptions.names() | {"weights"}, "inbetween")
+    refuse_unread(options, BakeOptions.stage_names("map", "motion"), "inbetween")
     chosen = BakeOptions.from_keywords(**options)
     return pair_inbetweens(phi_a, phi_b, grid, (features_a, features_b), chosen.map,
                            chosen.motion, parallel=parallel, helper=helper, progress=progress,

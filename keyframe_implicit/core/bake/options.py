@@ -22,8 +22,9 @@ from ..surface.options import SurfaceOptions
 
 __all__ = ["BakeOptions", "refuse_unread"]
 
-#: The fields holding one stage's options each, and the class of each.
-_STAGES = {"map": MapOptions, "motion": MotionOptions, "surface": SurfaceOptions}
+#: The fields holding one stage's options each, and the class of each, in the order a
+#: keyword is looked up.
+_STAGES = {"surface": SurfaceOptions, "motion": MotionOptions, "map": MapOptions}
 #: `pipeline.animate`'s keywords whose field has another name: the keyword stays as the
 #: public API has it, the field says what it holds.
 _FIELDS = {"template": "tracked_mesh"}
@@ -76,6 +77,13 @@ class BakeOptions:
     motion: MotionOptions = field(default_factory=MotionOptions)
     surface: SurfaceOptions = field(default_factory=SurfaceOptions)
 
+    @staticmethod
+    def stage_names(*stages: str) -> frozenset[str]:
+        """The keywords `from_keywords` gives to the options of ``stages`` ("map",
+        "motion", "surface"; none named: all three), and ``weights``."""
+        return frozenset({"weights"}).union(
+            *(_STAGES[name].names() for name in stages or _STAGES))
+
     @classmethod
     def from_keywords(cls, *, weights: dict | None = None, **keywords: Any) -> BakeOptions:
         """The options `pipeline.animate`'s keywords ask for, each keyword given to the one
@@ -88,8 +96,7 @@ class BakeOptions:
         """
         own = ({f.name for f in dataclasses.fields(cls)} - set(_STAGES) - set(_FIELDS.values())
                | set(_FIELDS))
-        known = {"": own, "surface": SurfaceOptions.names(), "motion": MotionOptions.names(),
-                 "map": MapOptions.names()}
+        known = {"": own, **{name: stage.names() for name, stage in _STAGES.items()}}
         parts = {name: {} for name in known}
         for key, value in keywords.items():
             owner = next((name for name, names in known.items() if key in names), None)

@@ -94,12 +94,10 @@ class Preview:
                                                         0.2 + 0.8 * (k + 1) / nseg))
                           for k in range(nseg)]
         self._solved = (plan.grid, chain.frames, inbetweens, chain.keyframe_meshes)
-        motion_grid = plan.motion_grid
         self.figures = dict(resolution=plan.resolution,
                             motion_resolution=plan.stats["motion_resolution"],
-                            grid_shape=tuple(plan.grid.shape),
-                            motion_grid_shape=None if motion_grid is None
-                            else tuple(motion_grid.shape),
+                            grid_shape=plan.stats["grid_shape"],
+                            motion_grid_shape=plan.stats.get("motion_grid_shape"),
                             seconds=time.perf_counter() - t0, distance_grids_kept=kept)
         return self.figures
 

@@ -111,16 +111,16 @@ class MapOptions:
         """The options `solve_map`'s keywords ask for: ``<term>_weight`` keywords set
         ``weights``, the others the fields of the same name. ValueError names an unknown
         keyword and lists the known ones."""
-        by_option = weight_options()
+        by_option, names = weight_options(), cls.names()
         weights, values = default_weights(), {}
         for key, value in keywords.items():
             if key in by_option:
                 weights[by_option[key]] = value
-            elif key in cls.names():
+            elif key in names:
                 values[key] = value
             else:
                 raise ValueError(f"unknown option {key!r} for solve_map; known options: "
-                                 f"{sorted(cls.names())}.")
+                                 f"{sorted(names)}.")
         return cls(weights=weights, **values)
 
     @classmethod
