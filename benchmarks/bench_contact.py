@@ -127,7 +127,7 @@ def _event(shipped, case, h, pieces):
     kind = EVENTS[case.name]
     first = len(pieces[0].outer)
     if kind == "merge":
-        return cm.contact_frame(shipped, first, h)
+        return cm.contact_frame(shipped, first, h, pieces=pieces)
     if kind == "split":
         more = [i for i, p in enumerate(pieces) if len(p.outer) > first]
         return more[0] - 1 if more else None
@@ -158,7 +158,8 @@ def measure(case: Case, anim: Animation, keyframe_meshes: list[tuple]) -> dict:
         fields, centroids, paths, carried, reaches = _parts(case, h)
         times = (anim.frames[:end] - anim.frames[0]) / (anim.frames[key[1]] - anim.frames[0])
         worst, follow = cm.pre_contact_movement(shipped[:end], times, case.grid, fields,
-                                                centroids, paths, carried, h, reaches)
+                                                centroids, paths, carried, h, reaches,
+                                                pieces=pieces[:end])
         row["pre"] = [float(w) for w in worst]
         row["follow"] = _nanmax(follow)
         row["part_vol"] = _part_volume_error(pieces[:end], shipped[:end], times, carried,
@@ -179,9 +180,8 @@ def measure(case: Case, anim: Animation, keyframe_meshes: list[tuple]) -> dict:
         row["folds"] = [cm.neck_fold(*shipped[event + sign * d], h)
                         if 0 <= event + sign * d < len(shipped) else None for d in FOLD_AFTER]
         if kind == "merge":
-            ok = [d for d in range(1, len(shipped) - event)
-                  if cm.neck_fold(*shipped[event + d], h)[1] <= FOLD_LIMIT]
-            row["settle"] = ok[0] if ok else None
+            row["settle"] = next((d for d in range(1, len(shipped) - event)
+                                  if cm.neck_fold(*shipped[event + d], h)[1] <= FOLD_LIMIT), None)
     expected = max(case.expected_components)
     row["extra"] = max(max(len(p.outer) - expected, 0) for p in pieces)
     row["tiny"] = max(int(np.count_nonzero(p.volumes[p.outer] < TINY * h ** 3)) for p in pieces)

@@ -138,16 +138,17 @@ def neck_fold(vertices: ArrayLike, faces: ArrayLike, h: float,
 
 
 def contact_frame(frames: Sequence[tuple[np.ndarray, np.ndarray]], parts: int, h: float,
-                  touch: float = 1.0) -> int | None:
+                  touch: float = 1.0, pieces: Sequence[Pieces] | None = None) -> int | None:
     """Index of the first frame on which parts that were apart touch: it has fewer pieces
     enclosing material than ``parts`` (the keyframe's), or two of its pieces come within
-    ``touch`` h of each other (nearest vertices). None if that never happens."""
+    ``touch`` h of each other (nearest vertices). None if that never happens. ``pieces``:
+    the frames' `mesh_pieces` when the caller has them."""
     for i, (v, f) in enumerate(frames):
-        pieces = mesh_pieces(v, f)
-        outer = pieces.outer
+        pieces_i = mesh_pieces(v, f) if pieces is None else pieces[i]
+        outer = pieces_i.outer
         if len(outer) < parts:
             return i
-        trees = [cKDTree(v[pieces.labels == k]) for k in outer]
+        trees = [cKDTree(v[pieces_i.labels == k]) for k in outer]
         for a in range(len(trees)):
             for b in range(a + 1, len(trees)):
                 if trees[a].query(trees[b].data, distance_upper_bound=touch * h)[0].min() <= touch * h:
@@ -211,7 +212,8 @@ def piece_owners(vertices: ArrayLike, pieces: Pieces, places: ArrayLike) -> np.n
 def pre_contact_movement(frames: Sequence[tuple[np.ndarray, np.ndarray]], times: ArrayLike,
                          fine: Grid, part_phis: Sequence[np.ndarray], centroids: np.ndarray,
                          paths: Sequence[Callable | None], carried: Sequence[Callable],
-                         h: float, reaches: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+                         h: float, reaches: Sequence[float],
+                         pieces: Sequence[Pieces] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Before contact, how far each part's surface moved where another part is about to
     arrive, against its own keyframe carried by its own motion, in h.
 
@@ -224,14 +226,15 @@ def pre_contact_movement(frames: Sequence[tuple[np.ndarray, np.ndarray]], times:
     ``paths[p]`` is None (its keyframes deform it) is not measured.
 
     ``frames`` (vertices, faces) are the frames before contact (`contact_frame`), at
-    ``times``. Returns (largest movement in the footprint per part (P,), the worst frame's
+    ``times`` (``pieces``: their `mesh_pieces` when the caller has them). Returns (largest movement in the footprint per part (P,), the worst frame's
     mean movement over all of each part's vertices (P,)), in h; NaN for parts not measured
     or without frames.
     """
     P = len(part_phis)
     worst, follow = np.full(P, np.nan), np.full(P, np.nan)
-    for (v, f), s in zip(frames, times):
-        owner = piece_owners(v, mesh_pieces(v, f), [c(s) for c in carried])
+    for i, ((v, f), s) in enumerate(zip(frames, times)):
+        owner = piece_owners(v, mesh_pieces(v, f) if pieces is None else pieces[i],
+                             [c(s) for c in carried])
         for p in range(P):
             mine = owner == p
             if paths[p] is None or not mine.any():
