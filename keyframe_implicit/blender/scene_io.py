@@ -3,7 +3,8 @@
 `read` is the one function that reads a bake's setup from the scene: the keyframe list,
 the feature pairs, the settings, what the pre-bake checks need (as plain facts: each
 keyframe object's kind and its mesh as the bake reads it, which feature Empties are not parented to
-their keyframe objects, whether the OpenVDB export can run) and, for a bake, the
+their keyframe objects and which lie outside their keyframe's material, and how far, whether the
+OpenVDB export can run) and, for a bake, the
 keyframes' evaluated meshes and the feature points. `validate` checks that description
 and `bake` bakes it; neither reads the scene again.
 
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, overload
 
 import numpy as np
@@ -33,6 +35,8 @@ from ..core.surface.attributes import MeshAttributes
 from ..core.bake.options import BakeOptions
 from ..core.bake.keyframe import Keyframe
 from ..core.fields.measure import MeshReading
+from ..core.fields.mesh import clean_triangles
+from ..core.fields.winding import WindingTree
 from ..core.fields.measure import read_mesh as measure_mesh
 from . import features, volumes
 
@@ -95,6 +99,10 @@ class ListedPair:
         The sides ("A", "B") of a complete pair of an existing segment whose Empty is not
         parented to its keyframe's object, each with the name of the object it is parented
         to instead (None: none); a fact only the objects tell, read with them.
+    off_surface : tuple of (str, float)
+        The sides of a complete pair of an existing segment whose Empty lies outside its
+        keyframe's material, each with how far, in cells of the bake's grid at the
+        resolution read (`surface_cell`); only for keyframes that enclose a volume.
     """
 
     pair_id: str
@@ -102,6 +110,7 @@ class ListedPair:
     a: str | None = None
     b: str | None = None
     unparented: tuple[tuple[str, str | None], ...] = ()
+    off_surface: tuple[tuple[str, float], ...] = ()
 
     @property
     def complete(self) -> bool:
@@ -275,14 +284,82 @@ def read_mesh(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> MeshRead
         With no triangles when the mesh has no faces. The panel asks through
         `cached_reading`.
     """
-    verts, tris = mesh_arrays(obj, depsgraph)
+    return _measure(*mesh_arrays(obj, depsgraph))
+
+
+def _measure(verts: np.ndarray, tris: np.ndarray) -> MeshReading:
     try:
         return measure_mesh(verts, tris)
     except ValueError:  # no faces
         return MeshReading(triangles=0)
 
 
-_readings: dict[tuple, MeshReading] = {}  # cheap state of a keyframe object -> read_mesh's answer
+#: Cheap state of a keyframe object (`_state`) -> its `Surface` and its `read_mesh` answer.
+_readings: dict[tuple, tuple[Surface, MeshReading]] = {}
+#: (state, feature points' bytes) -> how far those points lie outside (`Surface.nearest`): the panel asks on
+#: every redraw, the answer changes only when an Empty or the keyframe moves.
+_outside: dict[tuple, np.ndarray] = {}
+#: Answers `_outside` keeps at most (a drag adds one per redraw).
+OUTSIDE_KEPT = 64
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A keyframe object's evaluated mesh in world space, as the bake reads it.
+
+    Attributes
+    ----------
+    vertices : ndarray
+        (V, 3) float64, world space.
+    triangles : ndarray
+        (T, 3) int64.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) corners of its faces' box (loose vertices are not read: `fit_grid`'s box)."""
+        used = self.vertices[np.unique(self.triangles)] if len(self.triangles) else self.vertices
+        return np.array([used.min(axis=0), used.max(axis=0)])
+
+    @cached_property
+    def winding(self) -> WindingTree:
+        """Its winding numbers' tree (`core.fields.winding`): built once, asked at every
+        redraw while an Empty moves."""
+        return WindingTree(self.vertices, clean_triangles(self.vertices, self.triangles, None))
+
+    def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The nearest surface point (P, 3) of each of ``points`` (P, 3), and how far each
+        point lies outside the material (P,), 0 inside it (where the winding number reads
+        inside, as the distance field does)."""
+        from ..core.surface.attributes import closest_points
+
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        closest = closest_points(points, self.vertices, self.triangles)[0]
+        far = np.linalg.norm(points - closest, axis=1)
+        inside = np.zeros(len(points), dtype=bool)
+        if far.any():
+            inside[far > 0] = self.winding(points[far > 0]) >= 0.5
+        return closest, np.where(inside, 0.0, far)
+
+
+def _state(obj: bpy.types.Object) -> tuple:
+    """What `cached_surface` keys ``obj``'s reading by: its mesh, counts, modifiers and
+    world transform (the measure is in world units)."""
+    mesh = obj.data
+    return (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
+            tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers),
+            tuple(map(tuple, obj.matrix_world)))
+
+
+def _kept(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> tuple[Surface, MeshReading]:
+    key = _state(obj)
+    if key not in _readings:
+        verts, tris = mesh_arrays(obj, depsgraph)
+        _readings[key] = (Surface(verts, tris), _measure(verts, tris))
+    return _readings[key]
 
 
 def cached_reading(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> MeshReading:
@@ -292,13 +369,25 @@ def cached_reading(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Mes
     The panel and the Bake button's poll read the setup on every redraw; the readings are
     kept until a depsgraph update changes some geometry (`forget_readings`).
     """
-    mesh = obj.data
-    key = (obj.as_pointer(), mesh.as_pointer(), len(mesh.vertices), len(mesh.polygons),
-           tuple((m.name, m.type, m.show_viewport) for m in obj.modifiers),
-           tuple(map(tuple, obj.matrix_world)))
-    if key not in _readings:
-        _readings[key] = read_mesh(obj, depsgraph)
-    return _readings[key]
+    return _kept(obj, depsgraph)[1]
+
+
+def cached_surface(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> Surface:
+    """``obj``'s evaluated mesh in world space, kept as `cached_reading` keeps its reading."""
+    return _kept(obj, depsgraph)[0]
+
+
+def outside_distances(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
+                      points: np.ndarray) -> np.ndarray:
+    """How far each of ``points`` (P, 3) lies outside ``obj``'s material (`Surface.nearest`),
+    kept for the same object state and points (at most `OUTSIDE_KEPT` answers)."""
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    key = (_state(obj), points.tobytes())
+    if key not in _outside:
+        if len(_outside) >= OUTSIDE_KEPT:
+            _outside.clear()
+        _outside[key] = cached_surface(obj, depsgraph).nearest(points)[1]
+    return _outside[key]
 
 
 def forget_readings(scene: bpy.types.Scene | None = None,
@@ -315,6 +404,7 @@ def forget_readings(scene: bpy.types.Scene | None = None,
     """
     if depsgraph is None or any(u.is_updated_geometry for u in depsgraph.updates):
         _readings.clear()
+        _outside.clear()
 
 
 def _world(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> tuple[float, ...]:
@@ -432,16 +522,73 @@ def _listed_keyframe(scene: bpy.types.Scene, kf: KFI_Keyframe,
                           len(obj.modifiers) > 0)
 
 
-def _listed_pair(pair: features.Pair,
-                 objects: Sequence[bpy.types.Object | None]) -> ListedPair:
-    """A `ListedPair` of a `features.Pair`; ``objects`` are the keyframe list's objects."""
+def _listed_pair(pair: features.Pair, objects: Sequence[bpy.types.Object | None],
+                 off_surface: dict[str, list[tuple[str, float]]]) -> ListedPair:
+    """A `ListedPair` of a `features.Pair`; ``objects`` are the keyframe list's objects,
+    ``off_surface`` what `_off_surface` found."""
     unparented = ()
     if pair.complete and 0 <= pair.segment < len(objects) - 1:
         sides = (("A", pair.a, objects[pair.segment]), ("B", pair.b, objects[pair.segment + 1]))
         unparented = tuple((side, e.parent.name if e.parent is not None else None)
                            for side, e, kf in sides if kf is not None and e.parent != kf)
     return ListedPair(pair.pair_id, pair.segment, pair.a.name if pair.a is not None else None,
-                      pair.b.name if pair.b is not None else None, unparented)
+                      pair.b.name if pair.b is not None else None, unparented,
+                      tuple(off_surface.get(pair.pair_id, ())))
+
+
+def empties_on(found: Iterable[features.Pair], n_keyframes: int,
+               ) -> dict[int, list[tuple[str, str, bpy.types.Object]]]:
+    """Keyframe index -> the (pair id, side, Empty) of the complete pairs' Empties meant to
+    sit on it: side A of its segment's pairs, side B of the segment before."""
+    on: dict[int, list[tuple[str, str, bpy.types.Object]]] = {}
+    for pair in found:
+        if pair.complete and 0 <= pair.segment < n_keyframes - 1:
+            on.setdefault(pair.segment, []).append((pair.pair_id, "A", pair.a))
+            on.setdefault(pair.segment + 1, []).append((pair.pair_id, "B", pair.b))
+    return on
+
+
+def _encloses(kf: ListedKeyframe) -> bool:
+    return kf.readable and kf.reading is not None and kf.reading.encloses_volume
+
+
+def surface_cell(listed: Sequence[ListedKeyframe], objects: Sequence[bpy.types.Object | None],
+                 points: Iterable[np.ndarray], resolution: int,
+                 depsgraph: bpy.types.Depsgraph) -> float:
+    """The bake's cell at ``resolution``: the longest side of the box of the keyframes' faces
+    and the feature ``points`` (`core.bake.gridfit.fit_grid` without the rigid sweeps, which
+    can only widen it), over ``resolution``; 0 when no keyframe encloses a volume."""
+    corners = [cached_surface(obj, depsgraph).bounds for kf, obj in zip(listed, objects)
+               if _encloses(kf)]
+    if not corners:
+        return 0.0
+    box = np.concatenate(corners + [np.asarray(p).reshape(-1, 3) for p in points])
+    return float(np.ptp(box, axis=0).max()) / resolution
+
+
+def _off_surface(found: Iterable[features.Pair], listed: Sequence[ListedKeyframe],
+                 objects: Sequence[bpy.types.Object | None], resolution: int,
+                 depsgraph: bpy.types.Depsgraph) -> dict[str, list[tuple[str, float]]]:
+    """Pair id -> the sides whose Empty lies outside its keyframe's material, with how far
+    in cells of the bake's grid (`surface_cell`), for keyframes that enclose a volume. An
+    Empty parented to another keyframe of the list is not measured: it is on that one (the
+    list changed since it was placed), which the checks say instead."""
+    keyframes = {obj for obj in objects if obj is not None}
+    on = {i: [row for row in rows if row[2].parent in (None, objects[i])
+              or row[2].parent not in keyframes]
+          for i, rows in empties_on(found, len(listed)).items()}
+    points = {i: np.array([tuple(e.matrix_world.translation) for _, _, e in rows])
+              for i, rows in on.items()}
+    h = surface_cell(listed, objects, points.values(), resolution, depsgraph)
+    out: dict[str, list[tuple[str, float]]] = {}
+    for i, rows in on.items():
+        if h <= 0 or not rows or not _encloses(listed[i]):
+            continue
+        far = outside_distances(objects[i], depsgraph, points[i]) / h
+        for (pid, side, _), cells in zip(rows, far):
+            if cells > 0:
+                out.setdefault(pid, []).append((side, float(cells)))
+    return out
 
 
 def _material_names(objects: Iterable[bpy.types.Object]) -> list[str]:
@@ -487,9 +634,12 @@ def read(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
     objects = [kf.object for kf in kfs]
     found = list(features.pairs(scene).values())
     rows = _segment_rows(found, max(len(kfs) - 1, 0))
+    resolution = int(resolution) if resolution and resolution > 0 else int(settings.resolution)
+    listed = [_listed_keyframe(scene, kf, depsgraph) for kf in kfs]
+    off_surface = _off_surface(found, listed, objects, resolution, depsgraph)
     inputs = BakeInput(
         keyframes=[], features=[],
-        resolution=int(resolution) if resolution and resolution > 0 else int(settings.resolution),
+        resolution=resolution,
         weights=settings.weights(),
         motion_resolution=settings.motion(),
         pair_ids=[[p.pair_id for p in seg] for seg in rows],
@@ -497,8 +647,8 @@ def read(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
         levelsets=bool(settings.volume_export),
         output_mode=str(settings.output_mode),
         key_interpolation=[str(kf.interpolation).lower() for kf in kfs],
-        listed_keyframes=[_listed_keyframe(scene, kf, depsgraph) for kf in kfs],
-        listed_pairs=[_listed_pair(p, objects) for p in found],
+        listed_keyframes=listed,
+        listed_pairs=[_listed_pair(p, objects, off_surface) for p in found],
         scene_frames=(int(scene.frame_start), int(scene.frame_end)),
         volume_problem=volumes.problem(settings),
     )
