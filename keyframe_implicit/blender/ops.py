@@ -8,7 +8,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, diagnostics, farm, features, preview, result_view, validate
+from . import bake, diagnostics, edits, farm, features, preview, result_view, validate
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -251,6 +251,38 @@ class KFI_OT_select_pair(_OnePair, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class KFI_OT_snap_features(bpy.types.Operator):
+    """Move feature Empties that lie outside their keyframe's material onto the nearest point of its surface"""
+
+    bl_idname = "keyframe_implicit.snap_features"
+    bl_label = "Snap to Surface"
+    bl_options = _OPTS
+
+    empty: StringProperty(name="Empty", default="", options={"SKIP_SAVE"},
+                          description="The feature Empty to snap (empty: every one more than one "
+                                      "grid cell outside its keyframe)")
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        """Snap the named Empty, or every one the checks find off its surface."""
+        depsgraph = context.evaluated_depsgraph_get()
+        if self.empty:
+            if not features.is_feature(context.scene.objects.get(self.empty)):
+                self.report({"ERROR"}, f"No feature Empty '{self.empty}' in this scene.")
+                return {"CANCELLED"}
+            names = [self.empty]
+        else:
+            names = edits.off_surface(context.scene, depsgraph, validate.OFF_SURFACE_CELLS)
+        moved = edits.snap(context.scene, names, depsgraph)
+        if not moved:
+            self.report({"INFO"}, "No feature Empty lies outside its keyframe: nothing moved.")
+            return {"CANCELLED"}
+        named = ", ".join(f"'{n}'" for n in moved[:validate.NAMED])
+        rest = f" and {len(moved) - validate.NAMED} more" if len(moved) > validate.NAMED else ""
+        self.report({"INFO"}, f"Snapped {validate.count(len(moved), 'feature Empty', 'feature Empties')}"
+                              f" onto their keyframes' surfaces: {named}{rest}.")
+        return {"FINISHED"}
+
+
 def _failed(what: str, detail: str) -> str:
     """One sentence for a failed bake: the detail's own full stop is not doubled."""
     detail = detail.strip().rstrip(".;")
@@ -283,6 +315,7 @@ class KFI_MT_menu(bpy.types.Menu):
         layout.operator("keyframe_implicit.pair_selected")
         layout.operator("keyframe_implicit.select_pair")
         layout.operator("keyframe_implicit.remove_feature_pair")
+        layout.operator("keyframe_implicit.snap_features")
         layout.separator()
         layout.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
         layout.operator("keyframe_implicit.export_farm_job", icon="NETWORK_DRIVE")
@@ -534,6 +567,7 @@ classes = (
     KFI_OT_pair_selected,
     KFI_OT_remove_feature_pair,
     KFI_OT_select_pair,
+    KFI_OT_snap_features,
     KFI_OT_bake,
     KFI_OT_export_farm_job,
     KFI_MT_menu,

@@ -223,6 +223,8 @@ def _problems(layout: bpy.types.UILayout, context: bpy.types.Context, settings: 
     shown = found if settings.show_all_problems else found[:SHOWN_PROBLEMS]
     for p in shown:
         _wrapped(box, context, p.message, p.icon)
+        if p.fix:
+            box.operator(p.fix, icon="SNAP_ON")
     if len(found) > SHOWN_PROBLEMS:
         more = len(found) - SHOWN_PROBLEMS
         box.prop(settings, "show_all_problems", emboss=False,

@@ -5,8 +5,9 @@ objects whose message says what is wrong AND what to do. ERROR problems block th
 WARNING problems are hints (e.g. fewer than 4 feature pairs is allowed by the core but
 gives the solver a poor start). The checks read nothing from the scene: what only the
 scene's objects can tell (a keyframe object's kind, its surface as the bake reads it, a
-feature Empty's parent) comes as plain facts of the reading. `problems` reads a scene's
-setup and checks it (the panel, the Bake button's poll); `raise_on_errors` refuses a bake.
+feature Empty's parent, how far it lies outside its keyframe's material) comes as plain
+facts of the reading. `problems` reads a scene's setup and checks it (the panel, the Bake
+button's poll); `raise_on_errors` refuses a bake.
 
 The mesh checks (`mesh_problems`) judge each keyframe's evaluated mesh by the
 bake's own measure (`core.fields.measure.read_mesh`: faces only, each part facing one
@@ -17,7 +18,8 @@ mesh's own terms (`core.bake.checks.FIXES`); `with_menu_paths` adds where Blende
 here and wherever the core's refusals and notes reach the artist. The panel and the Bake
 button's poll ask on every redraw, so the readings are kept until a depsgraph update
 changes some geometry (`scene_io.cached_reading`). Keyframes are numbered from 1 in list order, as the
-core's messages number them; repeated problems of one kind are one line with a count.
+core's messages number them; repeated problems of one kind are one line with a count. A
+problem an operator fixes names it (`Problem.fix`): the panel offers its button.
 """
 
 from __future__ import annotations
@@ -39,6 +41,14 @@ ERROR = "ERROR"
 WARNING = "WARNING"
 
 MIN_PAIRS_HINT = 4
+
+#: A feature Empty farther outside its keyframe's material than this many cells of the bake's
+#: grid is pointed out: the bake pulls the material out to it. A warning, not an error, so
+#: that whether a scene bakes does not depend on its resolution.
+OFF_SURFACE_CELLS = 1.0
+#: Empties a line names before it counts the rest.
+NAMED = 2
+
 
 #: Where Blender does each fix the core asks of a keyframe's mesh (`core.bake.checks.FIXES`).
 MENU_PATHS = {CLOSE_HOLES: "Mesh > Clean Up > Fill Holes",
@@ -74,11 +84,14 @@ class Problem:
         What is wrong and what to do.
     segment : int
         The segment it concerns, -1 for the whole setup.
+    fix : str
+        The operator that fixes it, offered beside the message ("" for none).
     """
 
     severity: str
     message: str
     segment: int = -1
+    fix: str = ""
 
     @property
     def icon(self) -> str:
@@ -126,6 +139,7 @@ def check(inputs: scene_io.BakeInput) -> list[Problem]:
     out = _keyframe_problems(listed)
     out += _frame_problems([k.frame for k in listed], inputs.scene_frames)
     out += _pair_problems(inputs.listed_pairs, listed)
+    out += _off_surface_problems(inputs.listed_pairs)
     out += _motion_problems(inputs.motion_resolution, inputs.resolution)
     if inputs.volume_problem:
         out.append(Problem(ERROR, inputs.volume_problem))
@@ -221,6 +235,29 @@ def _pair_problems(pairs: Iterable[scene_io.ListedPair],
                                         "distinctive points guide the motion better (Add Feature "
                                         "Pair).", seg))
     return out
+
+
+def _off_surface_problems(pairs: Iterable[scene_io.ListedPair]) -> list[Problem]:
+    """One line naming the feature Empties that lie more than `OFF_SURFACE_CELLS` outside
+    their keyframe's material, with the Snap to Surface button."""
+    far = [(cells, pair.a if side == "A" else pair.b, pair.segment + (side == "B") + 1)
+           for pair in pairs for side, cells in pair.off_surface if cells > OFF_SURFACE_CELLS]
+    if not far:
+        return []
+    far.sort(key=lambda f: -f[0])
+    if len(far) == 1:
+        cells, name, number = far[0]
+        what = (f"Feature '{name}' lies {cells:.1f} grid cells outside keyframe {number}: the "
+                "bake pulls that keyframe's material out to it")
+    else:
+        named = ", ".join(f"'{name}'" for _, name, _ in far[:NAMED])
+        rest = f" and {len(far) - NAMED} more" if len(far) > NAMED else ""
+        what = (f"{len(far)} feature Empties lie more than one grid cell outside their keyframes "
+                f"({named}{rest}, up to {far[0][0]:.1f} cells): the bake pulls the material out "
+                "to them")
+    return [Problem(WARNING, f"{what}. Snap to Surface moves "
+                             f"{'it' if len(far) == 1 else 'them'} onto the nearest surface.",
+                    fix="keyframe_implicit.snap_features")]
 
 
 def _off_keyframe(seg: int, number: int, parent: str | None, empties: Sequence[str],

@@ -8,7 +8,7 @@ import keyframe_implicit
 from keyframe_implicit.blender import features, ops, panel, props, validate
 
 OPS = ("add_keyframe", "remove_keyframe", "move_keyframe", "add_feature_pair", "pair_selected",
-       "remove_feature_pair", "select_pair", "bake", "export_farm_job")
+       "remove_feature_pair", "select_pair", "snap_features", "bake", "export_farm_job")
 
 
 def test_operators_are_registered_undoable_and_searchable(scene):
