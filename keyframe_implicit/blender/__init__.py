@@ -5,7 +5,8 @@ Module map (operators and panels are thin; logic lives in plain functions):
 =============  ================================================================
 ``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
 ``features``   feature-point pairs as Empties (create, pair, find, remove)
-``edits``      feature Empties snapped onto their keyframe's surface
+``edits``      keyframe list edits that keep the pairs (insert, remove); Empties snapped
+               onto their keyframe's surface
 ``scene_io``   scene -> `BakeInput`, the bake read once (meshes, points, facts)
 ``validate``   problems of a `BakeInput` (a setup), with what to do
 ``bake``       `collect` (read, check), `BakeJob` (the core, cancel), `apply_result`

@@ -11,7 +11,7 @@ keyframe object (so it moves with it) and identified by custom properties:
 
 Names ("KFI 0.3 A" / "KFI 0.3 B") and the object colour make a pair obvious
 in the outliner and the viewport. Plain functions only; the operators in
-`ops` are thin wrappers.
+`ops` are thin wrappers, and `edits` keeps the pairs when the keyframe list changes.
 """
 
 from __future__ import annotations
@@ -174,7 +174,7 @@ def create_pair(scene: bpy.types.Scene, settings: KFI_Settings, segment: int,
         for side, kf, loc in (("A", kf_a, location_a), ("B", kf_b, location_b)):
             empty = bpy.data.objects.new(object_name(pid, side, label), None)
             made.append(empty)
-            _link_like(scene, empty, kf)
+            link_like(scene, empty, kf)
             empty.matrix_world = Matrix.Translation(Vector(loc))
             tag(empty, pid, segment, side, label, kf)
     except Exception:
@@ -202,9 +202,10 @@ def segment_objects(settings: KFI_Settings,
     return a, b
 
 
-def _link_like(scene: bpy.types.Scene, obj: bpy.types.Object,
+def link_like(scene: bpy.types.Scene, obj: bpy.types.Object,
                like: bpy.types.Object | None) -> None:
-    """Link ``obj`` into the first collection of ``like`` that is in the scene (else the scene's)."""
+    """Link ``obj`` into the first collection of ``like`` that is in the scene (else the scene's):
+    a feature Empty goes where its keyframe object is."""
     target = scene.collection
     if like is not None:
         scene_colls = set(scene_collections(scene))
@@ -219,7 +220,7 @@ def scene_collections(scene: bpy.types.Scene) -> Iterator[bpy.types.Collection]:
     """Every collection in ``scene``'s tree, its master collection first.
 
     Linking an object into a collection puts it in the scene only when that collection is
-    one of these (`_link_like`, and the output's collection in `output`).
+    one of these (`link_like`, and the output's collection in `output`).
     """
     stack = [scene.collection]
     while stack:
@@ -282,39 +283,22 @@ def pair_empties(scene: bpy.types.Scene, settings: KFI_Settings, first: bpy.type
     return pid
 
 
-def on_keyframe_removed(scene: bpy.types.Scene, index: int) -> int:
-    """Keep pairs consistent after keyframe ``index`` was removed from the list.
-
-    Pairs touching that keyframe (segments index-1 and index) lose one side, so
-    they are deleted; pairs of later segments move down one segment. Returns
-    how many pairs were deleted.
-    """
-    gone = 0
-    for pair in list(pairs(scene).values()):
-        if pair.segment in (index - 1, index):
-            gone += 1 if remove_pair(scene, pair.pair_id) else 0
-    for pair in list(pairs(scene).values()):
-        if pair.segment > index and pair.complete:
-            new_seg = pair.segment - 1
-            new_id = f"{new_seg}.{pair.pair_id.split('.', 1)[1]}"
-            for side, e in (("A", pair.a), ("B", pair.b)):
-                e[SEGMENT] = new_seg
-                e[PAIR] = new_id
-                e.name = object_name(new_id, side, pair.label)
-    return gone
-
-
 def select_pair(view_layer: bpy.types.ViewLayer, scene: bpy.types.Scene,
                 pair_id: str) -> list[bpy.types.Object]:
-
     """Select both Empties of ``pair_id`` (B active); returns them."""
     found = [o for o in feature_objects(scene) if str(o[PAIR]) == pair_id]
     if not found:
         raise ValueError(f"No feature pair {pair_id!r} in this scene.")
+    select_only(view_layer, sorted(found, key=lambda o: str(o.get(SIDE, ""))))
+    return found
+
+
+def select_only(view_layer: bpy.types.ViewLayer, chosen: Sequence[bpy.types.Object]) -> None:
+    """Select ``chosen`` (shown, the last one active) and nothing else."""
     for obj in view_layer.objects:
         obj.select_set(False)
-    for obj in found:
+    for obj in chosen:
         obj.hide_set(False)
         obj.select_set(True)
-    view_layer.objects.active = sorted(found, key=lambda o: str(o.get(SIDE, "")))[-1]
-    return found
+    if chosen:
+        view_layer.objects.active = chosen[-1]

@@ -81,12 +81,21 @@ class KFI_OT_add_keyframe(bpy.types.Operator):
         if index != last:
             settings.keyframes.move(last, index)
         settings.active_keyframe_index = index
-        self.report({"INFO"}, f"Keyframe {index + 1}: '{obj.name}' on frame {frame}.")
+        done = edits.keyframe_inserted(context.scene, settings, index,
+                                       context.evaluated_depsgraph_get())
+        msg = f"Keyframe {index + 1}: '{obj.name}' on frame {frame}."
+        if done.proposed:
+            features.select_only(context.view_layer, done.proposed)
+            how = ("where the bake moves that material" if done.from_bake else
+                   "between each pair's two points, on its surface")
+            msg += (f" Split the {validate.count(done.split, 'feature pair')} through it in two: "
+                    f"proposed {len(done.proposed)} Empties on it, {how}, selected for review.")
+        self.report({"INFO"}, msg)
         return {"FINISHED"}
 
 
 class KFI_OT_remove_keyframe(bpy.types.Operator):
-    """Remove a keyframe from the list (its feature pairs are deleted)"""
+    """Remove a keyframe from the list (its object stays): the feature pairs through it are joined into pairs of its neighbours, the rest of its pairs deleted"""
 
     bl_idname = "keyframe_implicit.remove_keyframe"
     bl_label = "Remove Keyframe"
@@ -103,12 +112,18 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
         if not 0 <= index < n:
             self.report({"ERROR"}, f"No keyframe {index + 1}: there are {n}.")
             return {"CANCELLED"}
-        gone = features.on_keyframe_removed(context.scene, index)
+        obj = settings.keyframes[index].object
+        done = edits.keyframe_removed(context.scene, settings, index)
         settings.keyframes.remove(index)
         settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
-        msg = f"Removed keyframe {index + 1}."
-        if gone:
-            msg += f" Deleted {validate.count(gone, 'feature pair')} that used it."
+        msg = f"Removed keyframe {index + 1}" + (f" '{obj.name}'." if obj is not None else ".")
+        if done.joined:
+            msg += (f" Joined {validate.count(done.joined, 'feature pair')} through it into "
+                    f"keyframes {index} \u2192 {index + 1} and removed their "
+                    f"{validate.count(done.empties, 'Empty', 'Empties')} on it.")
+        if done.deleted:
+            why = " with no partner through it" if 0 < index < n - 1 else ""
+            msg += f" Deleted {validate.count(done.deleted, 'feature pair')} that used it{why}."
         self.report({"INFO"}, msg)
         return {"FINISHED"}
 

@@ -136,20 +136,28 @@ def test_pair_selected_select_and_remove(scene, kfi):
         bpy.ops.keyframe_implicit.remove_feature_pair(pair="0.0")
 
 
-def test_remove_keyframe_drops_its_pairs_and_renumbers(scene, kfi):
+def test_remove_keyframe_joins_its_pairs_and_renumbers(scene, kfi):
     specs = [("A", (0, 0, 0), 1, 1), ("B", (3, 0, 0), 1, 5), ("C", (6, 0, 0), 1, 9),
              ("D", (9, 0, 0), 1, 13)]
-    kfi.build_spheres(specs)  # 4 pairs per segment, segments 0, 1, 2
+    kfi.build_spheres(specs)  # 4 pairs per segment, segments 0, 1, 2, meeting on B and C
     assert bpy.ops.keyframe_implicit.remove_keyframe(index=1) == {"FINISHED"}
     s = scene.keyframe_implicit
     assert [k.object.name for k in s.keyframes] == ["A", "C", "D"]
     found = features.pairs(scene)
-    # segments 0 (A-B) and 1 (B-C) lost a side; C-D is now segment 1
-    assert sorted(found) == ["1.0", "1.1", "1.2", "1.3"]
-    assert all(p.a.parent.name == "C" and p.b.parent.name == "D" for p in found.values())
-    assert found["1.2"].a.name == "KFI 1.2 A"
+    # A-B and B-C, meeting on B, became A-C; C-D is now segment 1
+    assert sorted(found) == ["0.0", "0.1", "0.2", "0.3", "1.0", "1.1", "1.2", "1.3"]
+    assert all((p.a.parent.name, p.b.parent.name) == (("A", "C") if p.segment == 0 else ("C", "D"))
+               for p in found.values())
+    assert found["1.2"].a.name == "KFI 1.2 A" and found["0.2"].b.name == "KFI 0.2 B"
+    assert not bpy.data.objects["B"].children
+    assert not validate.problems(scene)
+    # a first keyframe takes its pairs with it
+    assert bpy.ops.keyframe_implicit.remove_keyframe(index=0) == {"FINISHED"}
+    assert sorted(features.pairs(scene)) == ["0.0", "0.1", "0.2", "0.3"]
     msgs = [p.message for p in validate.problems(scene)]
-    assert any("Keyframes 1 \u2192 2 have no feature pairs:" in m for m in msgs)
+    assert not any("no feature pairs" in m for m in msgs)
+    assert bpy.ops.keyframe_implicit.remove_keyframe(index=1) == {"FINISHED"}
+    assert not features.pairs(scene)
 
 
 def test_validation_messages_say_what_to_do(scene, kfi):

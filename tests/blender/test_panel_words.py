@@ -17,15 +17,24 @@ def _plane_as_middle_keyframe(kfi):
     assert bpy.ops.keyframe_implicit.add_keyframe(frame=12) == {"FINISHED"}
 
 
-def test_a_plane_added_in_the_middle_gets_one_line_per_kind_with_advice_that_fits(scene, kfi):
+def test_a_plane_added_in_the_middle_gets_its_error_and_pairs_proposed_on_it(scene, kfi):
     _plane_as_middle_keyframe(kfi)
     found = [p.message for p in validate.problems(scene)]
-    assert found[0].startswith("Keyframe 2 'Plane' is open"), found  # the real problem first
-    empties = [m for m in found if "Empties" in m or "'KFI" in m]
-    assert empties == ["4 feature Empties of keyframes 1 \u2192 2 are on keyframe 3 'KeyB', not on "
-                       "keyframe 2 'Plane': the keyframe list changed since they were placed. "
-                       "Move them onto 'Plane' and parent them to it, or remove those pairs."], found
-    assert len(found) == 3, found  # and the segment Plane -> KeyB without pairs
+    # the real problem alone: the 4 pairs through the plane became 8, meeting on it
+    assert len(found) == 1 and found[0].startswith("Keyframe 2 'Plane' is open"), found
+    assert len(bpy.data.objects["Plane"].children) == 8
+
+
+def test_empties_left_on_another_keyframe_by_a_move_are_one_error_with_advice(scene, kfi):
+    kfi.build_spheres(PLANE_MIDDLE)
+    kfi.add_sphere("KeyC", (3.0, 0.0, 0.0))
+    assert bpy.ops.keyframe_implicit.add_keyframe(frame=30) == {"FINISHED"}
+    assert bpy.ops.keyframe_implicit.move_keyframe(index=2, direction="UP") == {"FINISHED"}
+    [line] = [p for p in validate.problems(scene) if "Empties" in p.message]
+    assert line.message == ("4 feature Empties of keyframes 1 \u2192 2 are on keyframe 3 'KeyB', not "
+                            "on keyframe 2 'KeyC': the keyframe list changed since they were "
+                            "placed. Move them onto 'KeyC' and parent them to it, or remove those "
+                            "pairs.")
 
 
 def test_unparented_empties_are_counted_and_told_to_parent_to_their_keyframe(scene, kfi):
@@ -54,7 +63,7 @@ def test_the_first_problems_stay_in_view_and_the_rest_fold(scene, kfi):
     assert len(found) > panel.SHOWN_PROBLEMS
     log = _drawn_main(bpy.context)
     text = " ".join(e[1] for e in log if e[0] == "label")
-    assert "is open" in text and found[-1].message.split()[-1] not in text.split()[-3:]
+    assert [p.message in text for p in found] == [True, True, False], found
     folded = [e for e in log if e[0] == "drawn" and e[1] == f"{len(found) - panel.SHOWN_PROBLEMS} more"]
     assert folded, log
     bake_at = log.index(("operator", "keyframe_implicit.bake"))
