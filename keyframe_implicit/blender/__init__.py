@@ -47,7 +47,7 @@ def register() -> None:
     """Register the property groups, operators and panels (idempotent after unregister)."""
     import bpy
 
-    from . import ops, preview, props, result_view
+    from . import edits, ops, preview, props, result_view
 
     if _registered:
         return
@@ -61,6 +61,7 @@ def register() -> None:
     for name in _HANDLERS:
         getattr(bpy.app.handlers, name).append(_forget_readings)
     props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled)
+    props.ON_CHANGE["object"] = edits.object_picked  # a keyframe's object, picked in its row
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)
 

@@ -10,6 +10,8 @@ changes what every later pair means. These functions keep the setup:
 - `keyframe_removed`: later pairs move down one segment; the pairs A -> M and M -> B through
   the removed keyframe M whose Empties on M meet (`JOIN_REACH`) are joined into A -> B, their
   Empties on M removed; the rest of M's pairs are deleted.
+- `object_picked`: a keyframe whose object was deleted takes the Empties it left, unparented,
+  when an object is picked for it.
 - `snap`: Empties outside their keyframe's material moved onto its nearest surface point.
 
 The keyframe objects are never changed: only the feature Empties are made, moved, renamed
@@ -30,7 +32,7 @@ from . import features, output, scene_io
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from .props import KFI_Settings
+    from .props import KFI_Keyframe, KFI_Settings
 
 #: Two Empties on a removed keyframe mark the same point (their pairs are joined through it)
 #: when they lie within this share of the keyframe's largest side of each other.
@@ -253,6 +255,21 @@ def _matches(into: Sequence[features.Pair], out_of: Sequence[features.Pair],
             used_b.add(j)
             found.append((into[i], out_of[j]))
     return found
+
+
+def object_picked(keyframe: KFI_Keyframe, _context: bpy.types.Context) -> None:
+    """A keyframe's object was set (`props.ON_CHANGE`): it takes the feature Empties meant
+    for it that are parented to nothing (its object was deleted), keeping them where they
+    are."""
+    obj = keyframe.object
+    if obj is None:
+        return
+    scene = keyframe.id_data
+    kfs = list(scene.keyframe_implicit.keyframes)
+    index = next(i for i, kf in enumerate(kfs) if kf.as_pointer() == keyframe.as_pointer())
+    for _, _, empty in scene_io.empties_on(features.pairs(scene).values(), len(kfs)).get(index, ()):
+        if empty.parent is None:
+            features.parent_keep_world(empty, obj)
 
 
 def snap(scene: bpy.types.Scene, names: Sequence[str],

@@ -41,7 +41,8 @@ class KFI_UL_keyframes(bpy.types.UIList):
                   data: bpy.types.AnyType, item: KFI_Keyframe, icon: int,
                   active_data: bpy.types.AnyType, active_propname: str,
                   index: int = 0) -> None:
-        """One keyframe: its object's name, its frame and its interpolation."""
+        """One keyframe: its object's name (a field to pick one when it has none), its frame and
+        its interpolation."""
         if self.layout_type == "GRID":
             layout.label(text=item.object.name if item.object else "?")
             return
@@ -49,8 +50,8 @@ class KFI_UL_keyframes(bpy.types.UIList):
         split = row.split(factor=self.NAME_SHARE, align=True)
         if item.object is not None:  # the name, as Blender's lists show it: no clear button
             split.prop(item.object, "name", text="", emboss=False, icon="OUTLINER_OB_MESH")
-        else:
-            split.label(text="No object", icon="ERROR")
+        else:  # its object was deleted (or never picked): pick one here
+            split.prop(item, "object", text="", icon="ERROR")
         split.prop(item, "frame", text="", emboss=False)
         row.prop(item, "interpolation", text="", icon_only=True, emboss=False)
 

@@ -29,18 +29,19 @@ def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
     return obj is not None and obj.type == "MESH"
 
 
-#: What runs when a setting with a side effect changes, by property name. The modules that
-#: act on a setting fill it in when the add-on registers (`blender.register`), so the
-#: settings, which every other module reads, import none of them.
-ON_CHANGE: dict[str, Callable[["KFI_Settings", bpy.types.Context], None]] = {}
+#: What runs when a setting with a side effect changes, by property name; the handler gets
+#: the property group that changed (`KFI_Settings`, or the `KFI_Keyframe` whose ``object``
+#: was picked). The modules that act on a setting fill it in when the add-on registers
+#: (`blender.register`), so the settings, which every other module reads, import none of them.
+ON_CHANGE: dict[str, Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]] = {}
 
 
-def _on_change(name: str) -> Callable[["KFI_Settings", bpy.types.Context], None]:
+def _on_change(name: str) -> Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]:
     """The ``update`` callback of setting ``name``: the handler `ON_CHANGE` holds for it."""
-    def update(settings: "KFI_Settings", context: bpy.types.Context) -> None:
+    def update(group: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
         handler = ON_CHANGE.get(name)
         if handler is not None:
-            handler(settings, context)
+            handler(group, context)
 
     return update
 
@@ -53,6 +54,7 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
         type=bpy.types.Object,
         poll=_is_mesh,
         description="Mesh object whose (evaluated, world-space) shape is this keyframe",
+        update=_on_change("object"),
     )
     frame: IntProperty(name="Frame", default=1, description="Timeline frame of this keyframe")
     interpolation: EnumProperty(

@@ -136,7 +136,7 @@ def check(inputs: scene_io.BakeInput) -> list[Problem]:
         before warnings.
     """
     listed = inputs.listed_keyframes
-    out = _keyframe_problems(listed)
+    out = _keyframe_problems(listed, inputs.listed_pairs)
     out += _frame_problems([k.frame for k in listed], inputs.scene_frames)
     out += _pair_problems(inputs.listed_pairs, listed)
     out += _off_surface_problems(inputs.listed_pairs)
@@ -158,8 +158,10 @@ def _motion_problems(motion_resolution: int | None, resolution: int) -> list[Pro
     return []
 
 
-def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe]) -> list[Problem]:
-    """Too few keyframes; entries without a mesh object in the scene; unsound surfaces."""
+def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe],
+                       pairs: Sequence[scene_io.ListedPair]) -> list[Problem]:
+    """Too few keyframes; entries without a mesh object in the scene (with what became of
+    their feature Empties); unsound surfaces."""
     out = []
     if len(listed) < 2:
         out.append(Problem(ERROR, f"{count(len(listed), 'keyframe').capitalize()}: add at least "
@@ -168,7 +170,8 @@ def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe]) -> list[Proble
         name = f"Keyframe {i} '{kf.name}'" if kf.name is not None else f"Keyframe {i}"
         if kf.name is None:
             out.append(Problem(ERROR, f"{name} (frame {kf.frame}) has no object: pick a mesh "
-                                      "object or remove the keyframe."))
+                                      "object in its row or remove the keyframe."
+                                      + _left_empties(i - 1, pairs)))
         elif kf.kind != "MESH":
             out.append(Problem(ERROR, f"{name} is not a mesh: convert it (Object > Convert > "
                                       "Mesh) or pick a mesh object."))
@@ -179,6 +182,19 @@ def _keyframe_problems(listed: Sequence[scene_io.ListedKeyframe]) -> list[Proble
             out += [Problem(severity, f"{name} {text}")
                     for severity, text in mesh_problems(kf.reading, kf.modified)]
     return out
+
+
+def _left_empties(index: int, pairs: Sequence[scene_io.ListedPair]) -> str:
+    """What became of the feature Empties of keyframe ``index`` (from 0) when its object
+    went: "" when it had none."""
+    n = sum((p.a is not None and p.segment == index) + (p.b is not None and p.segment == index - 1)
+            for p in pairs)
+    if not n:
+        return ""
+    one = n == 1
+    return (f" Its {count(n, 'feature Empty', 'feature Empties')} {'stays' if one else 'stay'} "
+            f"where {'it was' if one else 'they were'}, parented to nothing: the object you pick "
+            f"takes {'it' if one else 'them'}. Removing the keyframe joins the pairs through it.")
 
 
 def _frame_problems(frames: Sequence[int], scene_frames: tuple[int, int]) -> list[Problem]:

@@ -1,6 +1,6 @@
 """Edits keep the setup: a keyframe inserted into the splash gets pairs proposed on it, a
-keyframe removed joins the pairs through it, and a feature Empty moved off its keyframe's
-surface is pointed out and snapped back."""
+keyframe removed joins the pairs through it, a deleted keyframe object can be picked again in
+its row, and a feature Empty moved off its keyframe's surface is pointed out and snapped back."""
 
 import os
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.blender import edits, features, scene_io, validate
-from test_panel import Layout
+from test_panel import Layout, list_rows
 
 SPLASH = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
     __file__)))), "assets", "splash.blend")
@@ -166,6 +166,31 @@ def test_many_empties_off_their_surfaces_are_one_counted_line(splash):
     assert bpy.ops.keyframe_implicit.snap_features(empty="KFI 2.0 pool_east B") == {"FINISHED"}
     bpy.context.view_layer.update()
     assert validate.problems(splash)[0].message.startswith("2 feature Empties")
+
+
+def test_a_deleted_keyframe_object_is_picked_again_in_its_row(splash):
+    c = bpy.data.objects["splash_C"]
+    empties = {o.name: _where(o) for o in c.children}
+    assert len(empties) == 16
+    bpy.data.objects.remove(c)
+    found = validate.problems(splash)
+    assert found[0].severity == validate.ERROR and found[0].icon == "ERROR"
+    assert found[0].message.startswith("Keyframe 3 (frame 15) has no object: pick a mesh object "
+                                       "in its row")
+    assert "Its 16 feature Empties stay where they were, parented to nothing" in found[0].message
+    assert all(np.allclose(_where(splash.objects[n]), w) for n, w in empties.items())
+    log = []
+    from keyframe_implicit.blender import panel
+
+    panel.KFI_PT_main.draw(type("PanelSelf", (), {"layout": Layout(log)})(), bpy.context)
+    assert ("prop", "object") in list_rows(log)[2]  # the row offers the object field
+    other = bpy.data.objects["splash_D"].copy()  # picked there, it takes the Empties left
+    other.data = bpy.data.objects["splash_D"].data.copy()
+    splash.collection.objects.link(other)
+    splash.keyframe_implicit.keyframes[2].object = other
+    assert len(other.children) == 16
+    assert all(np.allclose(_where(splash.objects[n]), w) for n, w in empties.items())
+    assert len(bpy.data.objects["splash_D"].children) == 8  # its own, untouched
 
 
 def test_a_first_or_last_keyframe_added_moves_the_pairs_with_their_keyframes(scene, kfi):
