@@ -49,7 +49,6 @@ OFF_SURFACE_CELLS = 1.0
 #: Empties a line names before it counts the rest.
 NAMED = 2
 
-
 #: Where Blender does each fix the core asks of a keyframe's mesh (`core.bake.checks.FIXES`).
 MENU_PATHS = {CLOSE_HOLES: "Mesh > Clean Up > Fill Holes",
               THICKEN: "Solidify modifier",
@@ -242,8 +241,7 @@ def _pair_problems(pairs: Iterable[scene_io.ListedPair],
             empty, number = (pair.a, pair.segment + 1) if side == "A" else (pair.b, pair.segment + 2)
             off.setdefault((pair.segment, number, parent), []).append(empty)
         counts[pair.segment] += 1
-    for (seg, number, parent), empties in off.items():
-        out.append(Problem(WARNING, _off_keyframe(seg, number, parent, empties, listed), seg))
+    out += _off_keyframe_problems(off, listed)
     for seg, n in enumerate(counts):
         if n < MIN_PAIRS_HINT:
             out.append(Problem(WARNING, f"Keyframes {seg + 1} \u2192 {seg + 2} have "
@@ -274,6 +272,45 @@ def _off_surface_problems(pairs: Iterable[scene_io.ListedPair]) -> list[Problem]
     return [Problem(WARNING, f"{what}. Snap to Surface moves "
                              f"{'it' if len(far) == 1 else 'them'} onto the nearest surface.",
                     fix="keyframe_implicit.snap_features")]
+
+
+def _off_keyframe_problems(off: dict[tuple[int, int, str | None], list[str]],
+                           listed: Sequence[scene_io.ListedKeyframe]) -> list[Problem]:
+    """One line per kind of feature Empty off its keyframe object (`_off_kind`), with the advice
+    that fits: Empties on another keyframe of the list guide the wrong keyframes (an
+    `ERROR`); unparented ones or ones parented elsewhere are read where they are (a
+    `WARNING`)."""
+    kinds: dict[str, list[tuple[int, int, str | None]]] = {}
+    for where in off:
+        kinds.setdefault(_off_kind(where[2], listed), []).append(where)
+    out = []
+    for kind, groups in kinds.items():
+        severity = ERROR if kind == "listed" else WARNING
+        if len(groups) == 1:
+            seg, number, parent = groups[0]
+            out.append(Problem(severity, _off_keyframe(seg, number, parent, off[groups[0]], listed),
+                               seg))
+            continue
+        n = sum(len(off[g]) for g in groups)
+        segments = len({g[0] for g in groups})
+        which = f"{n} feature Empties of {count(segments, 'segment')}"
+        out.append(Problem(severity, which + {
+            "none": " are not parented to their keyframes: they do not follow those objects; "
+                    "parent each to its keyframe (Ctrl+P > Keep Transform).",
+            "listed": " are on other keyframes of the list than theirs: the keyframe list changed "
+                      "since they were placed. Move them onto their keyframes and parent them to "
+                      "them, or remove those pairs.",
+            "other": " are parented to other objects than their keyframes: parent each to its "
+                     "keyframe (Ctrl+P > Keep Transform).",
+        }[kind]))
+    return out
+
+
+def _off_kind(parent: str | None, listed: Sequence[scene_io.ListedKeyframe]) -> str:
+    """"none" (parented to nothing), "listed" (to another keyframe of the list) or "other"."""
+    if parent is None:
+        return "none"
+    return "listed" if any(kf.name == parent for kf in listed) else "other"
 
 
 def _off_keyframe(seg: int, number: int, parent: str | None, empties: Sequence[str],

@@ -35,6 +35,7 @@ def test_empties_left_on_another_keyframe_by_a_move_are_one_error_with_advice(sc
                             "on keyframe 2 'KeyC': the keyframe list changed since they were "
                             "placed. Move them onto 'KeyC' and parent them to it, or remove those "
                             "pairs.")
+    assert line.severity == validate.ERROR and line.icon == "ERROR"  # they guide the wrong keyframes
 
 
 def test_unparented_empties_are_counted_and_told_to_parent_to_their_keyframe(scene, kfi):
