@@ -50,6 +50,20 @@ def test_unparented_empties_are_counted_and_told_to_parent_to_their_keyframe(sce
     assert line.endswith("parent them to it (Ctrl+P > Keep Transform).")
 
 
+def test_unparented_empties_of_several_segments_are_one_counted_line(scene, kfi):
+    kfi.build_spheres([("A", (0, 0, 0), 1, 1), ("B", (3, 0, 0), 1, 5), ("C", (6, 0, 0), 1, 9)])
+    for name in ("KFI 0.0 A", "KFI 0.1 B", "KFI 1.0 A", "KFI 1.2 B", "KFI 1.3 B"):
+        obj = bpy.data.objects[name]
+        world = obj.matrix_world.copy()
+        obj.parent = None
+        obj.matrix_world = world
+    found = validate.problems(scene)
+    assert [(p.severity, p.message) for p in found] == [
+        (validate.WARNING, "5 feature Empties of 2 segments are not parented to their keyframes: "
+                           "they do not follow those objects; parent each to its keyframe (Ctrl+P "
+                           "> Keep Transform).")]
+
+
 def _drawn_main(context):
     log = []
     fake = type("PanelSelf", (), {"layout": Layout(log)})()
