@@ -27,7 +27,7 @@ from .chain import HELPER_PRELOAD, Chain
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
-from .gridfit import auto_motion_resolution, fit_grid, motion_grid
+from .gridfit import auto_motion_resolution, fit_grid, motion_grid, one_grid_unless_smaller
 from .keyframe import Keyframe
 from .memory import MemoryLimitError, check_memory, largest_fitting
 from .options import BakeOptions
@@ -403,7 +403,8 @@ def _motion_grid(features, feature_names, grid, resolution, motion_resolution, f
     """The bake's Motion Resolution and motion grid (`gridfit.motion_grid`; None when it is
     the surface grid). Automatic: `gridfit.auto_motion_resolution` for the largest
     keyframe's ``fraction`` of the box, raised where two feature points would share a
-    motion cell; given: refused in that case."""
+    motion cell, one grid where the motion grid would not have fewer nodes than ``grid``
+    (`gridfit.one_grid_unless_smaller`); given: refused in that case."""
     def grid_of(m):
         return motion_grid(grid, resolution, m)
 
@@ -421,7 +422,8 @@ def _motion_grid(features, feature_names, grid, resolution, motion_resolution, f
             spacing_fits(m)
             break
         except ValueError:
-            m = min(resolution, int(np.ceil(1.25 * m)))
+            m = one_grid_unless_smaller(grid, resolution,
+                                        min(resolution, int(np.ceil(1.25 * m))))
     return m, grid_of(m)
 
 
