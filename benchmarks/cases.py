@@ -13,8 +13,10 @@ exact (closest point by a vectorised bisection on the Lagrange parameter).
 
 `CASE_NAMES` are the seven cases of the comparison table; `EXTRA_CASES` run by name: the
 unequal merge and split (two balls of radii 0.13 and 0.18 and one ball of their volume),
-and ``scan``, the Stanford bunny as scanned (open, 100k triangles, the copy the pymeshfix
-package ships) into a ball of its volume, sampled by `keyframe_implicit.core.mesh_to_sdf`.
+``scan``, the Stanford bunny as scanned (open, 100k triangles, the copy the pymeshfix
+package ships) into a ball of its volume, sampled by `keyframe_implicit.core.mesh_to_sdf`,
+and ``bunny``, the same into a ball from the closed 3.7k-triangle bunny of the npm package
+``bunny`` (fetched on first use into the user's cache, `bunny_mesh`).
 
 The rigid case also carries ``truth(points, s)``: the signed distance of the
 solid turned by ``s`` times the keyframe rotation about its centroid, with
@@ -23,8 +25,15 @@ the centroid moved on the straight line (the ground truth of the rigid case).
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
+import io
+import json
+import os
 import pathlib
+import re
+import tarfile
+import urllib.request
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,8 +47,8 @@ __all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "EXTRA_CASES", "ALL_C
 #: The seven-case table (what ``compare.py`` runs by default).
 CASE_NAMES = ("rigid", "merge", "split", "bend", "squash", "morph", "splash")
 #: Cases run by name only (``compare.py --cases``): the unequal merge and split, whose parts
-#: keep their own volume while apart, and a scanned mesh (needs 96^3 to resolve its ears).
-EXTRA_CASES = ("unequal-merge", "unequal-split", "scan")
+#: keep their own volume while apart, and two scanned meshes (96^3 resolves their ears).
+EXTRA_CASES = ("unequal-merge", "unequal-split", "scan", "bunny")
 ALL_CASES = CASE_NAMES + EXTRA_CASES
 
 
@@ -370,23 +379,82 @@ def scan_mesh():
     return (v - 0.5 * (lo + hi)) * (1.1 / np.max(hi - lo)), f
 
 
-def _scan(grid):
-    """A scanned bunny becomes a ball of its volume centred at its centroid."""
+#: The npm package ``bunny`` (public domain): its tarball and the SHA-1 the registry lists.
+BUNNY_URL = "https://registry.npmjs.org/bunny/-/bunny-1.0.1.tgz"
+BUNNY_SHA1 = "86383da45ab7a99571a5a572b7be0e3564815f9e"
+
+
+def _cache_dir():
+    """Where downloaded benchmark inputs are kept: the user's cache (``XDG_CACHE_HOME`` or
+    ~/.cache), never the repository or the add-on's folder."""
+    root = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return pathlib.Path(root) / "keyframe_implicit" / "benchmarks"
+
+
+def _bunny_tarball():
+    """The npm ``bunny`` tarball's bytes: from the cache, else downloaded and checked
+    against `BUNNY_SHA1` first. ImportError (the benchmark's "not available") saying how
+    to provide it when it cannot be fetched."""
+    path = _cache_dir() / pathlib.PurePosixPath(BUNNY_URL).name
+    if path.is_file() and hashlib.sha1(path.read_bytes()).hexdigest() == BUNNY_SHA1:
+        return path.read_bytes()
+    try:
+        with urllib.request.urlopen(BUNNY_URL, timeout=60) as response:
+            data = response.read()
+    except OSError as exc:
+        raise ImportError(f"the bunny case reads the npm package bunny, which could not be "
+                          f"fetched from {BUNNY_URL} ({exc}); download it there by hand and "
+                          f"put it at {path}") from None
+    if hashlib.sha1(data).hexdigest() != BUNNY_SHA1:
+        raise ImportError(f"{BUNNY_URL} did not give the bunny-1.0.1 tarball (SHA-1 "
+                          f"{BUNNY_SHA1} expected); put that file at {path}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".part")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+    return data
+
+
+def bunny_mesh():
+    """The closed Stanford bunny of the npm package ``bunny`` (1839 vertices, 3674
+    triangles), scaled to 1.1 across and centred in the box."""
+    with tarfile.open(fileobj=io.BytesIO(_bunny_tarball()), mode="r:gz") as tar:
+        text = tar.extractfile("package/index.js").read().decode("ascii")
+    arrays = {name: json.loads(re.search(rf"exports\.{name}\s*=\s*(\[.*?\]\])", text, re.S)[1])
+              for name in ("positions", "cells")}
+    v, f = np.array(arrays["positions"], dtype=float), np.array(arrays["cells"], dtype=np.int64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return (v - 0.5 * (lo + hi)) * (1.1 / np.max(hi - lo)), f
+
+
+def _into_ball(name, mesh, grid):
+    """A mesh (vertices, triangles) becomes a ball of its volume centred at its centroid;
+    four feature points there stay put."""
     from keyframe_implicit.core import mesh_to_sdf
     from keyframe_implicit.core.surface.extract import enclosed_volume
 
     x = grid.points()
-    phi_a = mesh_to_sdf(*scan_mesh(), grid)
+    phi_a = mesh_to_sdf(*mesh, grid)
     inside = phi_a < 0
     centre = x[inside].mean(axis=0)
     R = (3 * enclosed_volume(phi_a, grid) / (4 * np.pi)) ** (1 / 3)
     fa = centre + 0.1 * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
-    return Case("scan", grid, [phi_a, sd_sphere(x, centre, R)], [(fa, fa.copy())], None, [1, 1])
+    return Case(name, grid, [phi_a, sd_sphere(x, centre, R)], [(fa, fa.copy())], None, [1, 1])
+
+
+def _scan(grid):
+    """The pymeshfix bunny scan becomes a ball of its volume."""
+    return _into_ball("scan", scan_mesh(), grid)
+
+
+def _bunny(grid):
+    """The npm package's bunny becomes a ball of its volume."""
+    return _into_ball("bunny", bunny_mesh(), grid)
 
 
 _BUILDERS = {"rigid": _rigid, "merge": _merge, "split": _split, "bend": _bend, "squash": _squash,
              "morph": _morph, "splash": _splash, "unequal-merge": _unequal_merge,
-             "unequal-split": _unequal_split, "scan": _scan}
+             "unequal-split": _unequal_split, "scan": _scan, "bunny": _bunny}
 
 
 def make_case(name: str, n: int) -> Case:

@@ -8,6 +8,7 @@ One command produces the table and plots::
     python benchmarks/compare.py --methods blend,morph,rbf --merge   # add to the committed results
     python benchmarks/compare.py --cases unequal-merge,unequal-split --methods project,one-sided
     python benchmarks/compare.py --cases scan --sizes 96   # the scanned bunny (needs pymeshfix)
+    python benchmarks/compare.py --cases bunny --sizes 96  # the npm bunny (fetched once)
 
 The default cases are the seven of ``cases.CASE_NAMES``; ``cases.EXTRA_CASES`` run by name.
 

@@ -187,10 +187,12 @@ class BakeInput:
         """`core.bake.pipeline.bake`'s keyword arguments for this bake: the keyframes, the
         feature pairs and their names, and the bake's options (`BakeOptions`). The one
         translation of the panel's settings into the core's: the bake's worker, the farm
-        job and the live preview (`core.bake.preview.Preview.solve`) all take it."""
+        job and the live preview (`core.bake.preview.Preview.solve`) all take it. An output
+        set in the panel (not Auto) is the only one the bake makes and measures
+        (`SurfaceOptions.output`)."""
         options = BakeOptions.from_keywords(
             resolution=self.resolution, motion_resolution=self.motion_resolution,
-            weights=self.weights, levelsets=self.levelsets,
+            weights=self.weights, levelsets=self.levelsets, output=self.output_mode.lower(),
             key_interpolation=self.key_interpolation or None)
         return dict(keyframes=self.keyframes, features=self.features,
                     feature_names=self.feature_names or None, options=options)

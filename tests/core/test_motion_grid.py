@@ -4,8 +4,9 @@ section 11)."""
 import numpy as np
 import pytest
 
-from inbetween_cases import make_grid, rigid_case, rigid_expected, sd_sphere, turning_sphere
-from keyframe_implicit.core import Grid, Inbetween, animate, extract_surface, inbetween
+from inbetween_cases import (make_grid, rigid_case, rigid_expected, sd_box, sd_sphere,
+                             turning_sphere)
+from keyframe_implicit.core import Grid, Inbetween, Keyframe, animate, extract_surface, inbetween
 from keyframe_implicit.core.bake import gridfit, pipeline
 
 
@@ -113,6 +114,74 @@ def test_automatic_motion_resolution_follows_the_budget():
     assert 0.8 * gridfit.MOTION_NODES <= nodes <= 1.25 * gridfit.MOTION_NODES
     dense = gridfit.auto_motion_resolution(128, 0.3, grid)  # never coarser than half
     assert dense == 128 // gridfit.MAX_COARSENING
+
+
+def _ball_into_torus(grid):
+    """A ball whose middle opens into a torus of its volume (major radius 0.3, tube 0.12),
+    six feature points on a ring going to the tube's centre line."""
+    x = grid.points()
+    major, tube = 0.3, 0.12
+    ball = (1.5 * np.pi * major * tube ** 2) ** (1 / 3)
+    torus = np.hypot(np.hypot(x[..., 0], x[..., 1]) - major, x[..., 2]) - tube
+    angle = np.arange(6) * np.pi / 3
+    ring = np.stack([np.cos(angle), np.sin(angle), np.zeros(6)], axis=1)
+    return [sd_sphere(x, (0, 0, 0), ball), torus], [(0.16 * ring, major * ring)]
+
+
+def _two_plates(grid):
+    """Two plates 1.2 x 0.6 x 0.1, 0.06 apart, each turned a quarter about z."""
+    x = grid.points()
+    half, z = np.array([0.6, 0.3, 0.05]), 0.08
+
+    def plates(h):
+        return np.minimum(sd_box(x, (0, 0, z), h), sd_box(x, (0, 0, -z), h))
+
+    fa = np.array([[0.45, 0, z], [-0.45, 0, z], [0.45, 0, -z], [-0.45, 0, -z]])
+    return [plates(half), plates(half[[1, 0, 2]])], [(fa, fa[:, [1, 0, 2]])]
+
+
+@pytest.mark.parametrize("scene, resolution", [(_ball_into_torus, 48), (_two_plates, 64)])
+def test_the_automatic_motion_grid_never_has_more_nodes_than_the_surface_grid(scene, resolution):
+    """The motion grid pads the surface grid's box with cells of its own: a Motion Resolution
+    just below Resolution, or a flat box, would give a motion grid larger than the surface
+    grid (the ball opening into a torus at 48 would pick 47, a 60x60x45 motion grid against
+    57x57x41; the two plates at 64 would pick 58). The bake keeps one grid there."""
+    grid = make_grid(3, 40)
+    fields, feats = scene(grid)
+    kfs = [Keyframe(*extract_surface(f, grid), 1 + 24 * k) for k, f in enumerate(fields)]
+    meshes = [pipeline.checked_mesh(k, kf) for k, kf in enumerate(kfs)]
+    _, m, mg = pipeline._bake_grid(kfs, meshes, feats, None, resolution, None, 4, None)
+    assert m == resolution and mg is None
+
+
+@pytest.mark.parametrize("height", [1.0, 0.6, 0.25])
+def test_every_automatic_motion_grid_is_smaller_than_its_surface_grid(height):
+    """Over resolutions and material shares, the automatic Motion Resolution gives one grid
+    or a motion grid with fewer nodes than the surface grid; and it still coarsens where
+    the budget asks (a motion grid is kept somewhere in the sweep)."""
+    box = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, height]])
+    separate = 0
+    for resolution in range(25, 129, 3):
+        grid = gridfit.fit_grid(box, resolution)
+        for fraction in (0.02, 0.05, 0.1, 0.2, 0.4):
+            m = gridfit.auto_motion_resolution(resolution, fraction, grid)
+            mg = gridfit.motion_grid(grid, resolution, m)
+            assert mg is None or mg.size < grid.size, (resolution, fraction, m)
+            separate += mg is not None
+    assert separate > 0
+
+
+def test_the_preview_keeps_one_grid_where_its_motion_grid_would_be_larger():
+    """At a bake Resolution of 18 the preview's 16-cell motion grid would be padded past the
+    18-cell surface grid: the preview keeps one grid, as the bake's automatic rule does."""
+    from keyframe_implicit.core.bake.options import BakeOptions
+    from keyframe_implicit.core.bake.preview import preview_grids
+
+    kfs, feats = turning_sphere()
+    plan = pipeline.plan_bake(kfs, feats, BakeOptions(resolution=18), grid_rule=preview_grids)
+    assert plan.resolution == 18
+    assert plan.stats["motion_resolution"] == 18 and plan.motion_grid is None
+    assert gridfit.motion_grid(plan.grid, 18, 16).size > plan.grid.size  # what it would be
 
 
 def test_features_closer_than_a_motion_cell_raise_the_automatic_motion_resolution():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from inbetween_cases import rotation, sphere_features, uv_sphere
+from inbetween_cases import rotation, sphere_features, turning_sphere, uv_sphere
 from keyframe_implicit.core import Animation, Cancelled, Keyframe, animate, mesh_to_sdf, sample
 
 
@@ -122,3 +122,47 @@ def test_progress_names_the_artists_frames():
     frames = [m for m in seen if m.startswith("frame ")]
     assert "frame 6 (keyframes 2 \u2192 3, frames 4-7)" in frames, frames
     assert not any("/" in m for m in frames), frames
+
+
+def test_an_output_set_in_the_settings_is_the_only_one_made_and_measured(monkeypatch):
+    """Auto makes both outputs and measures both; an output set in the settings makes and
+    measures that one alone, with the same figures, meshes and velocities as Auto's, and
+    neither the other's quality figures nor (for shape keys) the frames' velocities."""
+    from keyframe_implicit.core.bake import chain
+    from keyframe_implicit.core.motion.levelset import Inbetween
+
+    kfs, feats = turning_sphere(n=16, last=5)
+    calls = {"quality": 0, "velocity": 0}
+    quality, velocity = chain.frame_quality, Inbetween.velocity
+
+    def counted(name, f):
+        def call(*args, **kwargs):
+            calls[name] += 1
+            return f(*args, **kwargs)
+        return call
+
+    monkeypatch.setattr(chain, "frame_quality", counted("quality", quality))
+    monkeypatch.setattr(Inbetween, "velocity", counted("velocity", velocity))
+    baked, counts = {}, {}
+    for output in ("auto", "shape_keys", "mesh_sequence"):
+        calls.update(quality=0, velocity=0)
+        baked[output] = animate(kfs, feats, resolution=16, output=output)
+        counts[output] = dict(calls)
+    auto, keys, sequence = baked["auto"], baked["shape_keys"], baked["mesh_sequence"]
+    frames = len(auto.frames)
+    assert counts == {"auto": {"quality": 2 * frames, "velocity": frames},
+                      "shape_keys": {"quality": frames, "velocity": 0},
+                      "mesh_sequence": {"quality": frames, "velocity": frames}}
+    assert set(auto.stats["quality"]) == {"shape_keys", "mesh_sequence"}
+    assert keys.stats["quality"] == {"shape_keys": auto.stats["quality"]["shape_keys"]}
+    assert sequence.stats["quality"] == {"mesh_sequence": auto.stats["quality"]["mesh_sequence"]}
+    assert keys.stats["output"] == "shape_keys" and sequence.stats["output"] == "mesh_sequence"
+    for other in (keys, sequence):
+        assert np.array_equal(other.vertices, auto.vertices)
+    assert keys.surfaces == [] and keys.velocities == []
+    for (v, t), (w, u) in zip(sequence.surfaces, auto.surfaces):
+        assert np.array_equal(v, w) and np.array_equal(t, u)
+    for v, w in zip(sequence.velocities, auto.velocities, strict=True):
+        assert np.array_equal(v, w)
+    with pytest.raises(ValueError, match="output must be one of"):
+        animate(kfs, feats, resolution=16, output="both")

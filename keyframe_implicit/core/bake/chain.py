@@ -115,7 +115,7 @@ def animate_chain(phis: Sequence[ArrayLike], grid: Grid,
           each taking the next when it is free (`maps.solve_maps_shared`), and makes the
           later half of each segment's frames. Either way BLAS keeps to one thread in
           this process while the chain runs (`parallel.one_blas_thread`);
-        - ``coverage``, ``surfaces``, ``levelsets``: what each frame yields
+        - ``coverage``, ``surfaces``, ``levelsets``, ``output``: what each frame yields
           (`surface.options.SurfaceOptions`; ``surfaces`` only in 3D);
         - the fields of `map.options.MapOptions` (``volume_weight``, ``margin_cells``,
           ...) and of `motion.options.MotionOptions` (``transport``, ``resample``, ...).
@@ -394,8 +394,9 @@ class Inbetweens:
 
 class Kept:
     """What `animate_chain` keeps of every frame's record (`_frames`): the template's
-    vertices, the per-frame figures in ``stats``, and as ``outputs`` (`SurfaceOptions`)
-    asks the level sets, the frames' own meshes and their velocities."""
+    vertices, the per-frame figures in ``stats`` (the quality figures of the outputs
+    measured, `SurfaceOptions.measured`), and as ``outputs`` (`SurfaceOptions`) asks the
+    level sets, the frames' own meshes and their velocities."""
 
     def __init__(self, frames: np.ndarray, template_shape: tuple[int, ...],
                  outputs: SurfaceOptions) -> None:
@@ -404,7 +405,7 @@ class Kept:
         self.stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [],
                       "uncovered_fraction": []}
         if outputs.surfaces:
-            self.stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
+            self.stats["quality"] = {name: [] for name in outputs.measured}
         self.meshes, self.velocities, self.fields = [], [], []
 
     def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
@@ -419,8 +420,9 @@ class Kept:
                 st["uncovered_area"].append(rec["uncovered"][0])
                 st["uncovered_fraction"].append(rec["uncovered"][1])
             if outputs.surfaces:
-                for name in ("shape_keys", "mesh_sequence"):
+                for name in outputs.measured:
                     st["quality"][name].append(rec[name])
+            if outputs.keeps_meshes:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
 
@@ -500,8 +502,9 @@ def _half(inb, frames, segment, rep=None):
 def _frames(inb, frames, segment, rep=None):
     """Each timeline frame of a `Segment` as a dict: the template's ``vertices`` and
     ``max_abs_phi``; as its ``outputs`` ask, the ``levelset`` (float32), the ``uncovered``
-    area and fraction, and the frame's own ``mesh`` with its ``velocity`` (world units per
-    frame) and both outputs' quality (``shape_keys``, ``mesh_sequence``)."""
+    area and fraction, the quality of the outputs measured (``shape_keys``,
+    ``mesh_sequence``: `SurfaceOptions.measured`), and the frame's own ``mesh`` with its
+    ``velocity`` (world units per frame) where the mesh sequence is made."""
     rep = rep or Reporter()
     (f0, f1), k = segment.ends, segment.k
     detail = _detail(inb, segment)
@@ -536,7 +539,9 @@ def _template(inb, segment, detail, s):
 
 def _frame_outputs(inb, s, segment, p, rep):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
-    are ``p``: its level set, uncovered area, own mesh, velocity and quality figures."""
+    are ``p``: its level set, uncovered area, the quality figures of the outputs measured,
+    own mesh and velocity. The frame's own surface is made whenever a figure needs it; its
+    mesh and velocities only for the mesh sequence."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
     out = {}
     if outputs.levelsets:
@@ -549,12 +554,15 @@ def _frame_outputs(inb, s, segment, p, rep):
         unc, tot = uncovered_area(ls, grid, p, faces, surface=surf)
         out["uncovered"] = (unc, unc / tot if tot > 0 else 0.0)
         rep.check()
-    if outputs.surfaces:
+    if not outputs.surfaces:
+        return out
+    own = frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
+    meshes = {"shape_keys": (p, faces), "mesh_sequence": own}
+    for name in outputs.measured:
+        out[name] = frame_quality(ls, grid, *meshes[name], surf)
+    rep.check()
+    if outputs.keeps_meshes:
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
-        own = frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
-        out["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
-        out["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
-        rep.check()
         out["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
         out["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
     return out

@@ -26,7 +26,8 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 
-__all__ = ["fit_grid", "auto_motion_resolution", "motion_grid", "MIN_MOTION_RESOLUTION"]
+__all__ = ["fit_grid", "auto_motion_resolution", "motion_grid", "one_grid_unless_smaller",
+           "MIN_MOTION_RESOLUTION"]
 
 
 def _points(vertex_arrays: np.ndarray | Iterable[ArrayLike],
@@ -150,11 +151,26 @@ def auto_motion_resolution(resolution: int, material_fraction: float, grid: Grid
     """The Motion Resolution the bake picks: the one whose motion grid holds about
     `MOTION_NODES` nodes of the largest keyframe (``material_fraction`` of ``grid``'s box),
     but no coarser than ``resolution / MAX_COARSENING`` or `MIN_AUTO_MOTION`, and no finer
-    than ``resolution``."""
+    than ``resolution``; ``resolution`` (one grid) where that motion grid would not have
+    fewer nodes than ``grid`` (`one_grid_unless_smaller`)."""
     material = max(float(material_fraction) * grid.size, 1.0)
     r = int(round(resolution * (MOTION_NODES / material) ** (1.0 / grid.dim)))
     least = max(MIN_AUTO_MOTION, int(np.ceil(resolution / MAX_COARSENING)))
-    return int(min(resolution, max(least, r)))
+    return one_grid_unless_smaller(grid, resolution, int(min(resolution, max(least, r))))
+
+
+def one_grid_unless_smaller(grid: Grid, resolution: int, motion_resolution: int) -> int:
+    """``motion_resolution``, or ``resolution`` where the `motion_grid` it gives on ``grid``
+    would have as many nodes as ``grid`` or more.
+
+    The motion grid covers the surface grid's box and pads it with cells of its own, so a
+    Motion Resolution just below Resolution (or a flat box, whose thin side the padding
+    doubles) gives a motion grid larger than the surface grid: the maps then cost more than
+    on one grid, and the transfer between the grids saves nothing. The automatic Motion
+    Resolution and the preview's keep to one grid then.
+    """
+    mgrid = motion_grid(grid, resolution, motion_resolution)
+    return int(resolution) if mgrid is not None and mgrid.size >= grid.size else int(motion_resolution)
 
 
 def motion_grid(grid: Grid, resolution: int, motion_resolution: int,

@@ -27,7 +27,7 @@ from .chain import HELPER_PRELOAD, Chain
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
-from .gridfit import auto_motion_resolution, fit_grid, motion_grid
+from .gridfit import auto_motion_resolution, fit_grid, motion_grid, one_grid_unless_smaller
 from .keyframe import Keyframe
 from .memory import MemoryLimitError, check_memory, largest_fitting
 from .options import BakeOptions
@@ -185,7 +185,8 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
         - the in-betweens', `motion.options.MotionOptions` (``transport``,
           ``keep_volume``, ``trajectory_margin_cells``, ...);
         - what each frame yields, `surface.options.SurfaceOptions` (``coverage``,
-          ``surfaces``, ``levelsets``).
+          ``surfaces``, ``levelsets``, ``output``: "auto", or the one output to make
+          and measure).
 
     Returns
     -------
@@ -336,7 +337,8 @@ def finish_bake(plan: BakePlan, chain: Animation, t0: float, rep: Reporter) -> A
     stats["notes"] = notes(keyframes, stats["loose_vertices"], stats["sdf"])
     if "quality" in stats:
         rep(0.98, "Measuring the keyframe frames")
-        _choose_output(stats, keyframes, chain, plan.grid.spacing, artist is not None)
+        _choose_output(stats, keyframes, chain, plan.grid.spacing, artist is not None,
+                       plan.options.surface.output)
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return dataclasses.replace(
@@ -403,7 +405,8 @@ def _motion_grid(features, feature_names, grid, resolution, motion_resolution, f
     """The bake's Motion Resolution and motion grid (`gridfit.motion_grid`; None when it is
     the surface grid). Automatic: `gridfit.auto_motion_resolution` for the largest
     keyframe's ``fraction`` of the box, raised where two feature points would share a
-    motion cell; given: refused in that case."""
+    motion cell, one grid where the motion grid would not have fewer nodes than ``grid``
+    (`gridfit.one_grid_unless_smaller`); given: refused in that case."""
     def grid_of(m):
         return motion_grid(grid, resolution, m)
 
@@ -421,23 +424,28 @@ def _motion_grid(features, feature_names, grid, resolution, motion_resolution, f
             spacing_fits(m)
             break
         except ValueError:
-            m = min(resolution, int(np.ceil(1.25 * m)))
+            m = one_grid_unless_smaller(grid, resolution,
+                                        min(resolution, int(np.ceil(1.25 * m))))
     return m, grid_of(m)
 
 
-def _choose_output(stats, keyframes, chain, spacing, artist):
-    """Both outputs measured on the keyframes' frames too (against the keyframes' own
-    meshes), then the output chosen (`quality.choose_output`), into ``stats``. With the
-    artist's mesh as the template (``artist``) its shape keys are judged relative to the
-    keyframes' own figures, and the mesh sequence is the keyframes' meshes there."""
+def _choose_output(stats, keyframes, chain, spacing, artist, output):
+    """The outputs measured on the keyframes' frames too (against the keyframes' own
+    meshes), then the output chosen (`quality.choose_output`; the one set when ``output``
+    is not "auto"), into ``stats``. With the artist's mesh as the template (``artist``) its
+    shape keys are judged relative to the keyframes' own figures, and the mesh sequence is
+    the keyframes' meshes there."""
     quality = stats["quality"]
     key_frames = [kf.frame for kf in keyframes]
-    if artist:
+    if artist and "shape_keys" in quality:
         _relative_to_keyframes(quality["shape_keys"], chain.frames, key_frames)
+    if artist and "mesh_sequence" in quality:
         _keyframes_are_reference(quality["mesh_sequence"], chain.frames, key_frames)
-    measured = ["shape_keys"] if artist else ["shape_keys", "mesh_sequence"]
+    measured = [name for name in quality if not (artist and name == "mesh_sequence")]
     _measure_keyframes(quality, keyframes, chain, spacing, measured)
-    stats["output"], stats["output_reason"] = choose_output(chain.frames, quality)
+    stats["output"], stats["output_reason"] = (
+        choose_output(chain.frames, quality) if output == "auto" else
+        (output, "chosen in the output settings"))
 
 
 def _artist_template(keyframe, mesh, tracked_mesh):
@@ -518,7 +526,6 @@ def _measure_keyframes(quality, keyframes, chain, spacing, outputs):
         i = int(kf.frame - chain.frames[0])
         kv = np.asarray(kf.vertices, dtype=float).reshape(-1, 3)
         kt = triangulate(kf.faces, len(kv))
-        meshes = {"shape_keys": (chain.vertices[i], chain.faces),
-                  "mesh_sequence": chain.surfaces[i]}
         for name in outputs:
-            quality[name][i].update(keyframe_distance(*meshes[name], kv, kt, spacing))
+            mesh = (chain.vertices[i], chain.faces) if name == "shape_keys" else chain.surfaces[i]
+            quality[name][i].update(keyframe_distance(*mesh, kv, kt, spacing))

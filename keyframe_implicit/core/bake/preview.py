@@ -28,6 +28,7 @@ from ..base.parallel import one_blas_thread
 from ..base.progress import Reporter
 from ..surface.extract import extract_surface
 from .chain import frame_mesh
+from .gridfit import one_grid_unless_smaller
 from .options import BakeOptions
 from .pipeline import distance_grid, plan_bake
 
@@ -145,20 +146,26 @@ class Preview:
 
 def preview_grids(fit: GridFit, options: BakeOptions) -> tuple[int, tuple[Grid, int, Grid | None]]:
     """The preview's grid rule (`pipeline.plan_bake`'s ``grid_rule``): `PREVIEW_RESOLUTION`
-    cells and a motion grid of `PREVIEW_MOTION_RESOLUTION`, or the bake's automatic one
-    where two feature points would share a motion cell; raised by a quarter at a time, up
-    to the bake's ``options.resolution``, where two would share a surface cell (the bake's
-    own refusal when even that does not hold them apart). No memory limit: the preview's
-    grids are no finer than the bake's."""
+    cells and a motion grid of `PREVIEW_MOTION_RESOLUTION` (one grid where that motion grid
+    would not have fewer nodes, as the bake's automatic rule has it:
+    `gridfit.one_grid_unless_smaller`), or the bake's automatic one where two feature points
+    would share a motion cell; raised by a quarter at a time, up to the bake's
+    ``options.resolution``, where two would share a surface cell (the bake's own refusal
+    when even that does not hold them apart). No memory limit: the preview's grids are no
+    finer than the bake's."""
     top = int(options.resolution)
     res = min(top, PREVIEW_RESOLUTION)
     while True:
         for motion in (min(res, PREVIEW_MOTION_RESOLUTION), None):
             try:
-                return res, fit(res, motion, None)
+                grid, m, mgrid = fit(res, motion, None)
             except ValueError:
                 if res >= top and motion is None:
                     raise
+                continue
+            if one_grid_unless_smaller(grid, res, m) == res:
+                return res, (grid, res, None)
+            return res, (grid, m, mgrid)
         res = min(top, int(np.ceil(1.25 * res)))
 
 
