@@ -351,7 +351,7 @@ class KFI_OT_bake(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         """Blocking bake (scripts, ``blender -b``, no window): `bake.bake_scene`."""
-        preview.turn_off(context.scene)
+        preview.turn_off()
         notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
@@ -373,7 +373,7 @@ class KFI_OT_bake(bpy.types.Operator):
         set, measures the polling)."""
         if context.window is None:
             return self.execute(context)
-        preview.turn_off(context.scene)
+        preview.turn_off()
         try:
             inputs = bake.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
         except ValueError as exc:

@@ -105,7 +105,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             fraction, message = running[0].status()
             _wrapped(layout, context, f"Baking {100 * fraction:.0f}%: {message}", "SORTTIME")
             layout.label(text="ESC in the 3D view cancels.", icon="BLANK1")
-        _live_preview(layout, context, settings)
+        _live_preview(layout, context)
         row = layout.row()
         row.scale_y = 1.4
         row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")  # poll says why not
@@ -192,11 +192,12 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         self.layout.prop(settings, "motion_resolution")
 
 
-def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context,
-                  settings: KFI_Settings) -> None:
-    """The Live Preview toggle; while it is on, its grids or why it shows nothing."""
-    layout.prop(settings, "live_preview", icon="HIDE_OFF" if settings.live_preview else "HIDE_ON")
-    if not settings.live_preview:
+def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:
+    """The Live Preview toggle (the session's, `props.KFI_Session`); while it is on, its
+    grids or why it shows nothing."""
+    session = context.window_manager.keyframe_implicit
+    layout.prop(session, "live_preview", icon="HIDE_OFF" if session.live_preview else "HIDE_ON")
+    if not session.live_preview:
         return
     state = preview.state
     if state.message:

@@ -5,7 +5,10 @@ resolution, the objective weights of thesis eq. 2.6 (see
 ``keyframe_implicit/core/map/terms.py``; the panel calls them Volume, Rigidity and
 Shape Match), the output options, a pointer to the baked output object, so that
 baking again replaces that object and only it, and whether the keyframes are
-shown over it (`result_view`), and whether the live preview runs (`preview`).
+shown over it (`result_view`).
+
+What belongs to the session and not to the file, whether the live preview runs
+(`preview`), is `KFI_Session`, ``bpy.types.WindowManager.keyframe_implicit``.
 """
 
 from collections.abc import Callable
@@ -31,13 +34,14 @@ def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
 
 #: What runs when a setting with a side effect changes, by property name. The modules that
 #: act on a setting fill it in when the add-on registers (`blender.register`), so the
-#: settings, which every other module reads, import none of them.
-ON_CHANGE: dict[str, Callable[["KFI_Settings", bpy.types.Context], None]] = {}
+#: settings, which every other module reads, import none of them. A handler gets the
+#: property group that changed (`KFI_Settings` or `KFI_Session`) and the context.
+ON_CHANGE: dict[str, Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]] = {}
 
 
-def _on_change(name: str) -> Callable[["KFI_Settings", bpy.types.Context], None]:
+def _on_change(name: str) -> Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]:
     """The ``update`` callback of setting ``name``: the handler `ON_CHANGE` holds for it."""
-    def update(settings: "KFI_Settings", context: bpy.types.Context) -> None:
+    def update(settings: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
         handler = ON_CHANGE.get(name)
         if handler is not None:
             handler(settings, context)
@@ -158,13 +162,6 @@ class KFI_Settings(bpy.types.PropertyGroup):
         "them (they stay out of renders)",
         update=_on_change("show_keyframes"),
     )
-    live_preview: BoolProperty(
-        name="Live Preview", default=False,
-        description="Show the in-between on the current frame over the 3D view, solved on a "
-        "coarse grid and updated as keyframes and feature points move (nothing is added to "
-        "the scene)",
-        update=_on_change("live_preview"),
-    )
     show_all_problems: BoolProperty(
         name="All Problems", default=False,
         description="List every problem found, not only the first ones",
@@ -187,15 +184,36 @@ class KFI_Settings(bpy.types.PropertyGroup):
         }
 
 
-classes = (KFI_Keyframe, KFI_Settings)
+class KFI_Session(bpy.types.PropertyGroup):
+    """The add-on's state in this Blender session, not in the file.
+
+    It lives on the window manager, where Blender keeps what belongs to the session: its
+    properties are neither saved in the .blend nor part of the undo history. The live
+    preview is a worker process and a draw handler of this session, so its toggle is here:
+    a saved file, the farm's assembled one too, never carries it, and undo and redo never
+    turn it on or off behind the preview's back. The window manager outlives a file load
+    that keeps the UI, so a loaded file turns it off (`preview.on_load_post`).
+    """
+
+    live_preview: BoolProperty(
+        name="Live Preview", default=False,
+        description="Show the in-between on the current frame over the 3D view, solved on a "
+        "coarse grid and updated as keyframes and feature points move (nothing is added to "
+        "the scene; it stays off in saved files)",
+        update=_on_change("live_preview"),
+    )
+
+
+classes = (KFI_Keyframe, KFI_Settings, KFI_Session)
 
 
 def register_properties() -> None:
-    """Give every scene its ``keyframe_implicit`` settings."""
+    """Give every scene its ``keyframe_implicit`` settings and the session its state."""
     bpy.types.Scene.keyframe_implicit = PointerProperty(type=KFI_Settings)
+    bpy.types.WindowManager.keyframe_implicit = PointerProperty(type=KFI_Session)
 
 
 def unregister_properties() -> None:
-
-    """Remove the scenes' ``keyframe_implicit`` settings."""
+    """Remove the scenes' ``keyframe_implicit`` settings and the session's state."""
+    del bpy.types.WindowManager.keyframe_implicit
     del bpy.types.Scene.keyframe_implicit

@@ -1,6 +1,7 @@
 """The live preview (`blender.preview`): edits schedule one solve, a drag's moves coalesce,
 frames are answered by the worker, and turning it off, loading a file or baking ends the
-worker and removes the overlay; nothing enters bpy.data.
+worker and removes the overlay; nothing enters bpy.data. The preview is the session's: a
+file saved with it on, the farm's assembled one too, opens with it off.
 
 In background mode no timer runs: the tests call `preview.tick` themselves, on a clock they
 step (`preview.clock`), and count the solves and frames asked for with a `Diagnostics` on
@@ -64,15 +65,19 @@ def clock(monkeypatch):
     return clock
 
 
+def _session():
+    """The session's add-on state, where the Live Preview toggle is."""
+    return bpy.context.window_manager.keyframe_implicit
+
+
 @pytest.fixture
 def live(scene, kfi, clock):
     kfi.build_spheres(TWO)
-    settings = scene.keyframe_implicit
-    settings.live_preview = True
+    _session().live_preview = True
     preview.tick()  # the first solve goes out at once
     assert preview.active() and _solves() == 1
-    yield settings
-    bpy.context.scene.keyframe_implicit.live_preview = False  # ``settings`` may be a loaded-over file's
+    yield _session()
+    _session().live_preview = False  # a file load may have made another window manager
     preview.stop()
 
 
@@ -160,7 +165,38 @@ def test_loading_a_file_ends_the_worker(live, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
     assert worker.process.wait(10) is not None and not preview.active()
     assert preview.state.handle is None
-    assert not bpy.context.scene.keyframe_implicit.live_preview
+    assert not _session().live_preview
+
+
+@pytest.mark.parametrize("load_ui", [False, True])
+def test_a_file_saved_with_the_preview_on_opens_with_it_off(live, tmp_path, load_ui):
+    path = str(tmp_path / "on.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    assert preview.active(), "saving turned the preview off"
+    worker = preview.state.worker
+    bpy.ops.wm.open_mainfile(filepath=path, load_ui=load_ui)
+    assert worker.process.wait(10) is not None
+    assert not preview.active() and preview.state.handle is None
+    assert not _session().live_preview
+    assert not bpy.app.timers.is_registered(preview.tick)
+    assert "live_preview" not in bpy.context.scene.keyframe_implicit.keys()
+
+
+def test_the_farm_assembles_a_file_with_the_preview_off(live, kfi, tmp_path):
+    from keyframe_implicit.__main__ import main
+
+    setup, job, out = (str(tmp_path / n) for n in ("setup.blend", "job", "baked.blend"))
+    bpy.ops.wm.save_as_mainfile(filepath=setup)
+    for stage in (["prepare", setup, job, "--resolution", str(kfi.RES)],
+                  ["maps", job, "--pair", "1"], ["paths", job],
+                  ["segment", job, "--segment", "1"], ["assemble", job, "--out", out]):
+        assert main(["farm", *stage]) == 0, stage
+    assert not preview.active() and not _session().live_preview
+    bpy.ops.wm.open_mainfile(filepath=out, load_ui=True)
+    assert bpy.context.scene.keyframe_implicit.output_object is not None
+    assert not preview.active() and preview.state.handle is None
+    assert not _session().live_preview
+    assert "live_preview" not in bpy.context.scene.keyframe_implicit.keys()
 
 
 def test_pressing_bake_ends_the_worker(live, kfi):
@@ -175,20 +211,20 @@ def test_no_data_block_is_created(scene, kfi):
     before = kfi.snapshot()
     counts = {name: len(getattr(bpy.data, name)) for name in dir(bpy.data)
               if isinstance(getattr(bpy.data, name, None), bpy.types.bpy_prop_collection)}
-    scene.keyframe_implicit.live_preview = True
+    _session().live_preview = True
     preview.tick()
     _until(lambda: preview.state.mesh is not None)
     scene.frame_set(3)
     _until(lambda: preview.state.mesh[0] == 3)
     scene.frame_set(1)
-    scene.keyframe_implicit.live_preview = False
+    _session().live_preview = False
     assert kfi.snapshot() == before
     assert {name: len(getattr(bpy.data, name)) for name in counts} == counts
 
 
 def test_a_refused_setup_and_a_crash_become_messages(live, clock):
     state = preview.state
-    keyframes = live.keyframes
+    keyframes = bpy.context.scene.keyframe_implicit.keyframes
     keyframes[1].frame = keyframes[0].frame  # two keyframes on one frame
     preview.schedule()
     clock.now += 1.0
