@@ -293,3 +293,70 @@ def test_overlay_draws_the_mesh_where_a_gpu_context_exists():
     # the middle is covered by a front and a back face, each blended at COLOR's opacity
     a = overlay.COLOR[3]
     assert middle == pytest.approx(a + a * (1 - a), abs=0.02) and corner == 0.0
+
+
+def _empties():
+    """{name: location} of every feature Empty."""
+    return {o.name: tuple(o.location) for o in bpy.context.scene.objects if o.get("kfi_pair")}
+
+
+def _settle(clock):
+    """What the preview, when on, does between two edits: its due solve sent, the answers
+    taken."""
+    if preview.active():
+        clock.now += 1.0
+        preview.tick()
+        _until(lambda: preview.state.due is None and preview.state.mesh is not None)
+
+
+def _moved_and_undone(clock):
+    """Ten moves of the Empties, each its undo step, a frame step after each; then ten undos
+    and ten redos, the preview (when on) solving after each. Returns every Empty's place
+    after each move, each undo and each redo."""
+    names = sorted(_empties())
+    bpy.ops.ed.undo_push(message="before the moves")
+    moved = [_empties()]
+    for i in range(10):
+        obj = bpy.data.objects[names[i % len(names)]]
+        obj.location.x += 0.02 * (i + 1)
+        bpy.context.view_layer.update()
+        bpy.ops.ed.undo_push(message=f"move {i + 1}")
+        _settle(clock)
+        assert bpy.ops.screen.frame_offset(delta=1) == {"FINISHED"}
+        _settle(clock)
+        moved.append(_empties())
+    undone, redone = [], []
+    for steps, trail in ((bpy.ops.ed.undo, undone), (bpy.ops.ed.redo, redone)):
+        for _ in range(10):
+            assert steps() == {"FINISHED"}
+            _settle(clock)
+            trail.append(_empties())
+    return moved, undone, redone
+
+
+def test_ten_moves_are_undone_by_ten_undos_with_the_preview_on(scene, kfi, clock):
+    kfi.build_spheres(TWO)
+    for on in (False, True):  # the same moves, undos and redos without and with the preview
+        _session().live_preview = on
+        moved, undone, redone = _moved_and_undone(clock)
+        assert undone == moved[-2::-1], f"preview {on}: an undo did not take back one move"
+        assert redone == moved[1:], f"preview {on}: a redo did not bring back one move"
+    assert _solves() > 20, "the moves asked for no solves: the preview was not updating"
+    assert _session().live_preview and preview.active()
+    _session().live_preview = False
+
+
+def test_undo_past_turning_the_preview_on_leaves_it_on(scene, kfi, clock):
+    # the toggle is the session's: undo does not turn it off behind the running preview
+    kfi.build_spheres(TWO)
+    bpy.ops.ed.undo_push(message="setup")
+    _session().live_preview = True
+    bpy.ops.ed.undo_push(message="Live Preview")  # what the toggle's click pushes
+    obj = bpy.data.objects[sorted(_empties())[0]]
+    obj.location.x += 0.1
+    bpy.ops.ed.undo_push(message="move")
+    for _ in range(2):
+        assert bpy.ops.ed.undo() == {"FINISHED"}
+        assert _session().live_preview and preview.active()
+    _session().live_preview = False
+    assert not preview.active()
