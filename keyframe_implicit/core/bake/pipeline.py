@@ -17,13 +17,13 @@ import numpy as np
 
 from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, share
-from ..base.progress import Reporter
-from ..motion.spline import check_key_interpolation
+from ..base.progress import Reporter, Tally
+from ..motion.spline import bends_needed, check_key_interpolation
 from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
 from ..surface.quality import choose_output, keyframe_distance
 from .animation import Animation
-from .chain import HELPER_PRELOAD, Chain
+from .chain import FRAMES, HELPER_PRELOAD, MAPS, PATHS, Chain
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
@@ -44,8 +44,19 @@ if TYPE_CHECKING:
     #: None, memory limit or None).
     GridFit = Callable[[int, int | None, int | None], tuple[Grid, int, Grid | None]]
 
-__all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids",
+__all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids", "bake_steps",
            "distance_fields", "distance_grid", "finish_bake"]
+
+#: The first of the bake's counted steps (`progress.Reporter.step`), one per keyframe; the
+#: chain's are `chain.MAPS`, `chain.PATHS` and `chain.FRAMES`.
+DISTANCE_FIELDS = "Distance fields"
+#: What a step costs per cell of its grid, in a distance field's cell (`bake_steps`): a
+#: map's (the Gauss-Newton solve, coarse to fine) and a path's (a segment's trajectories,
+#: or every segment's bends through the keyframes). Timed on the merge and splash examples
+#: at resolution 48: a map's cell took 7-10 times a distance field's, a path's 2-5 times,
+#: a frame's about once.
+MAP_CELL_COST = 8.0
+PATH_CELL_COST = 3.0
 
 
 def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
@@ -67,11 +78,9 @@ def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
         def there(k):
             return distance_grid, (keyframes, meshes, grid, k), {}
 
-        done, _, theirs = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
-                                last_first=True, when_started=True)
-        if theirs:
-            rep(1.0, "Distance grids of keyframes "
-                     f"{', '.join(str(k + 1) for k in sorted(theirs))} (second process)")
+        done, _, _ = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
+                           last_first=True, when_started=True,
+                           on_theirs=lambda _k: rep.elsewhere(DISTANCE_FIELDS))
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
@@ -85,12 +94,11 @@ def distance_grid(keyframes: Sequence[Keyframe], meshes: Sequence[tuple], grid: 
     from ..fields.sdf import mesh_to_sdf
 
     n = len(keyframes)
-    sub = (rep or Reporter()).sub(k / n, (k + 1) / n)
-    sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
     kf, (v, tris) = keyframes[k], meshes[k][:2]
     figures = {}
     try:
-        phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
+        with (rep or Reporter()).step(DISTANCE_FIELDS, k, n) as sub:
+            phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
     except ValueError as exc:
         raise ValueError(f"{keyframe_label(k, kf)}: {exc}") from exc
     if not np.any(phi < 0):
@@ -170,7 +178,10 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
         the frames.
     feature_names : per segment, a sequence of (name_a, name_b) per feature row, optional;
         used in messages (e.g. the Empties' names).
-    progress : callable(fraction, message), optional.
+    progress : callable(fraction, message), optional
+        Counted steps in the artist's words ("Distance fields 2/4", "Maps 3/6", "Paths 1/4",
+        "Frames 12/25", `bake_steps`), the fraction each step's share of the expected work
+        (`progress.Tally`): it never goes back.
     cancel : callable() -> bool, optional; when it returns True, `Cancelled` is raised.
     helper : `parallel.Helper`, optional
         A helper process already started (and left running): it takes the place of the
@@ -215,20 +226,40 @@ def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, Arra
     every other caller that built its options once run. The other parameters, the result
     and the errors are `animate`'s."""
     t0 = time.perf_counter()
-    rep = Reporter(progress, cancel)
-    plan = plan_bake(keyframes, features, options, feature_names=feature_names, progress=rep)
+    plan = plan_bake(keyframes, features, options, feature_names=feature_names)
+    rep = Tally(progress, bake_steps(plan)).reporter(cancel)
+    rep.check()
     blas, given = one_blas_thread(), helper
     try:
         if helper is None and options.processes > 1:
             helper = Helper(HELPER_PRELOAD)
-        phis = distance_fields(plan, rep.sub(0.0, 0.15), cancel, helper)
+        phis = distance_fields(plan, rep, cancel, helper)
         plan.stats["sdf_seconds"] = time.perf_counter() - t0
-        chain = plan.chain(phis, cancel).run(helper, rep.sub(0.15, 0.98))
+        chain = plan.chain(phis, cancel).run(helper, rep)
     finally:
         blas.restore_original_limits()
         if helper is not None and helper is not given:
             helper.close()
     return finish_bake(plan, chain, t0, rep)
+
+
+def bake_steps(plan: BakePlan) -> dict[str, tuple[int, float]]:
+    """The bake's counted steps, {stage: (steps, cost of one)} (`progress.Tally`), in the
+    words the artist reads: a distance field per keyframe, a map per pair's direction
+    (two per pair when both keyframes are carried), a path step per segment and one more
+    for the bends through the keyframes, and a frame per timeline frame; a step's cost is
+    its grid's cells (the motion grid's for maps and paths) times `MAP_CELL_COST` or
+    `PATH_CELL_COST`."""
+    options, nk = plan.options, len(plan.keyframes)
+    surface = float(np.prod(plan.grid.shape))
+    motion = float(np.prod((plan.motion_grid or plan.grid).shape))
+    kinds = check_key_interpolation(options.key_interpolation, nk)
+    sides = 2 if options.motion.two_sided else 1
+    frames = plan.frames[-1] - plan.frames[0] + 1
+    return {DISTANCE_FIELDS: (nk, surface),
+            MAPS: ((nk - 1) * sides, MAP_CELL_COST * motion),
+            PATHS: (nk - 1 + int(bends_needed(kinds)), PATH_CELL_COST * motion),
+            FRAMES: (frames, surface)}
 
 
 @dataclass
@@ -267,7 +298,6 @@ class BakePlan:
 
 def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
               options: BakeOptions, *, feature_names: FeatureNames | None = None,
-              progress: Callable[[float, str], object] | None = None,
               grid_rule: Callable[[GridFit, BakeOptions],
                                   tuple[int, tuple[Grid, int, Grid | None]]] | None = None
               ) -> BakePlan:
@@ -287,7 +317,6 @@ def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike,
     check_motion_resolution(options.motion_resolution, options.resolution)
     check_key_interpolation(options.key_interpolation, len(keyframes))
 
-    Reporter(progress)(0.0, "Choosing the grid")
     stats = {}
     meshes = [checked_mesh(k, kf) for k, kf in enumerate(keyframes)]
 

@@ -211,7 +211,8 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
           there: Callable[[Any], tuple[Callable[..., Any], tuple, dict[str, Any]]],
           helper: Helper, check: Callable[[], object] | None = None,
           cancel: Callable[[], bool] | None = None, last_first: bool = False,
-          when_started: bool = False) -> tuple[dict, dict[Any, float], list]:
+          when_started: bool = False, on_theirs: Callable[[Any], object] | None = None
+          ) -> tuple[dict, dict[Any, float], list]:
     """Run ``jobs`` in this process and in ``helper``, each taking the next job when free.
 
     This process runs ``here(job, stop)`` (``stop()`` is true once the helper has failed
@@ -219,7 +220,8 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
     the helper ``there(job)`` = (fn, args, kwargs): the next job from the front, or with
     ``last_first`` the last one left; with ``when_started`` only once the helper is up
     (`Helper.ready`), so that this process does not wait for its start. ``check`` is
-    called while this process waits for the helper's last job (a cancel).
+    called while this process waits for the helper's last job (a cancel). ``on_theirs(job)``,
+    when given, is called from that thread as each of the helper's jobs ends (its progress).
 
     Returns ({job: result}, {job: when it ended, `time.perf_counter`}, the jobs the helper
     ran). A failure in the helper stops this process's job and is raised; one here stops
@@ -256,6 +258,8 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
                 done[job] = helper.result(check=stop_waiting)
                 ends[job] = time.perf_counter()
                 theirs.append(job)
+                if on_theirs is not None:
+                    on_theirs(job)
         except _Stop:
             pass
         except BaseException as exc:  # this process stops its own job and raises it
