@@ -404,14 +404,20 @@ class KFI_OT_bake(bpy.types.Operator):
                         region.tag_redraw()
 
     def _finish(self, context: bpy.types.Context) -> None:
+        """End the modal bake: its timer, progress and status go, it leaves `running`, and
+        the 3D views are redrawn whole, so Bake (whose poll reads `running`) shows enabled
+        at once, not when the pointer next moves, and the viewport shows the result."""
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
             self._timer = None
         wm.progress_end()
-        self._status(context, None)
         if self._job in running:
             running.remove(self._job)
+        self._status(context, None)
+        for area in context.screen.areas if context.screen is not None else ():
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         """Each turn of the main loop: ESC cancels; a timer event polls the job, shows its

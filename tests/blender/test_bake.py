@@ -374,6 +374,25 @@ def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(sce
         ops.running.remove(job)
 
 
+def test_modal_bake_redraws_the_3d_views_once_it_has_ended(scene, kfi):
+    import types
+
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    me, ctx, _ = _modal_operator(job, scene)
+    ended = []  # for each redraw of a whole 3D view: whether a bake was still running
+    sidebar = _Recorder()
+    sidebar.type = "UI"
+    view = types.SimpleNamespace(type="VIEW_3D", regions=[sidebar],
+                                 tag_redraw=lambda: ended.append(not ops.running))
+    ctx.screen = types.SimpleNamespace(areas=[view])
+    job.start()
+    assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}
+    assert ended == [True], "the 3D view was not redrawn once Bake could be pressed again"
+
+
 def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):
     bpy.ops.mesh.primitive_cube_add(size=2.0, location=(1.0, 2.0, 3.0))
     cube = bpy.context.active_object
