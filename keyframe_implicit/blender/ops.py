@@ -8,7 +8,7 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, diagnostics, farm, features, preview, result_view, validate
+from . import bake, diagnostics, farm, features, limits, preview, result_view, validate
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -327,9 +327,10 @@ class KFI_OT_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        """Bake only one at a time, and only a setup without blocking problems (the panel's
-        list, `validate.problems`: read without the meshes, cheap on every redraw); the
-        button's tooltip says why not."""
+        """Bake only one at a time, only a setup without blocking problems (the panel's
+        list, `validate.problems`: read without the meshes, cheap on every redraw) and only
+        at a Resolution that fits in memory (`limits.need`, the panel's line under
+        Resolution); the button's tooltip says why not."""
         if running:
             cls.poll_message_set("A bake is already running (ESC cancels it).")
             return False
@@ -339,6 +340,11 @@ class KFI_OT_bake(bpy.types.Operator):
         if errs:
             more = f" (and {len(errs) - 1} more, in the panel)" if len(errs) > 1 else ""
             cls.poll_message_set(f"Cannot bake: {errs[0].message}{more}")
+            return False
+        found = limits.need(context.scene, context.view_layer.depsgraph)
+        if found is not None and found.over:
+            text, _ = limits.line(found, context.scene.keyframe_implicit.resolution)
+            cls.poll_message_set(f"Cannot bake: {text}")
             return False
         return True
 

@@ -49,6 +49,24 @@ def _on_change(name: str) -> Callable[[bpy.types.PropertyGroup, bpy.types.Contex
     return update
 
 
+#: The highest Resolution and Motion Resolution the fields take: far above what any
+#: computer's memory allows, so the limit a setting meets is the memory's, which the panel
+#: states (`limits`), never a silent clamp.
+MAX_RESOLUTION = 4096
+
+
+def _set_motion_auto(settings: "KFI_Settings", auto: bool) -> None:
+    """Motion Resolution Auto on (0) or off: then the value Auto chooses for these
+    keyframes, to start from (`limits.need`; Resolution until two keyframes are set)."""
+    from . import limits  # here: the settings import no module that reads them
+
+    if auto:
+        settings.motion_resolution = 0
+    elif settings.motion_resolution == 0:
+        found = limits.need(settings.id_data, bpy.context.view_layer.depsgraph)
+        settings.motion_resolution = found.motion_resolution if found else settings.resolution
+
+
 class KFI_Keyframe(bpy.types.PropertyGroup):
     """One keyframe: a mesh object and the timeline frame its shape must be matched on."""
 
@@ -88,20 +106,27 @@ class KFI_Settings(bpy.types.PropertyGroup):
         name="Resolution",
         default=BakeOptions.resolution,
         min=8,
-        max=512,
+        max=MAX_RESOLUTION,
         soft_max=128,
-        description="Grid cells along the longest side of the keyframes' bounding box "
-        "(memory and time grow with its cube)",
+        description="How much detail the shapes keep: grid cells along the longest side of "
+        "the keyframes' bounding box. Memory and time grow with its cube: the line below "
+        "says how much memory it needs, and Bake waits for a resolution that fits",
     )
     motion_resolution: IntProperty(
         name="Motion Resolution",
         default=0,
         min=0,
-        max=512,
+        max=MAX_RESOLUTION,
         soft_max=128,
-        description="Cells of the coarser grid the motion is solved on, along the same side "
-        "(0: automatic, chosen for speed; equal to Resolution: the motion at full detail). "
-        "Raise it when thin parts move together that should move apart",
+        description="How much detail the motion keeps: the grid the movement is worked out "
+        "on, in cells across the keyframes' longest side, like Resolution (equal to it: the "
+        "motion at full detail). Raise it when thin parts move together that should move "
+        "apart. 0 is Auto",
+    )
+    motion_auto: BoolProperty(
+        name="Auto", get=lambda self: self.motion_resolution == 0, set=_set_motion_auto,
+        description="Let the bake choose how much detail the motion keeps, for speed; "
+        "shapes keep the full Resolution either way",
     )
     # Weights of the three terms of thesis eq. 2.6 (core/map/terms.py), in an artist's words.
     volume_weight: FloatProperty(

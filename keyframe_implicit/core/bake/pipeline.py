@@ -29,7 +29,7 @@ from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
 from .gridfit import auto_motion_resolution, fit_grid, motion_grid
 from .keyframe import Keyframe
-from .memory import MemoryLimitError, check_memory, largest_fitting
+from .memory import MemoryLimitError, check_memory, estimate_memory, largest_fitting
 from .options import BakeOptions
 
 if TYPE_CHECKING:
@@ -45,6 +45,7 @@ if TYPE_CHECKING:
     GridFit = Callable[[int, int | None, int | None], tuple[Grid, int, Grid | None]]
 
 __all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids", "bake_steps",
+           "memory_limit", "MemoryNeed", "memory_need",
            "distance_fields", "distance_grid", "finish_bake"]
 
 #: The first of the bake's counted steps (`progress.Reporter.step`), one per keyframe; the
@@ -336,12 +337,77 @@ def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike,
 
 def bake_grids(fit: GridFit, options: BakeOptions) -> tuple[int, tuple[Grid, int, Grid | None]]:
     """The bake's grid rule (`plan_bake`'s ``grid_rule``): the grids at the options'
-    resolutions, refused over the options' memory limit (None: 75 % of physical memory)."""
-    max_bytes = options.max_bytes
-    if max_bytes is None:
-        phys = _physical_memory()
-        max_bytes = int(0.75 * phys) if phys else None
-    return options.resolution, fit(options.resolution, options.motion_resolution, max_bytes)
+    resolutions, refused over the options' memory limit (`memory_limit`)."""
+    return options.resolution, fit(options.resolution, options.motion_resolution,
+                                   memory_limit(options.max_bytes))
+
+
+def memory_limit(max_bytes: int | None = None) -> int | None:
+    """The bake's memory limit in bytes: ``max_bytes``, or None for 75 % of this computer's
+    physical memory (None where that is unknown: no limit)."""
+    if max_bytes is not None:
+        return int(max_bytes)
+    phys = _physical_memory()
+    return int(0.75 * phys) if phys else None
+
+
+@dataclass(frozen=True)
+class MemoryNeed:
+    """What a bake would need in memory (`memory_need`): the estimated ``peak`` bytes, the
+    ``limit`` (None: none known), the largest resolution that fits when the peak is over
+    it (``fits``, None when it is not over or nothing fits) and the Motion Resolution the
+    bake would use (``motion_resolution``: the automatic one when none is set)."""
+
+    peak: int
+    limit: int | None
+    fits: int | None
+    motion_resolution: int
+
+    @property
+    def over(self) -> bool:
+        """Whether the bake would be refused for memory."""
+        return self.limit is not None and self.peak > self.limit
+
+
+def memory_need(boxes: Sequence[ArrayLike], volumes: Sequence[float], resolution: int,
+                motion_resolution: int | None = None, *, extra_points: ArrayLike | None = None,
+                padding_cells: int = BakeOptions.padding_cells,
+                max_bytes: int | None = None) -> MemoryNeed:
+    """What a bake at ``resolution`` would need in memory, from the keyframes' bounding
+    boxes and volumes alone: `memory.estimate_memory` on the grid and motion grid the bake
+    would fit (`gridfit.fit_grid`, `gridfit.auto_motion_resolution`), with no mesh work, so
+    cheap enough to follow the Resolution as it is edited. The bake's own check reads the
+    meshes and the paths between the keyframes too: this is the figure it refuses by,
+    about.
+
+    Parameters
+    ----------
+    boxes : per keyframe, points spanning its bounding box in world units ((N, 3)).
+    volumes : per keyframe, the volume it encloses.
+    resolution, motion_resolution : as `animate` takes them (None: automatic).
+    extra_points : (M, 3) points the grid must hold too (the feature points), optional.
+    padding_cells : as `animate` takes it.
+    max_bytes : the memory limit, None for the bake's (`memory_limit`).
+    """
+    pts = [np.asarray(b, dtype=float).reshape(-1, 3) for b in boxes]
+
+    def fitted(r):
+        return fit_grid(pts, r, padding_cells=padding_cells, extra_points=extra_points)
+
+    grid = fitted(resolution)
+    box = float(np.prod(grid.upper - grid.origin))
+    fraction = float(min(1.0, max(volumes, default=0.0) / box)) if box > 0 else 1.0
+    motion_of = _motion_rule(motion_resolution, fraction)
+    mem = dict(n_keyframes=len(pts), material_fraction=fraction)
+    mgrid = motion_of(resolution, grid)
+    peak = estimate_memory(grid, motion_grid=mgrid, **mem)["peak"]
+    limit = memory_limit(max_bytes)
+    fits = None
+    if limit is not None and peak > limit:
+        fits = largest_fitting(fitted, 4, int(resolution) - 1, limit, motion_of=motion_of, **mem)
+    motion = (auto_motion_resolution(resolution, fraction, grid) if motion_resolution is None
+              else min(int(motion_resolution), resolution))
+    return MemoryNeed(int(peak), limit, fits, int(motion))
 
 
 def distance_fields(plan: BakePlan, rep: Reporter, cancel: Callable[[], bool] | None = None,
