@@ -3,10 +3,12 @@
 Module map (operators and panels are thin; logic lives in plain functions):
 
 =============  ================================================================
-``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
+``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output) and
+               ``WindowManager.keyframe_implicit``, the session's (Live Preview)
 ``features``   feature-point pairs as Empties (create, pair, find, remove)
 ``scene_io``   scene -> `BakeInput`, the bake read once (meshes, points, facts)
 ``validate``   problems of a `BakeInput` (a setup), with what to do
+``limits``     the memory a bake would need, shown before Bake (cheap, kept per settings)
 ``bake``       `collect` (read, check), `BakeJob` (the core, cancel), `apply_result`
                (a result into the scene), `bake_scene`
 ``output``     numpy -> mesh object with one shape key per frame
