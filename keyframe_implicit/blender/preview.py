@@ -43,7 +43,8 @@ if TYPE_CHECKING:
     from .props import KFI_Session
 
 __all__ = ["State", "state", "start", "stop", "toggled", "turn_off", "schedule", "tick",
-           "active", "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post", "HANDLERS"]
+           "active", "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post",
+           "HANDLERS"]
 
 #: Seconds after the last edit before its solve is asked for: a drag's moves coalesce.
 COALESCE = 0.15

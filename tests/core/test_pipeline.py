@@ -165,5 +165,6 @@ def test_progress_is_counted_steps_and_never_goes_back(processes, interpolation)
         numbers = [i for i, _ in counts]
         assert numbers == sorted(numbers) and numbers[0] == 1, (stage, numbers)
         assert set(numbers) == set(range(1, counts[-1][1] + 1)), (stage, numbers)
-    first = {stage: messages.index(f"{stage} 1/{counts[-1][1]}") for stage, counts in counted.items()}
+    first = {stage: messages.index(f"{stage} 1/{counts[-1][1]}")
+             for stage, counts in counted.items()}
     assert first["Distance fields"] < first["Maps"] < first["Paths"] < first["Frames"]
