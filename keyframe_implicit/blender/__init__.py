@@ -47,7 +47,7 @@ def register() -> None:
     """Register the property groups, operators and panels (idempotent after unregister)."""
     import bpy
 
-    from . import ops, preview, props, result_view
+    from . import limits, ops, preview, props, result_view
 
     if _registered:
         return
@@ -60,7 +60,8 @@ def register() -> None:
     bpy.app.handlers.persistent(_forget_readings)  # kept across file loads
     for name in _HANDLERS:
         getattr(bpy.app.handlers, name).append(_forget_readings)
-    props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled)
+    props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled,
+                           motion_auto=limits.motion_auto_changed)
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)
 

@@ -22,7 +22,9 @@ from . import features, scene_io
 if TYPE_CHECKING:
     import bpy
 
-__all__ = ["need", "line"]
+    from .props import KFI_Settings
+
+__all__ = ["need", "line", "motion_auto_changed"]
 
 #: Decimals of the world coordinates and volumes the estimate is kept by: moves below
 #: them do not change its figures.
@@ -44,12 +46,15 @@ def _need(boxes: tuple, volumes: tuple, extra: tuple, resolution: int,
                        extra_points=extra if extra else None)
 
 
-def need(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph,
-         resolution: int = 0) -> MemoryNeed | None:
-    """What a bake of ``scene`` at ``resolution`` (0: the scene's) would need in memory;
-    None until two keyframes have mesh objects that enclose a volume (the checks say
-    what is missing)."""
+def need(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
+         resolution: int = 0, auto_motion: bool = False) -> MemoryNeed | None:
+    """What a bake of ``scene`` at ``resolution`` (0: the scene's) would need in memory,
+    with the scene's Motion Resolution or, with ``auto_motion``, the automatic one; None
+    until two keyframes have mesh objects that enclose a volume (the checks say what is
+    missing). ``depsgraph`` evaluates the keyframes with modifiers (default: the scene's
+    first view layer's)."""
     settings = scene.keyframe_implicit
+    depsgraph = depsgraph or scene.view_layers[0].depsgraph
     objs = [kf.object for kf in settings.keyframes
             if kf.object is not None and kf.object.type == "MESH"]
     if len(objs) < 2:
@@ -61,7 +66,16 @@ def need(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph,
     extra = tuple(tuple(round(c, _DECIMALS) for c in o.matrix_world.translation)
                   for o in features.feature_objects(scene))
     return _need(tuple(_corners(o) for o in objs), volumes, extra,
-                 int(resolution or settings.resolution), settings.motion())
+                 int(resolution or settings.resolution),
+                 None if auto_motion else settings.motion())
+
+
+def motion_auto_changed(settings: KFI_Settings, _context: bpy.types.Context) -> None:
+    """Motion Resolution's Auto unticked (`props.ON_CHANGE`): the field starts from the
+    value Auto chooses for these keyframes (Resolution until two keyframes are set)."""
+    found = None if settings.motion_auto else need(settings.id_data, auto_motion=True)
+    if found is not None:
+        settings.motion_resolution = found.motion_resolution
 
 
 def line(found: MemoryNeed, resolution: int) -> tuple[str, str]:

@@ -341,7 +341,7 @@ class KFI_OT_bake(bpy.types.Operator):
             more = f" (and {len(errs) - 1} more, in the panel)" if len(errs) > 1 else ""
             cls.poll_message_set(f"Cannot bake: {errs[0].message}{more}")
             return False
-        found = limits.need(context.scene, context.view_layer.depsgraph)
+        found = limits.need(context.scene)
         if found is not None and found.over:
             text, _ = limits.line(found, context.scene.keyframe_implicit.resolution)
             cls.poll_message_set(f"Cannot bake: {text}")

@@ -201,7 +201,7 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
 def _memory(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:
     """Under Resolution: the memory a bake would need against the limit (`limits.line`),
     as the Resolution changes; nothing until two keyframes are set."""
-    found = limits.need(context.scene, context.view_layer.depsgraph)
+    found = limits.need(context.scene)
     if found is not None:
         text, icon = limits.line(found, context.scene.keyframe_implicit.resolution)
         _wrapped(layout, context, text, icon)

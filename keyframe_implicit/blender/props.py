@@ -56,15 +56,12 @@ MAX_RESOLUTION = 4096
 
 
 def _set_motion_auto(settings: "KFI_Settings", auto: bool) -> None:
-    """Motion Resolution Auto on (0) or off: then the value Auto chooses for these
-    keyframes, to start from (`limits.need`; Resolution until two keyframes are set)."""
-    from . import limits  # here: the settings import no module that reads them
-
+    """Motion Resolution Auto on (0) or off: then Resolution, until its `ON_CHANGE`
+    handler puts in the value Auto chooses for these keyframes."""
     if auto:
         settings.motion_resolution = 0
     elif settings.motion_resolution == 0:
-        found = limits.need(settings.id_data, bpy.context.view_layer.depsgraph)
-        settings.motion_resolution = found.motion_resolution if found else settings.resolution
+        settings.motion_resolution = settings.resolution
 
 
 class KFI_Keyframe(bpy.types.PropertyGroup):
@@ -127,6 +124,7 @@ class KFI_Settings(bpy.types.PropertyGroup):
         name="Auto", get=lambda self: self.motion_resolution == 0, set=_set_motion_auto,
         description="Let the bake choose how much detail the motion keeps, for speed; "
         "shapes keep the full Resolution either way",
+        update=_on_change("motion_auto"),
     )
     # Weights of the three terms of thesis eq. 2.6 (core/map/terms.py), in an artist's words.
     volume_weight: FloatProperty(

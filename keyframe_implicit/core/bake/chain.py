@@ -41,6 +41,7 @@ from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
+from .steps import FRAMES, PATHS
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
 from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
@@ -58,10 +59,6 @@ __all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "HELPER
 
 #: What a helper process imports as it starts: everything a chain's work sends it.
 HELPER_PRELOAD = (__name__,)
-#: The chain's counted steps (`progress.Reporter.step`), in the artist's words: a map (one
-#: direction of a pair), a path step (a segment's trajectories, or the bends of every
-#: segment's paths through the keyframes) and a timeline frame.
-MAPS, PATHS, FRAMES = "Maps", "Paths", "Frames"
 
 
 def animate_chain(phis: Sequence[ArrayLike], grid: Grid,

@@ -21,8 +21,8 @@ from ..base.parallel import cores, share
 from ..base.progress import Reporter
 from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
-from .chain import MAPS, PATHS
 from .options import BakeOptions, refuse_unread
+from .steps import MAPS, PATHS
 
 if TYPE_CHECKING:
     from collections.abc import Callable

@@ -23,7 +23,7 @@ from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
 from ..surface.quality import choose_output, keyframe_distance
 from .animation import Animation
-from .chain import FRAMES, HELPER_PRELOAD, MAPS, PATHS, Chain
+from .chain import HELPER_PRELOAD, Chain
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
@@ -31,6 +31,7 @@ from .gridfit import auto_motion_resolution, fit_grid, motion_grid
 from .keyframe import Keyframe
 from .memory import MemoryLimitError, check_memory, estimate_memory, largest_fitting
 from .options import BakeOptions
+from .steps import DISTANCE_FIELDS, FRAMES, MAP_CELL_COST, MAPS, PATH_CELL_COST, PATHS
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
@@ -48,16 +49,6 @@ __all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids", "bake_steps
            "memory_limit", "MemoryNeed", "memory_need",
            "distance_fields", "distance_grid", "finish_bake"]
 
-#: The first of the bake's counted steps (`progress.Reporter.step`), one per keyframe; the
-#: chain's are `chain.MAPS`, `chain.PATHS` and `chain.FRAMES`.
-DISTANCE_FIELDS = "Distance fields"
-#: What a step costs per cell of its grid, in a distance field's cell (`bake_steps`): a
-#: map's (the Gauss-Newton solve, coarse to fine) and a path's (a segment's trajectories,
-#: or every segment's bends through the keyframes). Timed on the merge and splash examples
-#: at resolution 48: a map's cell took 7-10 times a distance field's, a path's 2-5 times,
-#: a frame's about once.
-MAP_CELL_COST = 8.0
-PATH_CELL_COST = 3.0
 
 
 def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
