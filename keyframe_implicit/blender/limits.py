@@ -80,13 +80,12 @@ def motion_auto_changed(settings: KFI_Settings, _context: bpy.types.Context) -> 
 
 def line(found: MemoryNeed, resolution: int) -> tuple[str, str]:
     """(text, icon) the panel shows under Resolution: the memory a bake at ``resolution``
-    needs against the limit, or, over it, that Bake cannot run and the resolution that
-    would."""
+    needs of what a bake may use here, or, over that, what it needs against it and the
+    resolution that fits."""
     if found.limit is None:
-        return f"Needs about {megabytes(found.peak)} of memory", "MEMORY"
-    if not found.over:
-        return (f"Needs about {megabytes(found.peak)} of memory, of the "
-                f"{megabytes(found.limit)} a bake may use here"), "MEMORY"
+        return f"Memory: about {megabytes(found.peak)}", "MEMORY"
+    if not found.over:  # one line: Bake stays in view
+        return f"Memory: about {megabytes(found.peak)} of {megabytes(found.limit)}", "MEMORY"
     advice = (f"lower it to {found.fits} or less" if found.fits else
               "even the lowest does not fit: free memory or simplify the keyframes")
     return (f"Resolution {resolution} needs about {megabytes(found.peak)} of memory, more "

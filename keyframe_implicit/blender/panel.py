@@ -192,7 +192,9 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         col.prop(settings, "volume_weight")
         col.prop(settings, "rigidity_weight")
         col.prop(settings, "levelset_weight")
-        col = self.layout.column(heading="Motion Resolution")
+        col = self.layout.column(heading="Motion Resolution")  # "[x] Auto", not "0"
+        col.use_property_split = True
+        col.use_property_decorate = False
         col.prop(settings, "motion_auto")
         if not settings.motion_auto:
             col.prop(settings, "motion_resolution", text="Cells")
