@@ -83,9 +83,9 @@ def line(found: MemoryNeed, resolution: int) -> tuple[str, str]:
     needs of what a bake may use here, or, over that, what it needs against it and the
     resolution that fits."""
     if found.limit is None:
-        return f"Memory: about {megabytes(found.peak)}", "MEMORY"
-    if not found.over:  # one line: Bake stays in view
-        return f"Memory: about {megabytes(found.peak)} of {megabytes(found.limit)}", "MEMORY"
+        return f"About {megabytes(found.peak)} of memory", "MEMORY"
+    if not found.over:  # one line beside the memory icon: Bake stays in view
+        return f"About {megabytes(found.peak)} of {megabytes(found.limit)}", "MEMORY"
     advice = (f"lower it to {found.fits} or less" if found.fits else
               "even the lowest does not fit: free memory or simplify the keyframes")
     return (f"Resolution {resolution} needs about {megabytes(found.peak)} of memory, more "

@@ -62,7 +62,7 @@ def test_the_memory_a_bake_needs_is_under_resolution_and_bake_waits_for_one_that
     kfi.build_spheres(TWO)
     settings = scene.keyframe_implicit
     line = _under_resolution(_drawn(panel.KFI_PT_main))
-    assert re.fullmatch(r"Memory: about [\d,]+ MB of [\d,]+ MB", line), line
+    assert re.fullmatch(r"About [\d,]+ MB of [\d,]+ MB", line), line
     assert panel.text_width(line, panel.ui_scale(bpy.context)) <= panel.label_width(bpy.context)
     assert bpy.ops.keyframe_implicit.bake.poll()
 
@@ -87,7 +87,7 @@ def test_the_memory_a_bake_needs_is_under_resolution_and_bake_waits_for_one_that
 
     settings.resolution = fits  # what the line says fits does
     assert bpy.ops.keyframe_implicit.bake.poll()
-    assert _under_resolution(_drawn(panel.KFI_PT_main)).startswith("Memory: about ")
+    assert _under_resolution(_drawn(panel.KFI_PT_main)).startswith("About ")
 
 
 def test_the_estimate_is_kept_per_settings(scene, kfi):
