@@ -115,7 +115,8 @@ class Reporter:
 
     def elsewhere(self, stage: str, steps: int = 1) -> None:
         """``steps`` steps of ``stage`` another process (or thread) has done: counted done
-        by the tally (nothing without one). Safe from any thread; no cancellation check."""
+        by the tally (nothing without one). Safe from any thread (`Tally` reports from its
+        own); no cancellation check."""
         if self.tally is not None:
             for _ in range(steps):
                 self.tally.started(stage)
@@ -133,6 +134,11 @@ class Tally:
     """The counted steps of a long call's stages, each step's share of the progress its
     expected cost: the fraction reported is the cost of the steps done, plus the part of
     the steps under way that they report, and never goes back.
+
+    Reports go out only from the thread that made the tally (the call's own), so that
+    ``progress`` needs no lock and a failure in it is the call's: steps counted from
+    another thread (a helper process's, as their results come in) show in that thread's
+    next report.
 
     Parameters
     ----------
@@ -154,6 +160,7 @@ class Tally:
         self._done = 0.0
         self._at = 0.0
         self._lock = threading.Lock()
+        self._thread = threading.get_ident()
 
     def reporter(self, cancel: Callable[[], bool] | None = None) -> Reporter:
         """The call's root reporter: its work reports through the steps it opens."""
@@ -174,8 +181,10 @@ class Tally:
     def within(self, stage: str, fraction: float) -> None:
         """Report a step of ``stage`` ``fraction`` done: the steps done so far plus this
         part of one more, never less than reported before."""
+        if self._progress is None or threading.get_ident() != self._thread:
+            return
         with self._lock:
             f = min(max(float(fraction), 0.0), 1.0)
             self._at = min(1.0, round(max(self._at, self._done + f * self.share[stage]), 12))
-            if self._progress is not None:
-                self._progress(self._at, f"{stage} {self.begun[stage]}/{self.count[stage]}")
+            at, words = self._at, f"{stage} {self.begun[stage]}/{self.count[stage]}"
+        self._progress(at, words)
