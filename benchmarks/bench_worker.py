@@ -24,7 +24,7 @@ from keyframe_implicit.blender.diagnostics import Diagnostics
 from keyframe_implicit.core.bake import pipeline
 
 POLL = 0.02
-STAGES = ("Distance grid", "Gauss-Newton", "trajectories", "frame 4")
+STAGES = ("Distance fields", "Maps", "Paths", "Frames 4/")
 
 
 def two_spheres():

@@ -159,7 +159,7 @@ def scene_steps(path, shots):
     rec = Recorder()
     load = os.getloadavg()
     t_on = time.perf_counter()
-    settings.live_preview = True
+    bpy.context.window_manager.keyframe_implicit.live_preview = True
     shown, drawn = yield from on_screen(diag, rec, t_on)
     first = drawn - t_on
     yield 1.0
@@ -179,7 +179,7 @@ def scene_steps(path, shots):
     yield 1.0
     longest, longest_in, cpu = diag.longest, diag.longest_in, diag.longest_cpu
     gap = rec.longest_gap(t_on)
-    settings.live_preview = False
+    bpy.context.window_manager.keyframe_implicit.live_preview = False
     measured.current = None
     rec.stop()
     lat = np.array([d["latency"] for d in drags])

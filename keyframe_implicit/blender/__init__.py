@@ -3,12 +3,14 @@
 Module map (operators and panels are thin; logic lives in plain functions):
 
 =============  ================================================================
-``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output)
+``props``      ``Scene.keyframe_implicit`` settings (keyframes, grid, weights, output) and
+               ``WindowManager.keyframe_implicit``, the session's (Live Preview)
 ``features``   feature-point pairs as Empties (create, pair, find, remove)
 ``edits``      keyframe list edits that keep the pairs (insert, remove); Empties snapped
                onto their keyframe's surface
 ``scene_io``   scene -> `BakeInput`, the bake read once (meshes, points, facts)
 ``validate``   problems of a `BakeInput` (a setup), with what to do
+``limits``     the memory a bake would need, shown before Bake (cheap, kept per settings)
 ``bake``       `collect` (read, check), `BakeJob` (the core, cancel), `apply_result`
                (a result into the scene), `bake_scene`
 ``output``     numpy -> mesh object with one shape key per frame
@@ -47,7 +49,7 @@ def register() -> None:
     """Register the property groups, operators and panels (idempotent after unregister)."""
     import bpy
 
-    from . import edits, ops, preview, props, result_view
+    from . import edits, limits, ops, preview, props, result_view
 
     if _registered:
         return
@@ -60,7 +62,8 @@ def register() -> None:
     bpy.app.handlers.persistent(_forget_readings)  # kept across file loads
     for name in _HANDLERS:
         getattr(bpy.app.handlers, name).append(_forget_readings)
-    props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled)
+    props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled,
+                           motion_auto=limits.motion_auto_changed)
     props.ON_CHANGE["object"] = edits.object_picked  # a keyframe's object, picked in its row
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)

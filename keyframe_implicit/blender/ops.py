@@ -8,7 +8,8 @@ import bpy
 from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..core.base.progress import Cancelled
-from . import bake, diagnostics, edits, farm, features, preview, result_view, validate
+from . import (bake, diagnostics, edits, farm, features, limits, preview, result_view,
+               validate)
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -375,9 +376,10 @@ class KFI_OT_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        """Bake only one at a time, and only a setup without blocking problems (the panel's
-        list, `validate.problems`: read without the meshes, cheap on every redraw); the
-        button's tooltip says why not."""
+        """Bake only one at a time, only a setup without blocking problems (the panel's
+        list, `validate.problems`: read without the meshes, cheap on every redraw) and only
+        at a Resolution that fits in memory (`limits.need`, the panel's line under
+        Resolution); the button's tooltip says why not."""
         if running:
             cls.poll_message_set("A bake is already running (ESC cancels it).")
             return False
@@ -387,6 +389,11 @@ class KFI_OT_bake(bpy.types.Operator):
         if errs:
             more = f" (and {len(errs) - 1} more, in the panel)" if len(errs) > 1 else ""
             cls.poll_message_set(f"Cannot bake: {errs[0].message}{more}")
+            return False
+        found = limits.need(context.scene)
+        if found is not None and found.over:
+            text, _ = limits.line(found, context.scene.keyframe_implicit.resolution)
+            cls.poll_message_set(f"Cannot bake: {text}")
             return False
         return True
 
@@ -399,7 +406,7 @@ class KFI_OT_bake(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         """Blocking bake (scripts, ``blender -b``, no window): `bake.bake_scene`."""
-        preview.turn_off(context.scene)
+        preview.turn_off()
         notes = []
         try:
             obj = bake.bake_scene(context.scene, self.resolution,
@@ -421,7 +428,7 @@ class KFI_OT_bake(bpy.types.Operator):
         set, measures the polling)."""
         if context.window is None:
             return self.execute(context)
-        preview.turn_off(context.scene)
+        preview.turn_off()
         try:
             inputs = bake.collect(context.scene, context.evaluated_depsgraph_get(), self.resolution)
         except ValueError as exc:
@@ -452,14 +459,20 @@ class KFI_OT_bake(bpy.types.Operator):
                         region.tag_redraw()
 
     def _finish(self, context: bpy.types.Context) -> None:
+        """End the modal bake: its timer, progress and status go, it leaves `running`, and
+        the 3D views are redrawn whole, so Bake (whose poll reads `running`) shows enabled
+        at once, not when the pointer next moves, and the viewport shows the result."""
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
             self._timer = None
         wm.progress_end()
-        self._status(context, None)
         if self._job in running:
             running.remove(self._job)
+        self._status(context, None)
+        for area in context.screen.areas if context.screen is not None else ():
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         """Each turn of the main loop: ESC cancels; a timer event polls the job, shows its

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import blf
 import bpy
 
-from . import features, output, preview, validate
+from . import features, limits, output, preview, validate
 from .ops import running
 
 if TYPE_CHECKING:
@@ -88,6 +88,8 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         op.index, op.direction = settings.active_keyframe_index, "UP"
         op = col.operator("keyframe_implicit.move_keyframe", icon="TRIA_DOWN", text="")
         op.index, op.direction = settings.active_keyframe_index, "DOWN"
+        if len(settings.keyframes) < 2:  # the button the first problem names, by its name
+            layout.operator("keyframe_implicit.add_keyframe", icon="ADD")
 
         _problems(layout, context, settings, validate.problems(scene, context.view_layer.depsgraph))
 
@@ -95,6 +97,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         col.use_property_split = True  # labels in a column of their own: not cut at 291 px
         col.use_property_decorate = False
         col.prop(settings, "resolution")
+        _memory(col, context)
         col.separator()
         col.prop(settings, "output_collection")
         col.prop(settings, "output_name")
@@ -106,7 +109,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
             fraction, message = running[0].status()
             _wrapped(layout, context, f"Baking {100 * fraction:.0f}%: {message}", "SORTTIME")
             layout.label(text="ESC in the 3D view cancels.", icon="BLANK1")
-        _live_preview(layout, context, settings)
+        _live_preview(layout, context)
         row = layout.row()
         row.scale_y = 1.4
         row.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")  # poll says why not
@@ -141,8 +144,8 @@ class KFI_PT_features(_Sidebar, bpy.types.Panel):
         scene = context.scene
         settings = scene.keyframe_implicit
         kfs = settings.keyframes
-        if len(kfs) < 2:
-            layout.label(text="Add two keyframes to place feature pairs.", icon="INFO")
+        if len(kfs) < 2:  # the main panel says what to do: not again, cut off
+            _wrapped(layout, context, "None until there are two keyframes.", "INFO")
             return
         all_pairs = list(features.pairs(scene).values())
         layout.operator("keyframe_implicit.pair_selected", icon="LINKED")
@@ -190,14 +193,29 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         col.prop(settings, "volume_weight")
         col.prop(settings, "rigidity_weight")
         col.prop(settings, "levelset_weight")
-        self.layout.prop(settings, "motion_resolution")
+        col = self.layout.column(heading="Motion Resolution")  # "[x] Auto", not "0"
+        col.use_property_split = True
+        col.use_property_decorate = False
+        col.prop(settings, "motion_auto")
+        if not settings.motion_auto:
+            col.prop(settings, "motion_resolution", text="Cells")
 
 
-def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context,
-                  settings: KFI_Settings) -> None:
-    """The Live Preview toggle; while it is on, its grids or why it shows nothing."""
-    layout.prop(settings, "live_preview", icon="HIDE_OFF" if settings.live_preview else "HIDE_ON")
-    if not settings.live_preview:
+def _memory(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:
+    """Under Resolution: the memory a bake would need against the limit (`limits.line`),
+    as the Resolution changes; nothing until two keyframes are set."""
+    found = limits.need(context.scene)
+    if found is not None:
+        text, icon = limits.line(found, context.scene.keyframe_implicit.resolution)
+        _wrapped(layout, context, text, icon)
+
+
+def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:
+    """The Live Preview toggle (the session's, `props.KFI_Session`); while it is on, its
+    grids or why it shows nothing."""
+    session = context.window_manager.keyframe_implicit
+    layout.prop(session, "live_preview", icon="HIDE_OFF" if session.live_preview else "HIDE_ON")
+    if not session.live_preview:
         return
     state = preview.state
     if state.message:

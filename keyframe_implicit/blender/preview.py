@@ -1,11 +1,16 @@
 """Live preview: the in-between on the current frame, drawn over the 3D view while the
 artist edits.
 
-While ``Scene.keyframe_implicit.live_preview`` is on, a preview worker process
+While ``WindowManager.keyframe_implicit.live_preview`` is on, a preview worker process
 (`keyframe_implicit.preview_worker`) keeps the setup's maps solved on a coarse grid
 (`core.bake.preview`) and answers each frame with that frame's own surface; `overlay`
 draws it from a ``POST_VIEW`` draw handler. Nothing enters ``bpy.data``, the undo history
 or the outliner.
+
+The preview is a state of the session, not content of the file: its toggle is a window
+manager property (`props.KFI_Session`: never saved, never undone), a loaded file turns it
+off (load_post), and all it holds is this module's `state`, outside the undo system, so
+undo and redo work with it on as with it off.
 
 When it updates:
 
@@ -17,8 +22,8 @@ When it updates:
 
 The main loop only ever polls: `tick`, a ``bpy.app.timers`` callback every `POLL`
 seconds, sends the due solve (reading the scene: `scene_io.read`) and takes the worker's
-answers; times are read from `clock`. Turning the preview off, loading a file (load_pre)
-or pressing Bake ends the worker and removes the overlay. Failures (a refused setup, a
+answers; times are read from `clock`. Turning the preview off, loading a file (load_pre,
+load_post) or pressing Bake ends the worker and removes the overlay. Failures (a refused setup, a
 crash of the worker) become `State.message`, shown in the panel; nothing raises into
 Blender. How long the preview's own code holds the main loop, and when solves and frames
 go out and come back, is measured only when asked for (`diagnostics.current`).
@@ -35,10 +40,11 @@ from ..preview_worker import PreviewWorker
 from . import diagnostics, features, overlay, scene_io, validate
 
 if TYPE_CHECKING:
-    from .props import KFI_Settings
+    from .props import KFI_Session
 
-__all__ = ["State", "state", "start", "stop", "toggled", "schedule", "tick", "active",
-           "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post", "HANDLERS"]
+__all__ = ["State", "state", "start", "stop", "toggled", "turn_off", "schedule", "tick",
+           "active", "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post",
+           "HANDLERS"]
 
 #: Seconds after the last edit before its solve is asked for: a drag's moves coalesce.
 COALESCE = 0.15
@@ -126,20 +132,20 @@ def stop() -> None:
     _redraw()
 
 
-def toggled(settings: "KFI_Settings", _context: bpy.types.Context) -> None:
+def toggled(session: KFI_Session, _context: bpy.types.Context) -> None:
     """The Live Preview toggle's handler (`props.ON_CHANGE`): start or stop the preview."""
-    if settings.live_preview:
+    if session.live_preview:
         start()
     else:
         stop()
 
 
-def turn_off(scene: bpy.types.Scene) -> None:
-    """Stop the preview and show its toggle off (what Bake does first)."""
+def turn_off() -> None:
+    """Stop the preview and show its toggle off (what Bake and a file load do first)."""
     stop()
-    settings = scene.keyframe_implicit
-    if settings.live_preview:
-        settings.live_preview = False
+    wm = bpy.context.window_manager
+    if wm is not None and wm.keyframe_implicit.live_preview:
+        wm.keyframe_implicit.live_preview = False
 
 
 def schedule() -> None:
@@ -188,10 +194,9 @@ def on_load_pre(*_args: object) -> None:
 
 @bpy.app.handlers.persistent
 def on_load_post(*_args: object) -> None:
-    """load_post: a file saved with the preview on starts it again."""
-    scene = bpy.context.scene
-    if scene is not None and scene.keyframe_implicit.live_preview:
-        start()
+    """load_post: a file opens with the preview off (a load that keeps the UI keeps the
+    window manager, and with it the toggle)."""
+    turn_off()
 
 
 #: Blender's handler lists and the functions this module adds to them.

@@ -5,7 +5,10 @@ resolution, the objective weights of thesis eq. 2.6 (see
 ``keyframe_implicit/core/map/terms.py``; the panel calls them Volume, Rigidity and
 Shape Match), the output options, a pointer to the baked output object, so that
 baking again replaces that object and only it, and whether the keyframes are
-shown over it (`result_view`), and whether the live preview runs (`preview`).
+shown over it (`result_view`).
+
+What belongs to the session and not to the file, whether the live preview runs
+(`preview`), is `KFI_Session`, ``bpy.types.WindowManager.keyframe_implicit``.
 """
 
 from collections.abc import Callable
@@ -29,10 +32,11 @@ def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
     return obj is not None and obj.type == "MESH"
 
 
-#: What runs when a setting with a side effect changes, by property name; the handler gets
-#: the property group that changed (`KFI_Settings`, or the `KFI_Keyframe` whose ``object``
-#: was picked). The modules that act on a setting fill it in when the add-on registers
-#: (`blender.register`), so the settings, which every other module reads, import none of them.
+#: What runs when a setting with a side effect changes, by property name. The modules that
+#: act on a setting fill it in when the add-on registers (`blender.register`), so the
+#: settings, which every other module reads, import none of them. A handler gets the
+#: property group that changed (`KFI_Settings`, `KFI_Session`, or the `KFI_Keyframe`
+#: whose ``object`` was picked) and the context.
 ON_CHANGE: dict[str, Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]] = {}
 
 
@@ -44,6 +48,21 @@ def _on_change(name: str) -> Callable[[bpy.types.PropertyGroup, bpy.types.Contex
             handler(group, context)
 
     return update
+
+
+#: The highest Resolution and Motion Resolution the fields take: far above what any
+#: computer's memory allows, so the limit a setting meets is the memory's, which the panel
+#: states (`limits`), never a silent clamp.
+MAX_RESOLUTION = 4096
+
+
+def _set_motion_auto(settings: "KFI_Settings", auto: bool) -> None:
+    """Motion Resolution Auto on (0) or off: then Resolution, until its `ON_CHANGE`
+    handler puts in the value Auto chooses for these keyframes."""
+    if auto:
+        settings.motion_resolution = 0
+    elif settings.motion_resolution == 0:
+        settings.motion_resolution = settings.resolution
 
 
 class KFI_Keyframe(bpy.types.PropertyGroup):
@@ -86,20 +105,28 @@ class KFI_Settings(bpy.types.PropertyGroup):
         name="Resolution",
         default=BakeOptions.resolution,
         min=8,
-        max=512,
+        max=MAX_RESOLUTION,
         soft_max=128,
-        description="Grid cells along the longest side of the keyframes' bounding box "
-        "(memory and time grow with its cube)",
+        description="How much detail the shapes keep: grid cells along the longest side of "
+        "the keyframes' bounding box. Memory and time grow with its cube: the line below "
+        "says how much memory it needs, and Bake waits for a resolution that fits",
     )
     motion_resolution: IntProperty(
         name="Motion Resolution",
         default=0,
         min=0,
-        max=512,
+        max=MAX_RESOLUTION,
         soft_max=128,
-        description="Cells of the coarser grid the motion is solved on, along the same side "
-        "(0: automatic, chosen for speed; equal to Resolution: the motion at full detail). "
-        "Raise it when thin parts move together that should move apart",
+        description="How much detail the motion keeps: the grid the movement is worked out "
+        "on, in cells across the keyframes' longest side, like Resolution (equal to it: the "
+        "motion at full detail). Raise it when thin parts move together that should move "
+        "apart. 0 is Auto",
+    )
+    motion_auto: BoolProperty(
+        name="Auto", get=lambda self: self.motion_resolution == 0, set=_set_motion_auto,
+        description="Let the bake choose how much detail the motion keeps, for speed; "
+        "shapes keep the full Resolution either way",
+        update=_on_change("motion_auto"),
     )
     # Weights of the three terms of thesis eq. 2.6 (core/map/terms.py), in an artist's words.
     volume_weight: FloatProperty(
@@ -160,13 +187,6 @@ class KFI_Settings(bpy.types.PropertyGroup):
         "them (they stay out of renders)",
         update=_on_change("show_keyframes"),
     )
-    live_preview: BoolProperty(
-        name="Live Preview", default=False,
-        description="Show the in-between on the current frame over the 3D view, solved on a "
-        "coarse grid and updated as keyframes and feature points move (nothing is added to "
-        "the scene)",
-        update=_on_change("live_preview"),
-    )
     show_all_problems: BoolProperty(
         name="All Problems", default=False,
         description="List every problem found, not only the first ones",
@@ -189,15 +209,36 @@ class KFI_Settings(bpy.types.PropertyGroup):
         }
 
 
-classes = (KFI_Keyframe, KFI_Settings)
+class KFI_Session(bpy.types.PropertyGroup):
+    """The add-on's state in this Blender session, not in the file.
+
+    It lives on the window manager, where Blender keeps what belongs to the session: its
+    properties are neither saved in the .blend nor part of the undo history. The live
+    preview is a worker process and a draw handler of this session, so its toggle is here:
+    a saved file, the farm's assembled one too, never carries it, and undo and redo never
+    turn it on or off behind the preview's back. The window manager outlives a file load
+    that keeps the UI, so a loaded file turns it off (`preview.on_load_post`).
+    """
+
+    live_preview: BoolProperty(
+        name="Live Preview", default=False,
+        description="Show the in-between on the current frame over the 3D view, solved on a "
+        "coarse grid and updated as keyframes and feature points move (nothing is added to "
+        "the scene; it stays off in saved files)",
+        update=_on_change("live_preview"),
+    )
+
+
+classes = (KFI_Keyframe, KFI_Settings, KFI_Session)
 
 
 def register_properties() -> None:
-    """Give every scene its ``keyframe_implicit`` settings."""
+    """Give every scene its ``keyframe_implicit`` settings and the session its state."""
     bpy.types.Scene.keyframe_implicit = PointerProperty(type=KFI_Settings)
+    bpy.types.WindowManager.keyframe_implicit = PointerProperty(type=KFI_Session)
 
 
 def unregister_properties() -> None:
-
-    """Remove the scenes' ``keyframe_implicit`` settings."""
+    """Remove the scenes' ``keyframe_implicit`` settings and the session's state."""
+    del bpy.types.WindowManager.keyframe_implicit
     del bpy.types.Scene.keyframe_implicit

@@ -1,5 +1,7 @@
 """Bake end to end through the operators (issue 5, "Checked by")."""
 
+import re
+
 import bpy
 import numpy as np
 import pytest
@@ -84,6 +86,32 @@ def test_three_keyframes_bake_into_one_object(scene, kfi):
     for f in range(1, 8):
         scene.frame_set(f)
         assert _active_keys(out) == [output.frame_key_name(f)]
+
+
+#: A bake's progress: counted steps in the artist's words; the worker's last line names the
+#: output mesh it makes after them.
+STEP = re.compile(r"^(Distance fields|Maps|Paths|Frames) (\d+)/(\d+)$")
+
+
+def test_progress_is_counted_steps_and_never_goes_back(scene, kfi):
+    specs = [("K0", (0, 0, 0), 1.0, 1), ("K1", (1.2, 0, 0), 1.0, 4), ("K2", (1.2, 1.2, 0), 1.0, 7)]
+    kfi.build_spheres(specs)
+    seen = []
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES),
+                       on_progress=lambda j, f, m: seen.append((f, m)))
+    assert job.run() == bake.DONE, job.error_message()
+    fractions, messages = [f for f, _ in seen], [m for _, m in seen]
+    assert messages[-1] == "Preparing the output mesh" and fractions[-2:] == [1.0, 1.0]
+    assert all(STEP.match(m) for m in messages[:-1]), [m for m in messages if not STEP.match(m)]
+    assert all(b >= a for a, b in zip(fractions, fractions[1:])), fractions
+    last = {}
+    for m in messages[:-1]:
+        stage, i, n = STEP.match(m).groups()
+        assert int(i) >= last.get(stage, 1), f"{m} after {stage} {last[stage]}"
+        last[stage] = int(i)
+    assert {m for m in messages if m.endswith(("4/4", "3/3", "7/7"))} >= {
+        "Maps 4/4", "Distance fields 3/3", "Frames 7/7"}
+    assert "Initial map" not in " ".join(messages) and "%" not in " ".join(messages)
 
 
 def test_bake_twice_replaces_only_its_own_output(scene, kfi):
@@ -344,6 +372,25 @@ def test_modal_bake_redraws_only_the_sidebars_and_only_when_its_text_changes(sce
         assert len(ctx.workspace.calls) == 2 and redraws()[("VIEW_3D", "UI")] == 2
     finally:
         ops.running.remove(job)
+
+
+def test_modal_bake_redraws_the_3d_views_once_it_has_ended(scene, kfi):
+    import types
+
+    from keyframe_implicit.blender import ops
+
+    kfi.build_spheres(TWO)
+    job = bake.BakeJob(bake.collect(scene, bpy.context.evaluated_depsgraph_get(), kfi.RES))
+    me, ctx, _ = _modal_operator(job, scene)
+    ended = []  # for each redraw of a whole 3D view: whether a bake was still running
+    sidebar = _Recorder()
+    sidebar.type = "UI"
+    view = types.SimpleNamespace(type="VIEW_3D", regions=[sidebar],
+                                 tag_redraw=lambda: ended.append(not ops.running))
+    ctx.screen = types.SimpleNamespace(areas=[view])
+    job.start()
+    assert _drive(ops.KFI_OT_bake, me, ctx) == {"FINISHED"}
+    assert ended == [True], "the 3D view was not redrawn once Bake could be pressed again"
 
 
 def test_collected_inputs_are_evaluated_world_space_and_read_only(scene, kfi):

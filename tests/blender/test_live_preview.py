@@ -1,6 +1,7 @@
 """The live preview (`blender.preview`): edits schedule one solve, a drag's moves coalesce,
 frames are answered by the worker, and turning it off, loading a file or baking ends the
-worker and removes the overlay; nothing enters bpy.data.
+worker and removes the overlay; nothing enters bpy.data. The preview is the session's: a
+file saved with it on, the farm's assembled one too, opens with it off.
 
 In background mode no timer runs: the tests call `preview.tick` themselves, on a clock they
 step (`preview.clock`), and count the solves and frames asked for with a `Diagnostics` on
@@ -64,15 +65,19 @@ def clock(monkeypatch):
     return clock
 
 
+def _session():
+    """The session's add-on state, where the Live Preview toggle is."""
+    return bpy.context.window_manager.keyframe_implicit
+
+
 @pytest.fixture
 def live(scene, kfi, clock):
     kfi.build_spheres(TWO)
-    settings = scene.keyframe_implicit
-    settings.live_preview = True
+    _session().live_preview = True
     preview.tick()  # the first solve goes out at once
     assert preview.active() and _solves() == 1
-    yield settings
-    bpy.context.scene.keyframe_implicit.live_preview = False  # ``settings`` may be a loaded-over file's
+    yield _session()
+    _session().live_preview = False  # a file load may have made another window manager
     preview.stop()
 
 
@@ -160,7 +165,38 @@ def test_loading_a_file_ends_the_worker(live, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
     assert worker.process.wait(10) is not None and not preview.active()
     assert preview.state.handle is None
-    assert not bpy.context.scene.keyframe_implicit.live_preview
+    assert not _session().live_preview
+
+
+@pytest.mark.parametrize("load_ui", [False, True])
+def test_a_file_saved_with_the_preview_on_opens_with_it_off(live, tmp_path, load_ui):
+    path = str(tmp_path / "on.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    assert preview.active(), "saving turned the preview off"
+    worker = preview.state.worker
+    bpy.ops.wm.open_mainfile(filepath=path, load_ui=load_ui)
+    assert worker.process.wait(10) is not None
+    assert not preview.active() and preview.state.handle is None
+    assert not _session().live_preview
+    assert not bpy.app.timers.is_registered(preview.tick)
+    assert "live_preview" not in bpy.context.scene.keyframe_implicit.keys()
+
+
+def test_the_farm_assembles_a_file_with_the_preview_off(live, kfi, tmp_path):
+    from keyframe_implicit.__main__ import main
+
+    setup, job, out = (str(tmp_path / n) for n in ("setup.blend", "job", "baked.blend"))
+    bpy.ops.wm.save_as_mainfile(filepath=setup)
+    for stage in (["prepare", setup, job, "--resolution", str(kfi.RES)],
+                  ["maps", job, "--pair", "1"], ["paths", job],
+                  ["segment", job, "--segment", "1"], ["assemble", job, "--out", out]):
+        assert main(["farm", *stage]) == 0, stage
+    assert not preview.active() and not _session().live_preview
+    bpy.ops.wm.open_mainfile(filepath=out, load_ui=True)
+    assert bpy.context.scene.keyframe_implicit.output_object is not None
+    assert not preview.active() and preview.state.handle is None
+    assert not _session().live_preview
+    assert "live_preview" not in bpy.context.scene.keyframe_implicit.keys()
 
 
 def test_pressing_bake_ends_the_worker(live, kfi):
@@ -175,20 +211,20 @@ def test_no_data_block_is_created(scene, kfi):
     before = kfi.snapshot()
     counts = {name: len(getattr(bpy.data, name)) for name in dir(bpy.data)
               if isinstance(getattr(bpy.data, name, None), bpy.types.bpy_prop_collection)}
-    scene.keyframe_implicit.live_preview = True
+    _session().live_preview = True
     preview.tick()
     _until(lambda: preview.state.mesh is not None)
     scene.frame_set(3)
     _until(lambda: preview.state.mesh[0] == 3)
     scene.frame_set(1)
-    scene.keyframe_implicit.live_preview = False
+    _session().live_preview = False
     assert kfi.snapshot() == before
     assert {name: len(getattr(bpy.data, name)) for name in counts} == counts
 
 
 def test_a_refused_setup_and_a_crash_become_messages(live, clock):
     state = preview.state
-    keyframes = live.keyframes
+    keyframes = bpy.context.scene.keyframe_implicit.keyframes
     keyframes[1].frame = keyframes[0].frame  # two keyframes on one frame
     preview.schedule()
     clock.now += 1.0
@@ -257,3 +293,70 @@ def test_overlay_draws_the_mesh_where_a_gpu_context_exists():
     # the middle is covered by a front and a back face, each blended at COLOR's opacity
     a = overlay.COLOR[3]
     assert middle == pytest.approx(a + a * (1 - a), abs=0.02) and corner == 0.0
+
+
+def _empties():
+    """{name: location} of every feature Empty."""
+    return {o.name: tuple(o.location) for o in bpy.context.scene.objects if o.get("kfi_pair")}
+
+
+def _settle(clock):
+    """What the preview, when on, does between two edits: its due solve sent, the answers
+    taken."""
+    if preview.active():
+        clock.now += 1.0
+        preview.tick()
+        _until(lambda: preview.state.due is None and preview.state.mesh is not None)
+
+
+def _moved_and_undone(clock):
+    """Ten moves of the Empties, each its undo step, a frame step after each; then ten undos
+    and ten redos, the preview (when on) solving after each. Returns every Empty's place
+    after each move, each undo and each redo."""
+    names = sorted(_empties())
+    bpy.ops.ed.undo_push(message="before the moves")
+    moved = [_empties()]
+    for i in range(10):
+        obj = bpy.data.objects[names[i % len(names)]]
+        obj.location.x += 0.02 * (i + 1)
+        bpy.context.view_layer.update()
+        bpy.ops.ed.undo_push(message=f"move {i + 1}")
+        _settle(clock)
+        assert bpy.ops.screen.frame_offset(delta=1) == {"FINISHED"}
+        _settle(clock)
+        moved.append(_empties())
+    undone, redone = [], []
+    for steps, trail in ((bpy.ops.ed.undo, undone), (bpy.ops.ed.redo, redone)):
+        for _ in range(10):
+            assert steps() == {"FINISHED"}
+            _settle(clock)
+            trail.append(_empties())
+    return moved, undone, redone
+
+
+def test_ten_moves_are_undone_by_ten_undos_with_the_preview_on(scene, kfi, clock):
+    kfi.build_spheres(TWO)
+    for on in (False, True):  # the same moves, undos and redos without and with the preview
+        _session().live_preview = on
+        moved, undone, redone = _moved_and_undone(clock)
+        assert undone == moved[-2::-1], f"preview {on}: an undo did not take back one move"
+        assert redone == moved[1:], f"preview {on}: a redo did not bring back one move"
+    assert _solves() > 20, "the moves asked for no solves: the preview was not updating"
+    assert _session().live_preview and preview.active()
+    _session().live_preview = False
+
+
+def test_undo_past_turning_the_preview_on_leaves_it_on(scene, kfi, clock):
+    # the toggle is the session's: undo does not turn it off behind the running preview
+    kfi.build_spheres(TWO)
+    bpy.ops.ed.undo_push(message="setup")
+    _session().live_preview = True
+    bpy.ops.ed.undo_push(message="Live Preview")  # what the toggle's click pushes
+    obj = bpy.data.objects[sorted(_empties())[0]]
+    obj.location.x += 0.1
+    bpy.ops.ed.undo_push(message="move")
+    for _ in range(2):
+        assert bpy.ops.ed.undo() == {"FINISHED"}
+        assert _session().live_preview and preview.active()
+    _session().live_preview = False
+    assert not preview.active()

@@ -55,5 +55,9 @@ def test_shown_under_advanced(scene, kfi):
 
     fake = type("P", (), {"layout": Layout()})()
     panel.KFI_PT_advanced.draw(fake, bpy.context)
+    assert ("prop", (scene.keyframe_implicit, "motion_auto")) in drawn  # Auto, not "0"
+    scene.keyframe_implicit.motion_resolution = 12
+    drawn.clear()
+    panel.KFI_PT_advanced.draw(fake, bpy.context)
     assert ("prop", (scene.keyframe_implicit, "motion_resolution")) in drawn
     assert scene_io.BakeInput.__dataclass_fields__["motion_resolution"].default is None

@@ -101,11 +101,11 @@ def test_the_report_is_one_line_and_its_figures_are_explained(scene, kfi):
     quality = {"shape_keys": [ok, q, ok], "mesh_sequence": [ok, ok, ok]}
     lines = output.report_details("mesh_sequence", frames, {"quality": quality})
     # why not shape keys, then the mesh sequence's own figures: no contradiction
-    assert lines[0] == ("Shape keys: worst frame 2 (past the limits: area ratio 0.907, inverted "
-                        "area 20.7 %)")
+    assert lines[0] == ("Shape keys: worst frame 2 (past the limits: surface area 0.907 times "
+                        "the shape's own, 20.7 % of the surface facing inward)")
     assert lines[1].startswith("Surface area: 0.907 times the shape's own")
     assert lines[2].startswith("Surface facing inward: 20.7 %")
-    assert lines[4].startswith("Distance to the keyframe meshes: mean 0.00, largest 0.00 grid cells")
+    assert lines[4].startswith("Off the keyframe's own mesh: 0.00 cells on average, 0.00 at most")
     assert lines[5].startswith("Mesh sequence: least clean frame ") and "within the limits" in lines[5]
     clean = output.report_details("shape_keys", frames, {"quality": {"shape_keys": [ok, ok, ok]}})
     assert len(clean) == 5 and clean[0].startswith("Shape keys: least clean frame ")

@@ -272,7 +272,7 @@ def test_cancel_during_the_helpers_frames_ends_it_within_a_second():
     seen, flipped, outcome = threading.Event(), threading.Event(), {}
 
     def progress(fraction, message):
-        if "frame 3 " in message:
+        if "Frames 3/" in message:
             seen.set()
 
     def bake():

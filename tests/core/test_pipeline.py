@@ -1,5 +1,7 @@
 """End to end through `animate`: meshes + feature points + frames -> one tracked mesh per frame."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -82,7 +84,7 @@ def test_too_large_a_grid_is_refused_before_any_work():
     with pytest.raises(MemoryLimitError, match=r"lower the resolution to \d+") as err:
         animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=400,
                 max_bytes=450 * 2**20, progress=lambda frac, msg: stages.append(msg))
-    assert not any("Distance grid" in m for m in stages)  # refused before the first distance grid
+    assert not any("Distance fields" in m for m in stages)  # refused before the first distance field
     best = err.value.max_resolution
     assert 4 <= best < 400
     animate([Keyframe(v, f, 1), Keyframe(v + 0.2, f, 5)], [(pa, pb + 0.2)], resolution=best,
@@ -111,17 +113,26 @@ def test_the_grid_holds_a_turning_body_half_way_not_only_its_keyframes():
     assert hi[0] - lo[0] >= 2 * 0.5 * np.sqrt(2)  # not only the keyframes' 1.0 + padding
 
 
-def test_progress_names_the_artists_frames():
-    """The frames a progress report counts are timeline frames, with their segment's range,
-    never a count within one segment ("frame 12 (12/13)" on a 25-frame animation)."""
+def _stages(messages):
+    """{stage: its counts in the order reported} of messages "Stage i/n"."""
+    out = {}
+    for m in messages:
+        stage, count = m.rsplit(" ", 1)
+        out.setdefault(stage, []).append(tuple(map(int, count.split("/"))))
+    return out
+
+
+def test_progress_counts_the_artists_frames():
+    """The frames a progress report counts are the animation's, from its first frame to its
+    last, never a count within one segment ("frame 12 (12/13)" on a 25-frame animation)."""
     va, fa = uv_sphere(np.zeros(3), 0.3)
     kfs = [Keyframe(va, fa, 1), Keyframe(va + [0.3, 0, 0], fa, 4), Keyframe(va + [0.6, 0, 0], fa, 7)]
     seen = []
     animate(kfs, [(np.zeros((0, 3)), np.zeros((0, 3)))] * 2, resolution=16,
             progress=lambda f, m: seen.append(m))
-    frames = [m for m in seen if m.startswith("frame ")]
-    assert "frame 6 (keyframes 2 \u2192 3, frames 4-7)" in frames, frames
-    assert not any("/" in m for m in frames), frames
+    frames = [m for m in seen if m.startswith("Frames ")]
+    assert sorted(set(frames), key=lambda m: int(m.split()[1].split("/")[0])) == [
+        f"Frames {i}/7" for i in range(1, 8)], frames
 
 
 def test_an_output_set_in_the_settings_is_the_only_one_made_and_measured(monkeypatch):
@@ -166,3 +177,38 @@ def test_an_output_set_in_the_settings_is_the_only_one_made_and_measured(monkeyp
         assert np.array_equal(v, w)
     with pytest.raises(ValueError, match="output must be one of"):
         animate(kfs, feats, resolution=16, output="both")
+
+
+#: What a bake's progress says: counted steps of its stages, in the artist's words.
+STEP = re.compile(r"^(Distance fields|Maps|Paths|Frames) (\d+)/(\d+)$")
+
+
+@pytest.mark.parametrize("processes, interpolation", [(1, "smooth"), (2, "linear")])
+def test_progress_is_counted_steps_and_never_goes_back(processes, interpolation):
+    """Every message of a bake is a stage's count ("Maps 3/6"), each stage counted from 1
+    to all its steps in order and the stages in the order they run; the fraction never
+    goes back and ends at 1, with a helper process too."""
+    va, fa = uv_sphere(np.zeros(3), 0.3)
+    kfs = [Keyframe(va, fa, 1), Keyframe(va + [0.3, 0, 0], fa, 5), Keyframe(va + [0.6, 0, 0], fa, 9)]
+    pa, pb = sphere_features(np.zeros(3), 0.3)
+    feats = [(pa, pb + [0.3, 0, 0]), (pa + [0.3, 0, 0], pb + [0.6, 0, 0])]
+    seen = []
+    animate(kfs, feats, resolution=20, processes=processes, key_interpolation=interpolation,
+            progress=lambda f, m: seen.append((f, m)))
+    fractions = [f for f, _ in seen]
+    messages = [m for _, m in seen]
+    assert all(STEP.match(m) for m in messages), [m for m in messages if not STEP.match(m)]
+    assert all(b >= a for a, b in zip(fractions, fractions[1:])), fractions
+    assert fractions[0] == 0.0 and fractions[-1] == 1.0
+    counted = _stages(messages)
+    bends = interpolation != "linear"
+    assert {stage: counts[-1] for stage, counts in counted.items()} == {
+        "Distance fields": (3, 3), "Maps": (4, 4), "Paths": (2 + bends, 2 + bends),
+        "Frames": (9, 9)}
+    for stage, counts in counted.items():
+        numbers = [i for i, _ in counts]
+        assert numbers == sorted(numbers) and numbers[0] == 1, (stage, numbers)
+        assert set(numbers) == set(range(1, counts[-1][1] + 1)), (stage, numbers)
+    first = {stage: messages.index(f"{stage} 1/{counts[-1][1]}")
+             for stage, counts in counted.items()}
+    assert first["Distance fields"] < first["Maps"] < first["Paths"] < first["Frames"]

@@ -38,7 +38,7 @@ def test_a_buried_inverted_sheet_and_a_missing_half_are_seen(ball):
     assert q["area_ratio"] == pytest.approx(0.5, abs=0.03)
     assert q["coverage"] == pytest.approx(0.5, abs=0.05)
     names = " ".join(failures(q))
-    assert "area ratio" in names and "coverage" in names and "inverted" not in names
+    assert "surface area" in names and "covered" in names and "inward" not in names
 
 
 def test_keyframe_distance_of_a_shifted_mesh_is_the_shift(ball):
@@ -53,7 +53,7 @@ def test_worst_frame_is_the_one_farthest_past_a_limit():
     bad = dict(ok, coverage=0.95)
     worse = dict(ok, inverted_fraction=0.05)
     frame, q, fails = worst_frame([3, 4, 5], [ok, bad, worse])
-    assert frame == 5 and fails == ["inverted area 5.0 %"]
+    assert frame == 5 and fails == ["5.0 % of the surface facing inward"]
     assert worst_frame([3, 4], [ok, ok])[2] == []
     near = dict(ok, area_ratio=1.02)  # within the limits, but the nearest to them
     assert worst_frame([3, 4, 5], [ok, near, dict(ok, coverage=0.995)])[:3:2] == (4, [])

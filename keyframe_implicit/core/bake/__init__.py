@@ -7,6 +7,7 @@
 ``checks``    refusals before any heavy work, and the result checked after
 ``gridfit``   the one grid holding every keyframe and feature point
 ``memory``    the memory model: a request that would not fit is refused first
+``steps``     the bake's counted steps, as its progress names them, and their costs
 ``maps``      `inbetween`: a pair's two maps solved (threads or helper), then its
               in-betweens
 ``chain``     `animate_chain`: several keyframes in sequence, paths bent through the

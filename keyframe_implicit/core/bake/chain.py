@@ -41,6 +41,7 @@ from ..surface.extract import extract_surface
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
+from .steps import FRAMES, PATHS
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
 from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
@@ -312,11 +313,9 @@ class Inbetweens:
             self.solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
                         rep.sub(0.0, 0.4))
         res, back, seconds = self.solved.pop(k)
-        rep(0.4, "trajectories")
-        inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
-                          on_maps=on_maps, cancel=cancel)
-        rep(0.5, "in-betweens ready")
-        return inb
+        with rep.sub(0.4, 0.5).step(PATHS, 0, 1):
+            return from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
+                               on_maps=on_maps, cancel=cancel)
 
     def solve(self, window: Iterable[int], helper: Helper | None, rep: Reporter) -> None:
         """The maps of the segments in ``window``, into ``solved``."""
@@ -338,25 +337,20 @@ class Inbetweens:
 
         if not self.bends:
             self.bend_all(helper, rep.sub(0.0, 0.4))
-        rep(0.4, "trajectories")
         a, b, cancel = self.phis[k], self.phis[k + 1], self.cancel
         if self.maps is not None:
-            inb = Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
-                                     mapped_back=self._back[k], bends=self.bends[k],
-                                     options=self.motion_options, motion_grid=self.motion_grid)
-        else:
-            res, back, seconds = self.solved.pop(k)
-            inb = from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
-                              on_maps=on_maps, cancel=cancel, bends=self.bends[k])
-        rep(0.5, "in-betweens ready")
-        return inb
+            return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
+                                      mapped_back=self._back[k], bends=self.bends[k],
+                                      options=self.motion_options, motion_grid=self.motion_grid)
+        res, back, seconds = self.solved.pop(k)
+        with rep.sub(0.4, 0.5).step(PATHS, 0, 1):
+            return from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
+                               on_maps=on_maps, cancel=cancel, bends=self.bends[k])
 
     def bend_all(self, helper: Helper | None, rep: Reporter) -> None:
         """Every segment's maps (solved or given), the velocities of the paths that meet at
         the keyframes (`spline.velocities_needed`, two at a time: one per core), and every
-        segment's `Bend`s."""
-        from ..motion.levelset import back_map, path_start_velocity
-
+        segment's `Bend`s (the maps to 0.7 of ``rep``, the rest one `PATHS` step)."""
         nseg = len(self.phis) - 1
         common = dict(motion_grid=self.motion_grid, options=self.motion_options,
                       cancel=self.cancel)
@@ -370,12 +364,20 @@ class Inbetweens:
         else:
             forward, ends = list(self.maps), [{} for _ in range(nseg)]
             back = [None] * nseg
+        with rep.sub(0.7, 1.0).step(PATHS, 0, 1):
+            self._bend(forward, back, ends, common)
+
+    def _bend(self, forward, back, ends, common):
+        """`bend_all` once the maps are known: the maps B -> A a one-sided solve lacks (by
+        inversion), the paths' velocities at the keyframes and every segment's bends."""
+        from ..motion.levelset import back_map, path_start_velocity
+
+        nseg = len(self.phis) - 1
         for k in range(nseg):  # given maps, or a one-sided solve: B -> A by inversion
             if back[k] is None:
                 back[k] = back_map(self.phis[k], self.phis[k + 1], self.grid, forward[k],
                                    **ends[k], **common)
         self._back = back
-        rep(0.7, "paths through the keyframes")
 
         def velocity(job):
             k, side = job
@@ -486,36 +488,42 @@ class FrameSplit:
             return _frames(inb, self.frames, self.segment, rep)
         self.start(inb)
         n, half = len(self.frames), self.half
-        first = _half(inb, self.frames[:half], self.segment, rep.sub(0.0, half / n))
+        first = _half(inb, self.frames[:half], self.segment, rep.sub(0.0, half / n),
+                      alongside=n - half - 1)
         rest = self.helper.result(check=rep.check)
-        rep(1.0, f"frames {self.frames[half]}-{self.frames[-1]} (second process)")
+        rep.elsewhere(FRAMES)  # the helper's last frame, counted once it is there
         return first + rest
 
 
-def _half(inb, frames, segment, rep=None):
+def _half(inb, frames, segment, rep=None, alongside=0):
     """`_frames` in one of the two processes that share a segment's frames: each has one
     core, so its two transports carry one after the other (`Inbetween.threads`)."""
     inb.threads = 1
-    return _frames(inb, frames, segment, rep)
+    return _frames(inb, frames, segment, rep, alongside)
 
 
-def _frames(inb, frames, segment, rep=None):
+def _frames(inb, frames, segment, rep=None, alongside=0):
     """Each timeline frame of a `Segment` as a dict: the template's ``vertices`` and
     ``max_abs_phi``; as its ``outputs`` ask, the ``levelset`` (float32), the ``uncovered``
     area and fraction, the quality of the outputs measured (``shape_keys``,
     ``mesh_sequence``: `SurfaceOptions.measured`), and the frame's own ``mesh`` with its
-    ``velocity`` (world units per frame) where the mesh sequence is made."""
+    ``velocity`` (world units per frame) where the mesh sequence is made.
+
+    Each frame is a `FRAMES` step of ``rep``. ``alongside`` frames of the segment are made
+    by another process meanwhile (`FrameSplit`): they are counted (`Reporter.elsewhere`)
+    in step with these, as they are about as far."""
     rep = rep or Reporter()
-    (f0, f1), k = segment.ends, segment.k
+    f0, f1 = segment.ends
     detail = _detail(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
         s = (f - f0) / float(f1 - f0)
-        rec = _template(inb, segment, detail, s)
-        rep.check()
-        rec.update(_frame_outputs(inb, s, segment, rec["vertices"], rep))
+        with rep.step(FRAMES, i, len(frames)) as part:
+            rec = _template(inb, segment, detail, s)
+            part.check()
+            rec.update(_frame_outputs(inb, s, segment, rec["vertices"], part))
         records.append(rec)
-        rep((i + 1) / len(frames), f"frame {f} (keyframes {k + 1} \u2192 {k + 2}, frames {f0}-{f1})")
+        rep.elsewhere(FRAMES, (i + 1) * alongside // len(frames) - i * alongside // len(frames))
     return records
 
 

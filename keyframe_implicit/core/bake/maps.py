@@ -22,6 +22,7 @@ from ..base.progress import Reporter
 from ..motion.finepaths import on_motion_grid, same_width
 from ..motion.levelset import Inbetween, Recipe
 from .options import BakeOptions, refuse_unread
+from .steps import MAPS, PATHS
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -109,11 +110,9 @@ def pair_inbetweens(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid,
     else:
         res, back = _solve_maps(*ends, solve_grid, *features, two_sided, parallel,
                                 rep.sub(0.0, 0.8), cancel, map_options)
-    rep(0.8, "trajectories")
-    out = from_solved(phi_a, phi_b, grid, res, back, motion_options, time.perf_counter() - t0,
-                      on_maps=on_maps, cancel=cancel)
-    rep(1.0, "in-betweens ready")
-    return out
+    with rep.sub(0.8, 1.0).step(PATHS, 0, 1):
+        return from_solved(phi_a, phi_b, grid, res, back, motion_options,
+                           time.perf_counter() - t0, on_maps=on_maps, cancel=cancel)
 
 
 def on_solve_grid(map_options: MapOptions, grid: Grid, solve_grid: Grid) -> MapOptions:
@@ -187,13 +186,16 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
     from ..map.solver import solve_map  # here: a process that only reads maps never loads it
 
     if not two_sided:
-        return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
-                         cancel=cancel, options=map_options), None
+        with rep.step(MAPS, 0, 1) as part:
+            return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=part,
+                             cancel=cancel, options=map_options), None
     if not (parallel and cores() >= 2):
-        res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep.sub(0.0, 0.5),
-                        cancel=cancel, options=map_options)
-        back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=rep.sub(0.5, 1.0),
-                         cancel=cancel, options=map_options)
+        with rep.step(MAPS, 0, 2) as part:
+            res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=part,
+                            cancel=cancel, options=map_options)
+        with rep.step(MAPS, 1, 2) as part:
+            back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=part,
+                             cancel=cancel, options=map_options)
         return res, back
     failed = threading.Event()
 
@@ -204,12 +206,15 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
         job = pool.submit(solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
                           options=map_options)
         try:
-            res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=rep,
-                            cancel=cancel, options=map_options)
+            with rep.step(MAPS, 0, 2) as part:
+                res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=part,
+                                cancel=cancel, options=map_options)
         except BaseException:
             failed.set()
             raise
-        return res, job.result()
+        back = job.result()
+        rep.elsewhere(MAPS)
+        return res, back
 
 
 def solve_maps_shared(phis: Sequence[ArrayLike], grid: Grid,
@@ -255,13 +260,14 @@ def solve_maps_shared(phis: Sequence[ArrayLike], grid: Grid,
 
     def here(job, stop):
         mine.append(job)
-        part = rep.sub((len(mine) - 1) / len(jobs), len(mine) / len(jobs))
-        return solve_map(*arguments(job), progress=part, cancel=stop, options=map_options)
+        with rep.step(MAPS, len(mine) - 1, len(jobs)) as part:
+            return solve_map(*arguments(job), progress=part, cancel=stop, options=map_options)
 
     def there(job):
         return solve_map, arguments(job), {"options": map_options}
 
-    done, ends, _ = share(jobs, here, there, helper, check=rep.check, cancel=cancel)
+    done, ends, _ = share(jobs, here, there, helper, check=rep.check, cancel=cancel,
+                          on_theirs=lambda _job: rep.elsewhere(MAPS))
     out, start = {}, t0
     for k in window:
         end = max([start] + [ends[(k, side)] for side in (0, 1) if (k, side) in ends])

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, share
-from ..base.progress import Reporter
-from ..motion.spline import check_key_interpolation
+from ..base.progress import Reporter, Tally
+from ..motion.spline import bends_needed, check_key_interpolation
 from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
 from ..surface.quality import choose_output, keyframe_distance
@@ -29,8 +29,9 @@ from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
 from .gridfit import auto_motion_resolution, fit_grid, motion_grid, one_grid_unless_smaller
 from .keyframe import Keyframe
-from .memory import MemoryLimitError, check_memory, largest_fitting
+from .memory import MemoryLimitError, check_memory, estimate_memory, largest_fitting
 from .options import BakeOptions
+from .steps import DISTANCE_FIELDS, FRAMES, MAP_CELL_COST, MAPS, PATH_CELL_COST, PATHS
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
@@ -44,8 +45,10 @@ if TYPE_CHECKING:
     #: None, memory limit or None).
     GridFit = Callable[[int, int | None, int | None], tuple[Grid, int, Grid | None]]
 
-__all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids",
+__all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids", "bake_steps",
+           "memory_limit", "MemoryNeed", "memory_need",
            "distance_fields", "distance_grid", "finish_bake"]
+
 
 
 def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
@@ -67,11 +70,9 @@ def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
         def there(k):
             return distance_grid, (keyframes, meshes, grid, k), {}
 
-        done, _, theirs = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
-                                last_first=True, when_started=True)
-        if theirs:
-            rep(1.0, "Distance grids of keyframes "
-                     f"{', '.join(str(k + 1) for k in sorted(theirs))} (second process)")
+        done, _, _ = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
+                           last_first=True, when_started=True,
+                           on_theirs=lambda _k: rep.elsewhere(DISTANCE_FIELDS))
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
 
 
@@ -85,12 +86,11 @@ def distance_grid(keyframes: Sequence[Keyframe], meshes: Sequence[tuple], grid: 
     from ..fields.sdf import mesh_to_sdf
 
     n = len(keyframes)
-    sub = (rep or Reporter()).sub(k / n, (k + 1) / n)
-    sub(0.0, f"Distance grid of keyframe {k + 1}/{n}")
     kf, (v, tris) = keyframes[k], meshes[k][:2]
     figures = {}
     try:
-        phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
+        with (rep or Reporter()).step(DISTANCE_FIELDS, k, n) as sub:
+            phi = mesh_to_sdf(v, tris, grid, progress=sub, cancel=cancel, stats=figures)
     except ValueError as exc:
         raise ValueError(f"{keyframe_label(k, kf)}: {exc}") from exc
     if not np.any(phi < 0):
@@ -170,7 +170,10 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
         the frames.
     feature_names : per segment, a sequence of (name_a, name_b) per feature row, optional;
         used in messages (e.g. the Empties' names).
-    progress : callable(fraction, message), optional.
+    progress : callable(fraction, message), optional
+        Counted steps in the artist's words ("Distance fields 2/4", "Maps 3/6", "Paths 1/4",
+        "Frames 12/25", `bake_steps`), the fraction each step's share of the expected work
+        (`progress.Tally`): it never goes back.
     cancel : callable() -> bool, optional; when it returns True, `Cancelled` is raised.
     helper : `parallel.Helper`, optional
         A helper process already started (and left running): it takes the place of the
@@ -216,20 +219,40 @@ def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, Arra
     every other caller that built its options once run. The other parameters, the result
     and the errors are `animate`'s."""
     t0 = time.perf_counter()
-    rep = Reporter(progress, cancel)
-    plan = plan_bake(keyframes, features, options, feature_names=feature_names, progress=rep)
+    plan = plan_bake(keyframes, features, options, feature_names=feature_names)
+    rep = Tally(progress, bake_steps(plan)).reporter(cancel)
+    rep.check()
     blas, given = one_blas_thread(), helper
     try:
         if helper is None and options.processes > 1:
             helper = Helper(HELPER_PRELOAD)
-        phis = distance_fields(plan, rep.sub(0.0, 0.15), cancel, helper)
+        phis = distance_fields(plan, rep, cancel, helper)
         plan.stats["sdf_seconds"] = time.perf_counter() - t0
-        chain = plan.chain(phis, cancel).run(helper, rep.sub(0.15, 0.98))
+        chain = plan.chain(phis, cancel).run(helper, rep)
     finally:
         blas.restore_original_limits()
         if helper is not None and helper is not given:
             helper.close()
     return finish_bake(plan, chain, t0, rep)
+
+
+def bake_steps(plan: BakePlan) -> dict[str, tuple[int, float]]:
+    """The bake's counted steps, {stage: (steps, cost of one)} (`progress.Tally`), in the
+    words the artist reads: a distance field per keyframe, a map per pair's direction
+    (two per pair when both keyframes are carried), a path step per segment and one more
+    for the bends through the keyframes, and a frame per timeline frame; a step's cost is
+    its grid's cells (the motion grid's for maps and paths) times `MAP_CELL_COST` or
+    `PATH_CELL_COST`."""
+    options, nk = plan.options, len(plan.keyframes)
+    surface = float(np.prod(plan.grid.shape))
+    motion = float(np.prod((plan.motion_grid or plan.grid).shape))
+    kinds = check_key_interpolation(options.key_interpolation, nk)
+    sides = 2 if options.motion.two_sided else 1
+    frames = plan.frames[-1] - plan.frames[0] + 1
+    return {DISTANCE_FIELDS: (nk, surface),
+            MAPS: ((nk - 1) * sides, MAP_CELL_COST * motion),
+            PATHS: (nk - 1 + int(bends_needed(kinds)), PATH_CELL_COST * motion),
+            FRAMES: (frames, surface)}
 
 
 @dataclass
@@ -268,7 +291,6 @@ class BakePlan:
 
 def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
               options: BakeOptions, *, feature_names: FeatureNames | None = None,
-              progress: Callable[[float, str], object] | None = None,
               grid_rule: Callable[[GridFit, BakeOptions],
                                   tuple[int, tuple[Grid, int, Grid | None]]] | None = None
               ) -> BakePlan:
@@ -288,7 +310,6 @@ def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike,
     check_motion_resolution(options.motion_resolution, options.resolution)
     check_key_interpolation(options.key_interpolation, len(keyframes))
 
-    Reporter(progress)(0.0, "Choosing the grid")
     stats = {}
     meshes = [checked_mesh(k, kf) for k, kf in enumerate(keyframes)]
 
@@ -308,12 +329,77 @@ def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike,
 
 def bake_grids(fit: GridFit, options: BakeOptions) -> tuple[int, tuple[Grid, int, Grid | None]]:
     """The bake's grid rule (`plan_bake`'s ``grid_rule``): the grids at the options'
-    resolutions, refused over the options' memory limit (None: 75 % of physical memory)."""
-    max_bytes = options.max_bytes
-    if max_bytes is None:
-        phys = _physical_memory()
-        max_bytes = int(0.75 * phys) if phys else None
-    return options.resolution, fit(options.resolution, options.motion_resolution, max_bytes)
+    resolutions, refused over the options' memory limit (`memory_limit`)."""
+    return options.resolution, fit(options.resolution, options.motion_resolution,
+                                   memory_limit(options.max_bytes))
+
+
+def memory_limit(max_bytes: int | None = None) -> int | None:
+    """The bake's memory limit in bytes: ``max_bytes``, or None for 75 % of this computer's
+    physical memory (None where that is unknown: no limit)."""
+    if max_bytes is not None:
+        return int(max_bytes)
+    phys = _physical_memory()
+    return int(0.75 * phys) if phys else None
+
+
+@dataclass(frozen=True)
+class MemoryNeed:
+    """What a bake would need in memory (`memory_need`): the estimated ``peak`` bytes, the
+    ``limit`` (None: none known), the largest resolution that fits when the peak is over
+    it (``fits``, None when it is not over or nothing fits) and the Motion Resolution the
+    bake would use (``motion_resolution``: the automatic one when none is set)."""
+
+    peak: int
+    limit: int | None
+    fits: int | None
+    motion_resolution: int
+
+    @property
+    def over(self) -> bool:
+        """Whether the bake would be refused for memory."""
+        return self.limit is not None and self.peak > self.limit
+
+
+def memory_need(boxes: Sequence[ArrayLike], volumes: Sequence[float], resolution: int,
+                motion_resolution: int | None = None, *, extra_points: ArrayLike | None = None,
+                padding_cells: int = BakeOptions.padding_cells,
+                max_bytes: int | None = None) -> MemoryNeed:
+    """What a bake at ``resolution`` would need in memory, from the keyframes' bounding
+    boxes and volumes alone: `memory.estimate_memory` on the grid and motion grid the bake
+    would fit (`gridfit.fit_grid`, `gridfit.auto_motion_resolution`), with no mesh work, so
+    cheap enough to follow the Resolution as it is edited. The bake's own check reads the
+    meshes and the paths between the keyframes too: this is the figure it refuses by,
+    about.
+
+    Parameters
+    ----------
+    boxes : per keyframe, points spanning its bounding box in world units ((N, 3)).
+    volumes : per keyframe, the volume it encloses.
+    resolution, motion_resolution : as `animate` takes them (None: automatic).
+    extra_points : (M, 3) points the grid must hold too (the feature points), optional.
+    padding_cells : as `animate` takes it.
+    max_bytes : the memory limit, None for the bake's (`memory_limit`).
+    """
+    pts = [np.asarray(b, dtype=float).reshape(-1, 3) for b in boxes]
+
+    def fitted(r):
+        return fit_grid(pts, r, padding_cells=padding_cells, extra_points=extra_points)
+
+    grid = fitted(resolution)
+    box = float(np.prod(grid.upper - grid.origin))
+    fraction = float(min(1.0, max(volumes, default=0.0) / box)) if box > 0 else 1.0
+    motion_of = _motion_rule(motion_resolution, fraction)
+    mem = dict(n_keyframes=len(pts), material_fraction=fraction)
+    mgrid = motion_of(resolution, grid)
+    peak = estimate_memory(grid, motion_grid=mgrid, **mem)["peak"]
+    limit = memory_limit(max_bytes)
+    fits = None
+    if limit is not None and peak > limit:
+        fits = largest_fitting(fitted, 4, int(resolution) - 1, limit, motion_of=motion_of, **mem)
+    motion = (auto_motion_resolution(resolution, fraction, grid) if motion_resolution is None
+              else min(int(motion_resolution), resolution))
+    return MemoryNeed(int(peak), limit, fits, int(motion))
 
 
 def distance_fields(plan: BakePlan, rep: Reporter, cancel: Callable[[], bool] | None = None,

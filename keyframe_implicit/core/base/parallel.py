@@ -211,7 +211,8 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
           there: Callable[[Any], tuple[Callable[..., Any], tuple, dict[str, Any]]],
           helper: Helper, check: Callable[[], object] | None = None,
           cancel: Callable[[], bool] | None = None, last_first: bool = False,
-          when_started: bool = False) -> tuple[dict, dict[Any, float], list]:
+          when_started: bool = False, on_theirs: Callable[[Any], object] | None = None
+          ) -> tuple[dict, dict[Any, float], list]:
     """Run ``jobs`` in this process and in ``helper``, each taking the next job when free.
 
     This process runs ``here(job, stop)`` (``stop()`` is true once the helper has failed
@@ -219,7 +220,9 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
     the helper ``there(job)`` = (fn, args, kwargs): the next job from the front, or with
     ``last_first`` the last one left; with ``when_started`` only once the helper is up
     (`Helper.ready`), so that this process does not wait for its start. ``check`` is
-    called while this process waits for the helper's last job (a cancel).
+    called while this process waits for the helper's last job (a cancel). ``on_theirs(job)``,
+    when given, is told of each job the helper has ended (its progress), in this thread:
+    after each job of this process's and while it waits for the helper's last.
 
     Returns ({job: result}, {job: when it ended, `time.perf_counter`}, the jobs the helper
     ran). A failure in the helper stops this process's job and is raised; one here stops
@@ -255,12 +258,21 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
                 helper.submit(fn, *args, **kwargs)
                 done[job] = helper.result(check=stop_waiting)
                 ends[job] = time.perf_counter()
-                theirs.append(job)
+                with lock:
+                    theirs.append(job)
         except _Stop:
             pass
         except BaseException as exc:  # this process stops its own job and raises it
             errors.append(exc)
             failed.set()
+
+    told = [0]  # how many of the helper's ended jobs ``on_theirs`` has heard of
+
+    def tell():
+        with lock:
+            ended, told[0] = theirs[told[0]:], len(theirs)
+        for ended_job in ended if on_theirs is not None else ():
+            on_theirs(ended_job)
 
     feeder = threading.Thread(target=feed, name="keyframe_implicit helper feed", daemon=True)
     job = take(front=True)  # this process's first job before the thread can take it
@@ -269,11 +281,14 @@ def share(jobs: Iterable[Hashable], here: Callable[[Any, Callable[[], bool]], An
         while job is not None:
             done[job] = here(job, stop)
             ends[job] = time.perf_counter()
+            tell()
             job = take(front=True)
         while feeder.is_alive():
             feeder.join(0.05)
+            tell()
             if check is not None:
                 check()
+        tell()
     except BaseException:
         failed.set()
         feeder.join()

@@ -156,20 +156,22 @@ def keyframe_distance(vertices: ArrayLike, faces: ArrayLike, key_vertices: Array
 
 
 def failures(figures: Mapping[str, float], limits: Mapping[str, Any] = LIMITS) -> list[str]:
-    """Names of the limits one frame's figures break (dict from `frame_quality`, maybe
-    with the `keyframe_distance` keys), each with its value, e.g. ``["coverage 0.962"]``."""
+    """The limits one frame's figures break (dict from `frame_quality`, maybe with the
+    `keyframe_distance` keys), each as what the artist sees with its value, e.g.
+    ``["96.2 % of the shape covered"]``; distances in grid cells (the bake report's
+    details say how wide a cell is)."""
     out = []
     lo, hi = limits["area_ratio"]
     if not lo <= figures["area_ratio"] <= hi:
-        out.append(f"area ratio {figures['area_ratio']:.3f}")
+        out.append(f"surface area {figures['area_ratio']:.3f} times the shape's own")
     if figures["inverted_fraction"] > limits["inverted_fraction"]:
-        out.append(f"inverted area {100 * figures['inverted_fraction']:.1f} %")
+        out.append(f"{100 * figures['inverted_fraction']:.1f} % of the surface facing inward")
     if figures["coverage"] < limits["coverage"]:
-        out.append(f"coverage {100 * figures['coverage']:.1f} %")
-    for key, label in (("keyframe_mean", "keyframe mean distance"),
-                       ("keyframe_max", "keyframe max distance")):
-        if key in figures and figures[key] > limits[key]:
-            out.append(f"{label} {figures[key]:.2f} grid cells")
+        out.append(f"{100 * figures['coverage']:.1f} % of the shape covered")
+    if "keyframe_mean" in figures and figures["keyframe_mean"] > limits["keyframe_mean"]:
+        out.append(f"{figures['keyframe_mean']:.2f} cells off the keyframe on average")
+    if "keyframe_max" in figures and figures["keyframe_max"] > limits["keyframe_max"]:
+        out.append(f"up to {figures['keyframe_max']:.2f} cells off the keyframe")
     return out
 
 
@@ -252,7 +254,7 @@ def describe_worst(frames: Sequence[int] | np.ndarray, per_frame: Sequence[Mappi
              f"Shape covered by the mesh: {100 * q['coverage']:.1f} % "
              f"(clean: at least {100 * limits['coverage']:.0f} %)"]
     if "keyframe_max" in q:
-        lines.append(f"Distance to the keyframe meshes: mean {q['keyframe_mean']:.2f}, largest "
-                     f"{q['keyframe_max']:.2f} grid cells (clean: {limits['keyframe_mean']}, "
-                     f"{limits['keyframe_max']})")
+        lines.append(f"Off the keyframe's own mesh: {q['keyframe_mean']:.2f} cells on average, "
+                     f"{q['keyframe_max']:.2f} at most (clean: at most "
+                     f"{limits['keyframe_mean']} and {limits['keyframe_max']})")
     return lines
