@@ -14,11 +14,14 @@ H = 0.05
 GRID = Grid(origin=(-1.0, -1.0, -1.0), spacing=H, shape=(41, 41, 41))
 
 
+W = 2 * H  # the transports' truncation: far outside, the field is W
+
+
 def ball(centre, radius):
-    return np.linalg.norm(GRID.points() - np.asarray(centre), axis=-1) - radius
+    return np.minimum(np.linalg.norm(GRID.points() - np.asarray(centre), axis=-1) - radius, W)
 
 
-def meeting_of(a, b, reach=4 * H):
+def meeting_of(a, b, reach=W - H / 2):
     """Where both fields are under ``reach``: where the two parts meet."""
     return (a < reach) & (b < reach)
 
@@ -42,6 +45,7 @@ def test_the_crease_where_two_balls_meet_rounds_and_a_ball_elsewhere_stays():
     assert np.all(filled <= field)  # only ever adds material
     near_far = far < 0.1
     np.testing.assert_array_equal(filled[near_far], field[near_far])
+    assert fill_creases(field, meeting_of(a, b), GRID, 1.0, weight=0.0) is field
 
 
 def test_parts_that_have_not_met_are_not_joined():

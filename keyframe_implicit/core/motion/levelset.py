@@ -77,6 +77,9 @@ __all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
            "back_map", "path_start_velocity"]
 
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
+#: The surface tension's filling eases in over this much of s from each keyframe, so the
+#: frames next to a keyframe continue it (`tension.fill_creases`' weight).
+_TENSION_EASE = 0.15
 
 
 def idw_resample(grid: Grid, positions: np.ndarray, values: np.ndarray, *, fill: float,
@@ -306,7 +309,8 @@ class Inbetween:
         if self.backward is not None:
             field, meeting = self._two_sided(s)
             field = fill_creases(field.reshape(self.grid.shape), meeting, self.grid,
-                                 self.options.surface_tension)
+                                 self.options.surface_tension,
+                                 min(1.0, min(s, 1.0 - s) / _TENSION_EASE))
         elif self.options.resample == "lookup":
             field = self._one_sided(s)
         else:

@@ -38,8 +38,8 @@ def meeting_reach(grid: Grid, tension: float) -> float:
     return 2.0 * tension * CELLS_PER_TENSION * grid.spacing
 
 
-def fill_creases(field: np.ndarray, meeting: np.ndarray | None, grid: Grid,
-                 tension: float) -> np.ndarray:
+def fill_creases(field: np.ndarray, meeting: np.ndarray | None, grid: Grid, tension: float,
+                 weight: float = 1.0) -> np.ndarray:
     """``field`` with its concave creases filled over a Gaussian of ``tension`` times
     `CELLS_PER_TENSION` cells, where parts meet.
 
@@ -53,14 +53,16 @@ def fill_creases(field: np.ndarray, meeting: np.ndarray | None, grid: Grid,
     grid : Grid
     tension : float
         0 returns ``field`` itself.
+    weight : float in [0, 1]
+        How much of the filling is applied (the frames next to a keyframe ease it in).
 
     Returns
     -------
-    ndarray, grid.shape: min(field, G * field) within the Gaussian's reach of ``meeting``,
-    else ``field``; never between two parts of ``field`` (nodes within that reach of
-    both), so parts that have not met stay apart.
+    ndarray, grid.shape: field - weight max(field - G * field, 0) within the Gaussian's
+    reach of ``meeting``, else ``field``; never between two parts of ``field`` (nodes within
+    that reach of both), so parts that have not met stay apart.
     """
-    if tension <= 0 or meeting is None or not meeting.any():
+    if tension <= 0 or weight <= 0 or meeting is None or not meeting.any():
         return field
     sigma = tension * CELLS_PER_TENSION
     reach = int(np.ceil(3 * sigma))
@@ -68,9 +70,9 @@ def fill_creases(field: np.ndarray, meeting: np.ndarray | None, grid: Grid,
     part = field[box]
     where = (ndimage.binary_dilation(meeting[box], iterations=reach)
              & ~_between_parts(part, reach))
+    blurred = ndimage.gaussian_filter(part, sigma, mode="nearest")
     out = field.copy()
-    out[box] = np.where(where, np.minimum(part, ndimage.gaussian_filter(part, sigma,
-                                                                         mode="nearest")), part)
+    out[box] = part - weight * np.where(where, np.maximum(part - blurred, 0.0), 0.0)
     return out
 
 
