@@ -220,8 +220,9 @@ def _part_volume_error(pieces, shipped, times, carried, reading):
     return float(worst)
 
 
-def run_case(name: str, resolution: int, motion: str) -> dict:
-    """Bake case ``name`` and measure it: one row."""
+def run_case(name: str, resolution: int, motion: str, options: dict | None = None) -> dict:
+    """Bake case ``name`` and measure it: one row. ``options``: stage options for
+    `core.animate` (e.g. ``{"trust_strain": 0.3}``)."""
     from contact_cases import make_contact_case
     from keyframe_implicit.core import animate
 
@@ -232,7 +233,7 @@ def run_case(name: str, resolution: int, motion: str) -> dict:
     try:
         anim = animate(kfs, case.features, resolution=resolution, processes=1, levelsets=True,
                        motion_resolution=None if motion == "auto" else
-                       resolution if motion == "full" else int(motion))
+                       resolution if motion == "full" else int(motion), **(options or {}))
     except ValueError as exc:
         row["error"] = str(exc)
         return row
@@ -278,11 +279,14 @@ def main() -> None:
                     help='"auto" (the bake\'s Motion Resolution), "full" or a number of cells')
     ap.add_argument("--cases", nargs="+", default=list(CONTACT_CASES), choices=CONTACT_CASES)
     ap.add_argument("--json", help="also write the rows to this file")
+    ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="stage options for the bakes, e.g. trust_strain=0.3")
     args = ap.parse_args()
+    options = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.set)}
     rows = []
     for n in args.resolution:
         for name in args.cases:
-            rows.append(run_case(name, n, args.motion))
+            rows.append(run_case(name, n, args.motion, options))
             print(json.dumps(rows[-1], default=float), file=sys.stderr, flush=True)
     print_table(rows)
     if args.json:

@@ -91,6 +91,7 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
         if len(settings.keyframes) < 2:  # the button the first problem names, by its name
             layout.operator("keyframe_implicit.add_keyframe", icon="ADD")
 
+        _active_keyframe(layout, settings)
         _problems(layout, context, settings, validate.problems(scene, context.view_layer.depsgraph))
 
         col = layout.column(align=True)
@@ -129,6 +130,21 @@ class KFI_PT_main(_Sidebar, bpy.types.Panel):
                     for line in out["kfi_report_details"].split("\n"):
                         _wrapped(col, context, line, "BLANK1")
             layout.prop(settings, "show_keyframes", icon="MOD_WIREFRAME")
+
+
+def _active_keyframe(layout: bpy.types.UILayout, settings: bpy.types.AnyType) -> None:
+    """The active keyframe's Interpolation and, when a segment starts at it, that segment's
+    Surface Tension, under the list."""
+    index = settings.active_keyframe_index
+    if not 0 <= index < len(settings.keyframes):
+        return
+    item = settings.keyframes[index]
+    col = layout.column(align=True)
+    col.use_property_split = True
+    col.use_property_decorate = False
+    col.prop(item, "interpolation")
+    if index < len(settings.keyframes) - 1:
+        col.prop(item, "surface_tension")
 
 
 class KFI_PT_features(_Sidebar, bpy.types.Panel):

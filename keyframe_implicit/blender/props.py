@@ -90,6 +90,13 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
         default="SMOOTH",
         description="How the motion passes this keyframe",
     )
+    surface_tension: FloatProperty(
+        name="Surface Tension", default=1.0, min=0.0, soft_max=2.0, step=10,
+        description="How parts join where they meet, from this keyframe to the next: 0 as "
+                    "clay pressed together (a sharp crease where they touch), 1 as a liquid "
+                    "(the neck rounds off within a few frames), more for rounder. A part "
+                    "that splits thins the same way",
+    )
     display_type: StringProperty(
         name="Display As", default="", options={"HIDDEN"},
         description="The object's own viewport display type while the bake shows it as a wireframe",

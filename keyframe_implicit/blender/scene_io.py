@@ -152,6 +152,9 @@ class BakeInput:
     key_interpolation : list of str
         Per listed keyframe, how the motion passes it, as the core names it ("smooth",
         "linear", "ease": the list's Interpolation).
+    surface_tension : list of float
+        Per segment, from the keyframe that starts it, how parts join where they meet
+        (the list's Surface Tension).
     listed_keyframes : list of ListedKeyframe
         The keyframe list as read, for the checks.
     listed_pairs : list of ListedPair
@@ -173,6 +176,7 @@ class BakeInput:
     levelsets: bool = False
     output_mode: str = "AUTO"
     key_interpolation: list[str] = field(default_factory=list)
+    surface_tension: list[float] = field(default_factory=list)
     listed_keyframes: list[ListedKeyframe] = field(default_factory=list)
     listed_pairs: list[ListedPair] = field(default_factory=list)
     scene_frames: tuple[int, int] = (1, 250)
@@ -193,7 +197,8 @@ class BakeInput:
         options = BakeOptions.from_keywords(
             resolution=self.resolution, motion_resolution=self.motion_resolution,
             weights=self.weights, levelsets=self.levelsets, output=self.output_mode.lower(),
-            key_interpolation=self.key_interpolation or None)
+            key_interpolation=self.key_interpolation or None,
+            surface_tension=self.surface_tension or None)
         return dict(keyframes=self.keyframes, features=self.features,
                     feature_names=self.feature_names or None, options=options)
 
@@ -649,6 +654,7 @@ def read(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
         levelsets=bool(settings.volume_export),
         output_mode=str(settings.output_mode),
         key_interpolation=[str(kf.interpolation).lower() for kf in kfs],
+        surface_tension=[float(kf.surface_tension) for kf in kfs[:-1]],
         listed_keyframes=listed,
         listed_pairs=[_listed_pair(p, objects, off_surface) for p in found],
         scene_frames=(int(scene.frame_start), int(scene.frame_end)),

@@ -53,3 +53,22 @@ def test_the_list_shows_each_keyframes_interpolation(scene, kfi):
     shown = [[e[2] for e in row if e[0] == "drawn"][-1] for row in rows]
     assert shown == ["SMOOTH", "EASE", "SMOOTH"]
     assert all(("prop", "interpolation") in row for row in rows)
+
+
+def test_surface_tension_is_stored_per_segment_and_shown_under_the_list(scene, kfi):
+    from test_panel import draw_all
+
+    kfi.build_spheres(THREE, pairs=False)
+    settings = scene.keyframe_implicit
+    items = settings.keyframes
+    items[1].surface_tension = 0.0  # the second segment as clay
+    inputs = _read(scene, kfi)
+    assert inputs.surface_tension == [1.0, 0.0]  # one per segment: the last keyframe starts none
+    options = inputs.core_arguments()["options"]
+    assert [m.surface_tension for m in options.segment_motion(2)] == [1.0, 0.0]
+    for index, shown in ((0, True), (1, True), (2, False)):
+        settings.active_keyframe_index = index
+        log = draw_all(bpy.context)
+        after_list = log[[e[0] for e in log].index("template_list"):]
+        assert (("prop", "surface_tension") in after_list) == shown, index
+        assert ("prop", "interpolation") in after_list

@@ -45,6 +45,27 @@ def test_an_unknown_option_is_refused_before_any_work():
         BakeOptions.from_keywords(weights={"inertia": 1.0})
 
 
+def test_surface_tension_is_one_for_every_segment_or_one_per_segment():
+    default = BakeOptions().motion.surface_tension
+    assert [m.surface_tension for m in BakeOptions().segment_motion(2)] == [default] * 2
+    options = BakeOptions.from_keywords(surface_tension=[0.0, 2.0])
+    assert [m.surface_tension for m in options.segment_motion(2)] == [0.0, 2.0]
+    assert options.motion.surface_tension == default  # the per-segment values are the bake's
+    assert [m.surface_tension for m in
+            BakeOptions.from_keywords(surface_tension=0.5).segment_motion(3)] == [0.5] * 3
+    with pytest.raises(ValueError, match=r"one value per segment \(3\), got 2"):
+        options.segment_motion(3)
+    with pytest.raises(ValueError, match="surface_tension must be 0 or more"):
+        BakeOptions.from_keywords(surface_tension=[-1.0]).segment_motion(1)
+    reported = []
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    f = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+    with pytest.raises(ValueError, match="one value per segment"):  # before any work
+        animate([Keyframe(v, f, 1), Keyframe(v, f, 5)], [(np.zeros((0, 3)),) * 2],
+                surface_tension=[1.0, 1.0], progress=lambda *a: reported.append(a))
+    assert reported == []
+
+
 def test_a_farm_job_file_keeps_the_options_whole(tmp_path):
     options = BakeOptions.from_keywords(resolution=20, motion_resolution=10,
                                         key_interpolation=["smooth", "ease"], levelsets=True,

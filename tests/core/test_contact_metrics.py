@@ -149,14 +149,35 @@ def test_stillness_reads_how_far_an_agreed_surface_moved():
     assert cm.stillness([(v_a, f_a)], pts, H) == pytest.approx(0.0, abs=1e-6)
 
 
-def test_the_neck_measure_finds_todays_merge_creased():
-    # today's merge of two balls (32^3, 13 frames): the frame after contact folds by more
-    # than 45 degrees, so a neck bound of 45 degrees cannot pass on it vacuously
+@pytest.fixture(scope="module")
+def merges():
+    """The merge of two balls (32^3, 13 frames) as clay (surface tension 0) and as the
+    default liquid: (frames of each, the clay's contact frame, h)."""
     case = cases.make_case("merge", 32)
     h = case.grid.spacing
-    anim = animate_chain(case.fields, case.grid, case.features, [1, 13], processes=1)
-    frames = [(np.asarray(v, float), f) for v, f in anim.surfaces]
-    contact = cm.contact_frame(frames, 2, h)
-    assert contact is not None and 0 < contact < len(frames) - 1
-    assert cm.neck_fold(*frames[contact + 1], h)[1] > 45.0
-    assert cm.neck_fold(*frames[0], h)[1] < 45.0  # two balls apart: no crease
+    out = []
+    for tension in (0.0, None):
+        extra = {} if tension is None else {"surface_tension": tension}
+        anim = animate_chain(case.fields, case.grid, case.features, [1, 13], processes=1,
+                             **extra)
+        out.append([(np.asarray(v, float), f) for v, f in anim.surfaces])
+    contact = cm.contact_frame(out[0], 2, h)
+    assert contact is not None and 0 < contact < len(out[0]) - 3
+    return out, contact, h
+
+
+def test_the_neck_measure_finds_the_clay_merge_creased(merges):
+    # as clay the frame after contact folds by more than 45 degrees, so a neck bound of
+    # 45 degrees cannot pass on it vacuously
+    (clay, _), contact, h = merges
+    assert cm.neck_fold(*clay[contact + 1], h)[1] > 45.0
+    assert cm.neck_fold(*clay[0], h)[1] < 45.0  # two balls apart: no crease
+
+
+def test_a_liquid_merge_rounds_its_neck_and_moves_nothing_before_contact(merges):
+    (clay, liquid), contact, h = merges
+    for k in range(contact):  # before the balls touch the frames are the clay's
+        assert np.abs(liquid[k][0] - clay[k][0]).max() < 0.01 * h, k
+    assert cm.contact_frame(liquid, 2, h) == contact
+    folds = [cm.neck_fold(*frame, h)[1] for frame in liquid[contact + 3:]]  # from the third
+    assert max(folds) <= 45.0, folds

@@ -158,8 +158,9 @@ class Chain:
         self.keyframe_meshes = keyframe_meshes
         self.outputs = dataclasses.replace(
             options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
-        self.inbetweens = Inbetweens(phis, grid, features, maps, options.map, options.motion,
-                                     cancel, motion_grid, (self.frames, kinds))
+        self.inbetweens = Inbetweens(phis, grid, features, maps, options.map,
+                                     options.segment_motion(len(phis) - 1), cancel,
+                                     motion_grid, (self.frames, kinds))
 
     @functools.cached_property
     def template(self) -> tuple:
@@ -273,7 +274,8 @@ class Inbetweens:
     def __init__(self, phis: Sequence[np.ndarray], grid: Grid,
                  features: Sequence[Sequence[ArrayLike]] | None,
                  maps: Sequence[ArrayLike] | None, map_options: MapOptions,
-                 motion_options: MotionOptions, cancel: Callable[[], bool] | None = None,
+                 segment_motion: Sequence[MotionOptions],
+                 cancel: Callable[[], bool] | None = None,
                  motion_grid: Grid | None = None,
                  timing: tuple[np.ndarray, Sequence[str]] | None = None) -> None:
         # the maps and the in-betweens are imported when first needed: this module is the
@@ -284,7 +286,8 @@ class Inbetweens:
         self.phis, self.grid, self.features, self.maps = phis, grid, features, maps
         self.cancel, self.motion_grid = cancel, motion_grid
         self.solve_phis = solve_fields(phis, grid, motion_grid) if maps is None else None
-        self.map_options, self.motion_options = map_options, motion_options
+        self.map_options, self.segment_motion = map_options, tuple(segment_motion)
+        self.motion_options = self.segment_motion[0]  # what every segment's options share
         self.solved = {}  # segment -> its maps, solved ahead in a window
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
@@ -303,10 +306,11 @@ class Inbetweens:
             return self._make_bent(k, helper, on_maps, rep)
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
-                                      options=self.motion_options, motion_grid=self.motion_grid)
+                                      options=self.segment_motion[k],
+                                      motion_grid=self.motion_grid)
         if helper is None and k not in self.solved:
             return pair_inbetweens(a, b, self.grid, self.features[k], self.map_options,
-                                   self.motion_options, progress=rep.sub(0.0, 0.5),
+                                   self.segment_motion[k], progress=rep.sub(0.0, 0.5),
                                    cancel=cancel, on_maps=on_maps,
                                    motion_grid=self.motion_grid)
         if k not in self.solved:
@@ -314,7 +318,7 @@ class Inbetweens:
                         rep.sub(0.0, 0.4))
         res, back, seconds = self.solved.pop(k)
         with rep.sub(0.4, 0.5).step(PATHS, 0, 1):
-            return from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
+            return from_solved(a, b, self.grid, res, back, self.segment_motion[k], seconds,
                                on_maps=on_maps, cancel=cancel)
 
     def solve(self, window: Iterable[int], helper: Helper | None, rep: Reporter) -> None:
@@ -341,10 +345,10 @@ class Inbetweens:
         if self.maps is not None:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
                                       mapped_back=self._back[k], bends=self.bends[k],
-                                      options=self.motion_options, motion_grid=self.motion_grid)
+                                      options=self.segment_motion[k], motion_grid=self.motion_grid)
         res, back, seconds = self.solved.pop(k)
         with rep.sub(0.4, 0.5).step(PATHS, 0, 1):
-            return from_solved(a, b, self.grid, res, back, self.motion_options, seconds,
+            return from_solved(a, b, self.grid, res, back, self.segment_motion[k], seconds,
                                on_maps=on_maps, cancel=cancel, bends=self.bends[k])
 
     def bend_all(self, helper: Helper | None, rep: Reporter) -> None:

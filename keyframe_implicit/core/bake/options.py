@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from collections.abc import Iterable
 from typing import Any
 
+import numpy as np
+
 from ..map.options import MapOptions, weight_options
 from ..motion.options import MotionOptions
 from ..surface.options import SurfaceOptions
@@ -55,6 +57,10 @@ class BakeOptions:
     key_interpolation : str, sequence of str, or None
         Per keyframe, how the motion passes it (`spline.KEY_INTERPOLATIONS`): "smooth"
         (None, the default: continuous velocity), "linear" or "ease".
+    surface_tension : float, sequence of float, or None
+        How parts join where they meet, for every segment or per segment (one value per
+        keyframe pair): `motion.options.MotionOptions.surface_tension`, which holds the
+        default (None).
     processes : int
         1 (default): everything in this process; 2 or more: a helper process shares the
         maps and the frames (`chain.animate_chain`).
@@ -72,6 +78,7 @@ class BakeOptions:
     max_bytes: int | None = None
     tracked_mesh: str = "keyframe"
     key_interpolation: str | tuple | list | None = None
+    surface_tension: float | tuple | list | None = None
     processes: int = 1
     map: MapOptions = field(default_factory=MapOptions)
     motion: MotionOptions = field(default_factory=MotionOptions)
@@ -109,6 +116,20 @@ class BakeOptions:
         return cls(**own_fields, map=MapOptions.from_keywords(**parts["map"]),
                    motion=MotionOptions(**parts["motion"]),
                    surface=SurfaceOptions(**parts["surface"]))
+
+
+    def segment_motion(self, segments: int) -> tuple[MotionOptions, ...]:
+        """The motion options of each of ``segments`` keyframe pairs: ``motion`` with each
+        segment's ``surface_tension``. ValueError when the list's length or a value is
+        wrong."""
+        tension = self.surface_tension
+        if tension is None:
+            return (self.motion,) * segments
+        values = [tension] * segments if np.isscalar(tension) else list(tension)
+        if len(values) != segments:
+            raise ValueError(f"surface_tension must hold one value per segment ({segments}), "
+                             f"got {len(values)}.")
+        return tuple(dataclasses.replace(self.motion, surface_tension=float(v)) for v in values)
 
 
 def refuse_unread(keywords: Iterable[str], read: Iterable[str], caller: str) -> None:

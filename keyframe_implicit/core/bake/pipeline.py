@@ -309,6 +309,7 @@ def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike,
     keyframes, features = check_inputs(keyframes, features, feature_names)
     check_motion_resolution(options.motion_resolution, options.resolution)
     check_key_interpolation(options.key_interpolation, len(keyframes))
+    options.segment_motion(len(keyframes) - 1)  # a surface tension per segment, or one
 
     stats = {}
     meshes = [checked_mesh(k, kf) for k, kf in enumerate(keyframes)]

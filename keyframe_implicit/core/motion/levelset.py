@@ -61,6 +61,7 @@ from .isovolume import component_iso_values, volume_iso_value
 from .options import MotionOptions
 from .components import ComponentVolumes, component_labels
 from .spline import start_velocity
+from .tension import fill_creases, meeting_reach
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
 from .transport import Transport
@@ -76,6 +77,9 @@ __all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
            "back_map", "path_start_velocity"]
 
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
+#: The surface tension's filling eases in over this much of s from each keyframe, so the
+#: frames next to a keyframe continue it (`tension.fill_creases`' weight).
+_TENSION_EASE = 0.15
 
 
 def idw_resample(grid: Grid, positions: np.ndarray, values: np.ndarray, *, fill: float,
@@ -303,7 +307,10 @@ class Inbetween:
             return self._cache[s]
         t0 = time.perf_counter()
         if self.backward is not None:
-            field = self._two_sided(s)
+            field, meeting = self._two_sided(s)
+            field = fill_creases(field.reshape(self.grid.shape), meeting, self.grid,
+                                 self.options.surface_tension,
+                                 min(1.0, min(s, 1.0 - s) / _TENSION_EASE))
         elif self.options.resample == "lookup":
             field = self._one_sided(s)
         else:
@@ -319,22 +326,35 @@ class Inbetween:
         return field
 
     def _two_sided(self, s):
-        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach."""
+        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach,
+        and where a keyframe's parts meet (None: nowhere, or no surface tension)."""
         w = self.outside_value
+        tension = self.options.surface_tension
+        if tension > 0:  # where parts meet, for `tension.fill_creases`
+            reach = meeting_reach(self.grid, tension)
+
+            def carried(transport, t, other):
+                return transport.carry_meeting(t, other, reach)
+        else:
+            def carried(transport, t, other):
+                return transport.carry(t, other=other), None
         if self.threads > 1:
             with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
-                back = pool.submit(self.backward.carry, 1.0 - s, other=self.forward)
-                phi_s = self.forward.carry(s, other=self.backward)
-                psi_s = back.result()
+                back = pool.submit(carried, self.backward, 1.0 - s, self.forward)
+                phi_s, meet_a = carried(self.forward, s, self.backward)
+                psi_s, meet_b = back.result()
         else:
-            phi_s = self.forward.carry(s, other=self.backward)
-            psi_s = self.backward.carry(1.0 - s, other=self.forward)
+            phi_s, meet_a = carried(self.forward, s, self.backward)
+            psi_s, meet_b = carried(self.backward, 1.0 - s, self.forward)
+        meetings = [m for m in (meet_a, meet_b) if m is not None]
+        meeting = (np.logical_or.reduce(meetings).reshape(self.grid.shape) if meetings
+                   else None)
         self.stats["covered_nodes"] = int(np.count_nonzero(~np.isnan(phi_s) | ~np.isnan(psi_s)))
         field, other = (np.nan_to_num(a, copy=False, nan=w) for a in (phi_s, psi_s))
         field *= 1.0 - s  # in place: both are grid-sized and this call's own
         other *= s
         field += other
-        return field
+        return field, meeting
 
     def _keep_volume(self, field, s):
         """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,

@@ -53,6 +53,11 @@ class MotionOptions:
         Newton iterations of the inverse lookup (6).
     interpolation : {"cubic", "linear"}
         How the keyframes' fields are read at off-grid points.
+    surface_tension : float
+        Two-sided only: how parts join where they meet (`tension.fill_creases`). 0, as
+        clay pressed together: the blend's crease. 1 (default), as a liquid: the concave
+        folds where the frame moves are filled over about two cells, so the neck rounds
+        off within a few frames; larger, rounder. A split's neck thins the same way.
     """
 
     transport: str = "two-sided"
@@ -65,12 +70,15 @@ class MotionOptions:
     idw_radius: float = 1.5
     newton_steps: int = 6
     interpolation: str = "cubic"
+    surface_tension: float = 1.0
 
     def __post_init__(self) -> None:
         if self.resample not in RESAMPLES:
             raise ValueError(f'resample must be "lookup" or "idw", got {self.resample!r}.')
         if self.transport not in TRANSPORTS:
             raise ValueError(f"transport must be one of {TRANSPORTS}, got {self.transport!r}.")
+        if not self.surface_tension >= 0:
+            raise ValueError(f"surface_tension must be 0 or more, got {self.surface_tension!r}.")
         if self.resample == "idw" and self.transport != "one-sided":
             raise ValueError('resample="idw" is the thesis\'s one-sided form: '
                              'use it with transport="one-sided".')

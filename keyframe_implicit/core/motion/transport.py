@@ -24,6 +24,7 @@ section 8); `Transport.carry` says how each treats material its map tears.
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -441,6 +442,34 @@ class Transport:
         replaces both. Values are truncated at
         ``truncation``; overlaps keep the smallest.
         """
+        return self._carried(t, other, values)[0]
+
+    def carry_meeting(self, t: float, other: Transport | None,
+                      reach: float) -> tuple[np.ndarray, np.ndarray | None]:
+        """`carry`, and where this keyframe's parts meet at time t: the nodes that moved
+        cells of two different parts (`ndimage.label` of its material, each region cell
+        taking the part nearest it) reach with values under ``reach`` (world units), i.e.
+        within ``reach`` of both parts' carried surfaces. None for a keyframe of one part."""
+        out, target, cell, vals = self._carried(t, other, None)
+        parts = self._cell_part
+        if parts is None:
+            return out, None
+        near = vals < reach
+        count = np.zeros(self.grid.size, np.int16)
+        for k in range(int(parts.max()) + 1):
+            reached = np.zeros(self.grid.size, bool)
+            reached[target[near & (parts[cell] == k)]] = True
+            count += reached
+        return out, count >= 2
+
+    @functools.cached_property
+    def _cell_part(self) -> np.ndarray | None:
+        """The part (0-based) of every region cell (`carry_meeting`), or None."""
+        return _cell_parts(self.grid, self.field < 0, self._cells, self._corner_nodes)
+
+    def _carried(self, t, other, values):
+        """`carry`'s field, with the inverse lookup's target nodes, their source cells and
+        the values they carry."""
         target, cell, local = self._sources_in_cells(t)
         source = _index_coordinates(self.grid, self._cells, cell, local)
         if values is not None:
@@ -452,10 +481,11 @@ class Transport:
                 fade = t if self.trajectories.bend is None else t * t * (3.0 - 2.0 * t)
                 fade = np.where(self._torn[cell], min(2.0 * t, 1.0), fade)
                 vals = (1.0 - fade) * vals + fade * np.maximum(vals, other.value_at(y))
+        vals = np.minimum(vals, self.truncation)
         out = np.full(self.grid.size, np.inf)
-        np.minimum.at(out, target, np.minimum(vals, self.truncation))
+        np.minimum.at(out, target, vals)
         out[np.isinf(out)] = np.nan
-        return out
+        return out, target, cell, vals
 
     def _mapped_at(self, cell: np.ndarray, local: np.ndarray) -> np.ndarray:
         """The map y(x) at source points given by their region cells and local coordinates:
@@ -488,6 +518,22 @@ class Transport:
         step = dt if t + 2.0 * dt <= 1.0 else -dt  # (-3 x0 + 4 x1 - x2) / (2 step)
         one, two = at(t + step), at(t + 2.0 * step)
         return pos, (4.0 * one - 3.0 * pos - two) / (2.0 * step)
+
+
+def _cell_parts(grid: Grid, material: np.ndarray, cells: np.ndarray,
+                nodes: np.ndarray) -> np.ndarray | None:
+    """The part (0-based) of every region cell: that of the material component nearest its
+    lower corner (labels grown from the material a cell a step until every region node
+    has one); None for a keyframe of one part."""
+    labels, count = ndimage.label(material)
+    if count < 2:
+        return None
+    flat = labels.reshape(-1)
+    while not np.all(flat[nodes]):
+        labels = np.where(labels > 0, labels,
+                          ndimage.grey_dilation(labels, size=(3,) * grid.dim))
+        flat = labels.reshape(-1)
+    return (flat[cells] - 1).astype(np.int16)
 
 
 def _region_cells(grid: Grid,
