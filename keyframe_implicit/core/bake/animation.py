@@ -45,6 +45,9 @@ class Animation:
         ``surfaces`` is the keyframe's own mesh).
     prepared : dict output kind -> `meshdata.MeshData`, the output meshes made so far
         (`output_mesh`; the worker process makes the one the bake will store).
+    tracked : (n,) bool array, optional: the frames the mesh sequence ships as the tracked
+        template rather than as their own surface (`chain.tracked_frames`: those before a
+        topology change); None or empty, none.
     """
 
     frames: np.ndarray
@@ -58,6 +61,35 @@ class Animation:
     attributes: MeshAttributes | None = None
     keyframe_attributes: dict[int, MeshAttributes] = field(default_factory=dict)
     prepared: dict[str, MeshData] = field(default_factory=dict)
+    tracked: np.ndarray | None = None
+
+    def is_tracked(self, i: int) -> bool:
+        """Whether the mesh sequence ships frame i as the tracked template (``tracked``)."""
+        return self.tracked is not None and i < len(self.tracked) and bool(self.tracked[i])
+
+    def sequence_frame(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, triangles) the mesh sequence ships on frame i: the tracked template
+        where ``tracked`` says so, else the frame's own surface."""
+        if self.is_tracked(i):
+            return self.vertices[i], self.faces
+        return self.surfaces[i]
+
+    def sequence_attributes(self, i: int) -> MeshAttributes | None:
+        """`attributes.MeshAttributes` of `sequence_frame` (i), or None: on a tracked frame
+        the artist's own (``attributes``), as on the shape keys; else its surface's
+        (`surface_attributes`)."""
+        if self.is_tracked(i):
+            return self.attributes
+        return self.surface_attributes(i)
+
+    def sequence_velocity(self, i: int) -> np.ndarray:
+        """Velocity of `sequence_frame` (i)'s vertices, world units per frame: a tracked
+        frame's from its neighbours' template (one-sided at the ends), else ``velocities``."""
+        if not self.is_tracked(i):
+            return self.velocities[i]
+        lo, hi = max(i - 1, 0), min(i + 1, len(self.vertices) - 1)
+        step = np.asarray(self.vertices[hi], float) - np.asarray(self.vertices[lo], float)
+        return (step / max(hi - lo, 1)).astype(np.float32)
 
     def output_mesh(self, kind: str) -> MeshData:
         """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),

@@ -36,8 +36,8 @@ import numpy as np
 from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
-from ..surface.quality import frame_quality
-from ..surface.extract import extract_surface
+from ..surface.quality import LIMITS, failures, frame_quality
+from ..surface.extract import extract_surface, surface_topology
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
@@ -46,7 +46,7 @@ from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterable, Sequence
+    from collections.abc import Callable, Iterable, Mapping, Sequence
 
     from numpy.typing import ArrayLike
 
@@ -54,7 +54,8 @@ if TYPE_CHECKING:
     from ..motion.levelset import Inbetween, Recipe
     from ..motion.options import MotionOptions
 
-__all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "HELPER_PRELOAD"]
+__all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "tracked_frames",
+           "TRACKED_LIMITS", "HELPER_PRELOAD"]
 
 #: What a helper process imports as it starts: everything a chain's work sends it.
 HELPER_PRELOAD = (__name__,)
@@ -405,6 +406,7 @@ class Kept:
                       "uncovered_fraction": []}
         if outputs.surfaces:
             self.stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
+            self.stats["topology"] = []
         self.meshes, self.velocities, self.fields = [], [], []
 
     def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
@@ -421,6 +423,7 @@ class Kept:
             if outputs.surfaces:
                 for name in ("shape_keys", "mesh_sequence"):
                     st["quality"][name].append(rec[name])
+                st["topology"].append(rec["topology"])
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
 
@@ -536,7 +539,8 @@ def _template(inb, segment, detail, s):
 
 def _frame_outputs(inb, s, segment, p, rep):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
-    are ``p``: its level set, uncovered area, own mesh, velocity and quality figures."""
+    are ``p``: its level set, uncovered area, own mesh, velocity, quality figures and its
+    grid surface's topology (`extract.surface_topology`)."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
     out = {}
     if outputs.levelsets:
@@ -554,6 +558,7 @@ def _frame_outputs(inb, s, segment, p, rep):
         own = frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
         out["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
         out["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
+        out["topology"] = surface_topology(*surf)
         rep.check()
         out["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
         out["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
@@ -570,3 +575,40 @@ def frame_mesh(surface: tuple[np.ndarray, np.ndarray] | None,
         v, tris = keyframe_meshes[k + int(s == 1.0)]
         return np.asarray(v, dtype=float).reshape(-1, 3), np.asarray(tris).reshape(-1, 3)
     return surface
+
+
+#: The limits a frame of the tracked template meets to ship in a mesh sequence before a
+#: topology change (`tracked_frames`): the clean-output limits without coverage. Before
+#: parts meet, a frame's own surface reaches ahead toward the contact (the blend of the
+#: two keyframes' fields bridges the gap), while the artist's mesh keeps each part's shape
+#: until they meet: coverage there measures the surface's lead, not a flaw of the mesh.
+TRACKED_LIMITS = {**LIMITS, "coverage": 0.0}
+
+
+def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
+                   topology: Sequence[tuple[int, int]]) -> np.ndarray:
+    """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
+    (n,) bool over ``frames``.
+
+    One mesh follows the shape until its topology changes (parts meet or part, a hole
+    opens: the pieces or the Euler characteristic of a frame's grid surface differ from
+    the first frame's, ``topology``), so those frames keep the artist's vertices, UVs and
+    sharp edges; from the change on, each frame is its own surface, and the switch comes
+    where the viewer expects a change. A frame before the change on which the template
+    stretches or folds ends the tracked frames there instead: its figures (``shape_keys``,
+    `quality.frame_quality`'s, as measured) relative to the first frame's, where the
+    template is the artist's mesh itself, break `TRACKED_LIMITS`.
+
+    ``shape_keys`` is updated in place to those relative figures on the tracked frames.
+    """
+    n = len(frames)
+    first, start = shape_keys[0], tuple(topology[0])
+    end = n
+    for i, (q, t) in enumerate(zip(shape_keys, topology)):
+        rel = dict(q, area_ratio=q["area_ratio"] / first["area_ratio"],
+                   inverted_fraction=max(q["inverted_fraction"] - first["inverted_fraction"], 0.0))
+        if tuple(t) != start or failures(rel, TRACKED_LIMITS):
+            end = i
+            break
+        shape_keys[i] = rel
+    return np.arange(n) < end

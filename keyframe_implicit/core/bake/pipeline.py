@@ -23,7 +23,7 @@ from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
 from ..surface.quality import choose_output, keyframe_distance
 from .animation import Animation
-from .chain import HELPER_PRELOAD, Chain
+from .chain import HELPER_PRELOAD, Chain, tracked_frames
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
@@ -334,15 +334,19 @@ def finish_bake(plan: BakePlan, chain: Animation, t0: float, rep: Reporter) -> A
     stats.update(chain.stats)
     stats["loose_vertices"] = [m[2] for m in plan.checked_meshes]
     stats["notes"] = notes(keyframes, stats["loose_vertices"], stats["sdf"])
+    tracked = None
     if "quality" in stats:
         rep(0.98, "Measuring the keyframe frames")
+        measured = [dict(q) for q in stats["quality"]["shape_keys"]]
         _choose_output(stats, keyframes, chain, plan.grid.spacing, artist is not None)
+        if artist is not None:
+            tracked = _sequence_tracked(stats, chain.frames, measured, keyframes)
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return dataclasses.replace(
         chain, frames=np.asarray(chain.frames, dtype=np.int64),
         vertices=np.asarray(chain.vertices, dtype=np.float32),
-        faces=np.asarray(chain.faces, dtype=np.int64), stats=stats,
+        faces=np.asarray(chain.faces, dtype=np.int64), stats=stats, tracked=tracked,
         attributes=None if artist is None else artist[2],
         keyframe_attributes={} if artist is None else
         _keyframe_attributes(keyframes, plan.checked_meshes, artist[2]))
@@ -438,6 +442,27 @@ def _choose_output(stats, keyframes, chain, spacing, artist):
     measured = ["shape_keys"] if artist else ["shape_keys", "mesh_sequence"]
     _measure_keyframes(quality, keyframes, chain, spacing, measured)
     stats["output"], stats["output_reason"] = choose_output(chain.frames, quality)
+
+
+def _sequence_tracked(stats, frames, measured, keyframes):
+    """The frames the mesh sequence ships as the artist's mesh, tracked (`chain.
+    tracked_frames`, from the shape keys' figures as ``measured``), but for the later
+    keyframes' frames, which show each keyframe's own mesh (the first keyframe's is the
+    template itself). Their mesh-sequence figures become the template's (what ships
+    there), the output's reason names them and ``stats["tracked_frames"]`` counts them."""
+    quality = stats["quality"]
+    tracked = tracked_frames(frames, measured, stats["topology"])
+    reach = int(np.count_nonzero(tracked))
+    tracked[[kf.frame - frames[0] for kf in keyframes[1:]]] = False
+    for i in np.flatnonzero(tracked):  # the first keyframe's frame keeps its distance, 0
+        own = quality["mesh_sequence"][i]
+        quality["mesh_sequence"][i] = dict(measured[i], **{
+            key: value for key, value in own.items() if key.startswith("keyframe_")})
+    stats["tracked_frames"] = int(tracked.sum())
+    if stats["output"] == "mesh_sequence" and reach:
+        stats["output_reason"] += (f"; frames {frames[0]}-{frames[reach - 1]}, before it "
+                                   "changes, keep the artist's mesh")
+    return tracked
 
 
 def _artist_template(keyframe, mesh, tracked_mesh):

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area"]
+__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area",
+           "surface_topology"]
 
 
 def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
@@ -54,6 +55,23 @@ def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: bool = False) -> 
         return np.zeros(0) if per_face else 0.0
     ar = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
     return ar if per_face else float(ar.sum())
+
+
+def surface_topology(vertices: ArrayLike, faces: ArrayLike) -> tuple[int, int]:
+    """(pieces, Euler characteristic V - E + F) of a triangle mesh: what changes when parts
+    meet or part, or a hole opens or closes. Vertices no face uses are left out."""
+    from scipy import sparse
+
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(f):
+        return 0, 0
+    used = np.unique(f)
+    edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]),
+                              axis=1), axis=0)
+    n = len(np.asarray(vertices).reshape(-1, 3))
+    graph = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, labels = sparse.csgraph.connected_components(graph, directed=False)
+    return int(len(np.unique(labels[used]))), int(len(used) - len(edges) + len(f))
 
 
 def loop_area(loop: ArrayLike) -> float:
