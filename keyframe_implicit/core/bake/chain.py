@@ -37,7 +37,7 @@ from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
 from ..surface.quality import LIMITS, failures, frame_quality
-from ..surface.extract import extract_surface, surface_topology
+from ..surface.extract import extract_surface, material_topology
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
@@ -402,7 +402,7 @@ class Kept:
                  outputs: SurfaceOptions) -> None:
         self.frames, self.outputs = frames, outputs
         self.vertices = np.empty((frames.size,) + tuple(template_shape))
-        self.stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [],
+        self.stats = {"segments": [], "max_abs_phi": [], "steered": [], "uncovered_area": [],
                       "uncovered_fraction": []}
         if outputs.surfaces:
             self.stats["quality"] = {"shape_keys": [], "mesh_sequence": []}
@@ -415,6 +415,7 @@ class Kept:
         for row, rec in zip(rows, records):
             self.vertices[row] = rec["vertices"]
             st["max_abs_phi"].append(rec["max_abs_phi"])
+            st["steered"].append(rec["steered"])
             if outputs.levelsets:
                 self.fields.append(rec["levelset"])
             if outputs.coverage:
@@ -528,19 +529,23 @@ def _detail(inb, segment):
 
 
 def _template(inb, segment, detail, s):
-    """The template at time ``s``: its ``vertices`` and ``max_abs_phi``, the largest |phi|
-    of their projection onto the level set."""
+    """The template at time ``s``: its ``vertices``, ``max_abs_phi``, the largest |phi|
+    of their projection onto the level set, and ``steered``, how far the zero set steered
+    it (`template.DetailTrack.guides`; 1 for the grid's template, always pulled onto it;
+    0 on a keyframe's own mesh)."""
     if detail is None:
         tr = track_template(inb, [s], template=segment.template, coverage=False)
-        return dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0])
+        return dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0],
+                    steered=1.0)
     p, err = detail(s)
-    return dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0)
+    return dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0,
+                steered=detail.guides.get(float(s), 0.0))
 
 
 def _frame_outputs(inb, s, segment, p, rep):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
     are ``p``: its level set, uncovered area, own mesh, velocity, quality figures and its
-    grid surface's topology (`extract.surface_topology`)."""
+    material's topology (`extract.material_topology`)."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
     out = {}
     if outputs.levelsets:
@@ -558,7 +563,7 @@ def _frame_outputs(inb, s, segment, p, rep):
         own = frame_mesh(surf, segment.keyframe_meshes, segment.k, s)
         out["shape_keys"] = frame_quality(ls, grid, p, faces, surf)
         out["mesh_sequence"] = frame_quality(ls, grid, *own, surf)
-        out["topology"] = surface_topology(*surf)
+        out["topology"] = material_topology(ls)
         rep.check()
         out["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
         out["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
@@ -584,30 +589,40 @@ def frame_mesh(surface: tuple[np.ndarray, np.ndarray] | None,
 #: until they meet: coverage there measures the surface's lead, not a flaw of the mesh.
 TRACKED_LIMITS = {**LIMITS, "coverage": 0.0}
 
+#: The most the zero set may steer a frame's template (`template.DetailTrack.guides`) for
+#: the frame to count as moved rigidly by its paths (`tracked_frames`).
+RIGID_STEER = 0.05
+
 
 def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
-                   topology: Sequence[tuple[int, int]]) -> np.ndarray:
+                   topology: Sequence[tuple[int, int]],
+                   steered: Sequence[float] | None = None) -> np.ndarray:
     """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
     (n,) bool over ``frames``.
 
     One mesh follows the shape until its topology changes (parts meet or part, a hole
-    opens: the pieces or the Euler characteristic of a frame's grid surface differ from
-    the first frame's, ``topology``), so those frames keep the artist's vertices, UVs and
+    opens: the pieces or the Euler characteristic of a frame's material differ from the
+    first frame's, ``topology``), so those frames keep the artist's vertices, UVs and
     sharp edges; from the change on, each frame is its own surface, and the switch comes
     where the viewer expects a change. A frame before the change on which the template
     stretches or folds ends the tracked frames there instead: its figures (``shape_keys``,
     `quality.frame_quality`'s, as measured) relative to the first frame's, where the
-    template is the artist's mesh itself, break `TRACKED_LIMITS`.
+    template is the artist's mesh itself, break `TRACKED_LIMITS`. A frame whose template
+    its paths carried rigidly (``steered``, per frame, at most `RIGID_STEER`; None: every
+    frame steered) cannot stretch or fold: its figures measure how coarse the grid's
+    surface is, and it passes.
 
     ``shape_keys`` is updated in place to those relative figures on the tracked frames.
     """
     n = len(frames)
     first, start = shape_keys[0], tuple(topology[0])
+    steered = np.ones(n) if steered is None else np.asarray(steered, dtype=float)
     end = n
     for i, (q, t) in enumerate(zip(shape_keys, topology)):
         rel = dict(q, area_ratio=q["area_ratio"] / first["area_ratio"],
                    inverted_fraction=max(q["inverted_fraction"] - first["inverted_fraction"], 0.0))
-        if tuple(t) != start or failures(rel, TRACKED_LIMITS):
+        rigid = steered[i] <= RIGID_STEER
+        if tuple(t) != start or (not rigid and failures(rel, TRACKED_LIMITS)):
             end = i
             break
         shape_keys[i] = rel

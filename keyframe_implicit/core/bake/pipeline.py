@@ -449,10 +449,15 @@ def _sequence_tracked(stats, frames, measured, keyframes):
     tracked_frames`, from the shape keys' figures as ``measured``), but for the later
     keyframes' frames, which show each keyframe's own mesh (the first keyframe's is the
     template itself). Their mesh-sequence figures become the template's (what ships
-    there), the output's reason names them and ``stats["tracked_frames"]`` counts them."""
+    there), the output's reason names them and ``stats["tracked_frames"]`` counts them.
+    When the template may ship on every frame, Auto's choice becomes the shape keys."""
     quality = stats["quality"]
-    tracked = tracked_frames(frames, measured, stats["topology"])
+    tracked = tracked_frames(frames, measured, stats["topology"], stats["steered"])
     reach = int(np.count_nonzero(tracked))
+    if reach == len(frames) and stats["output"] == "mesh_sequence":
+        stats["output"], stats["output_reason"] = "shape_keys", (
+            "one mesh follows the shape on every frame (it moves rigidly where the grid is "
+            "too coarse to judge it)")
     tracked[[kf.frame - frames[0] for kf in keyframes[1:]]] = False
     for i in np.flatnonzero(tracked):  # the first keyframe's frame keeps its distance, 0
         own = quality["mesh_sequence"][i]
