@@ -36,6 +36,7 @@ import numpy as np
 from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
+from ..fields.measure import read_mesh
 from ..surface.quality import LIMITS, failures, frame_quality
 from ..surface.extract import extract_surface, material_topology
 from ..surface.options import SurfaceOptions
@@ -156,6 +157,8 @@ class Chain:
         self.options, self.cancel = options, cancel
         self._given_template, self._first_phi, self.grid = template, phis[0], grid
         self.keyframe_meshes = keyframe_meshes
+        self.volumes = None if keyframe_meshes is None or grid.dim != 3 else [
+            read_mesh(*mesh).volume for mesh in keyframe_meshes]
         self.outputs = dataclasses.replace(
             options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
         self.inbetweens = Inbetweens(phis, grid, features, maps, options.map, options.motion,
@@ -205,8 +208,9 @@ class Chain:
         """`Segment` ``k`` starting from the template's vertices ``start``, and its frames."""
         f0, f1 = self.frames[k], self.frames[k + 1]
         local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
+        volumes = None if self.volumes is None else tuple(self.volumes[k:k + 2])
         return Segment(k, (f0, f1), (start, self.template[1]), self.keyframe_meshes,
-                       self.outputs), local
+                       self.outputs, volumes), local
 
     def segment(self, k: int, start: np.ndarray, helper: Helper | None, rep: Reporter
                 ) -> tuple[np.ndarray, list[dict[str, Any]], dict[str, Any]]:
@@ -226,6 +230,7 @@ class Chain:
         its first: the next segment's ``start``, without making its frames."""
         segment, _ = self._segment(k, start)
         inb = self.inbetweens.make(k, None, None, Reporter())
+        _hold_volumes(inb, segment)
         return _template(inb, segment, _detail(inb, segment), 1.0)["vertices"]
 
 
@@ -446,13 +451,16 @@ _MAP_WINDOW = 2
 class Segment:
     """What making segment ``k``'s frames needs besides its in-betweens: the keyframes'
     timeline frames ``ends``, the ``template`` (vertices, faces) on its first frame, every
-    keyframe's own mesh (or None) and what to keep of each frame."""
+    keyframe's own mesh (or None), what to keep of each frame, and the ``volumes`` of its
+    two keyframes' meshes as modelled (`measure.read_mesh`), which its in-betweens hold
+    (None: their grids')."""
 
     k: int
     ends: tuple
     template: tuple
     keyframe_meshes: list | None
     outputs: SurfaceOptions
+    volumes: tuple | None = None
 
 
 class FrameSplit:
@@ -508,6 +516,7 @@ def _frames(inb, frames, segment, rep=None):
     frame) and both outputs' quality (``shape_keys``, ``mesh_sequence``)."""
     rep = rep or Reporter()
     (f0, f1), k = segment.ends, segment.k
+    _hold_volumes(inb, segment)
     detail = _detail(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
@@ -518,6 +527,13 @@ def _frames(inb, frames, segment, rep=None):
         records.append(rec)
         rep((i + 1) / len(frames), f"frame {f} (keyframes {k + 1} \u2192 {k + 2}, frames {f0}-{f1})")
     return records
+
+
+def _hold_volumes(inb, segment):
+    """Have the in-betweens hold the keyframes' volumes as modelled, where known and kept
+    (`levelset.Inbetween.hold_volumes`): a thin part's grid holds a fifth less or more."""
+    if segment.volumes is not None and inb.keep_volume:
+        inb.hold_volumes(segment.volumes)
 
 
 def _detail(inb, segment):

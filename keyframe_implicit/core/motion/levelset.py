@@ -336,6 +336,14 @@ class Inbetween:
         field += other
         return field
 
+    def hold_volumes(self, volumes: tuple[float, float]) -> None:
+        """Hold (V_A, V_B), the keyframes' volumes as modelled (their meshes'), instead of
+        their grids' (`isovolume`; each part's share scaled with them, `components`); the
+        fields made before are made again."""
+        self._end_volumes = (float(volumes[0]), float(volumes[1]))
+        self._components = None
+        self._cache.clear()
+
     def _keep_volume(self, field, s):
         """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,
         where the shifted in-between has several components, each by its own iso-value,
@@ -353,7 +361,8 @@ class Inbetween:
             if self._components is None:
                 self._components = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
                                                     self.forward.trajectories,
-                                                    self.backward.trajectories)
+                                                    self.backward.trajectories,
+                                                    volumes=self._end_volumes)
             own, errors = component_iso_values(field, self.grid, labels,
                                                self._components.targets(labels, count, s))
             iso_value += own[np.argmax(np.abs(own))]
