@@ -6,6 +6,7 @@ import pytest
 
 from keyframe_implicit.core import Keyframe, animate
 from keyframe_implicit.core.bake.chain import tracked_frames
+from keyframe_implicit.core.surface.attributes import MeshAttributes
 from keyframe_implicit.core.surface.extract import material_topology
 from keyframe_implicit.core.surface.meshdata import FRAME_ATTRIBUTE, MESH_SEQUENCE
 
@@ -140,3 +141,18 @@ def test_thin_rod_turning_rigidly_stays_the_artists_mesh(thickness):
         # the frame's own surface holds the volume as modelled (within the iso-value's few
         # steps), not the grid's
         assert mesh_volume(*an.surfaces[i]) == pytest.approx(length * thickness ** 2, rel=0.02)
+
+
+def test_tracked_frames_turn_the_custom_normals_with_their_faces():
+    from keyframe_implicit.core.bake.animation import Animation
+
+    v, quads = rod(4.0, 1.0)
+    attrs = MeshAttributes(np.arange(0, 24, 4), np.full(6, 4), quads.reshape(-1))
+    attrs.custom_normals = np.tile([[0.0, 0.6, 0.8]], (24, 1)).astype(np.float32)
+    frames = [v, turned(v, 1.0, np.zeros(3))]
+    an = Animation(np.array([1, 2]), np.stack(frames), attrs.triangles(), None,
+                   surfaces=[(v, attrs.triangles())] * 2, velocities=[np.zeros_like(v)] * 2,
+                   attributes=attrs, tracked=np.array([True, True]))
+    assert an.sequence_attributes(0) is attrs
+    np.testing.assert_allclose(an.sequence_attributes(1).custom_normals,
+                               np.tile([[-0.6, 0.0, 0.8]], (24, 1)), atol=1e-6)
