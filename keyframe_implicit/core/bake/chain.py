@@ -158,7 +158,7 @@ class Chain:
         self._given_template, self._first_phi, self.grid = template, phis[0], grid
         self.keyframe_meshes = keyframe_meshes
         self.volumes = None if keyframe_meshes is None or grid.dim != 3 else [
-            read_mesh(*mesh).volume for mesh in keyframe_meshes]
+            _modelled_volume(*mesh) for mesh in keyframe_meshes]
         self.outputs = dataclasses.replace(
             options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
         self.inbetweens = Inbetweens(phis, grid, features, maps, options.map, options.motion,
@@ -209,6 +209,8 @@ class Chain:
         f0, f1 = self.frames[k], self.frames[k + 1]
         local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
         volumes = None if self.volumes is None else tuple(self.volumes[k:k + 2])
+        if volumes is not None and None in volumes:
+            volumes = None
         return Segment(k, (f0, f1), (start, self.template[1]), self.keyframe_meshes,
                        self.outputs, volumes), local
 
@@ -232,6 +234,15 @@ class Chain:
         inb = self.inbetweens.make(k, None, None, Reporter())
         _hold_volumes(inb, segment)
         return _template(inb, segment, _detail(inb, segment), 1.0)["vertices"]
+
+
+def _modelled_volume(vertices, triangles):
+    """The volume a keyframe mesh encloses as modelled (`measure.read_mesh`), or None when
+    it has holes or edges of three faces or more: its volume then depends on how it is
+    read, and the grid's reading is the one to hold."""
+    reading = read_mesh(vertices, triangles)
+    closed = not (reading.open_edges or reading.shared_edges or reading.non_orientable)
+    return reading.volume if closed else None
 
 
 def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
@@ -452,7 +463,7 @@ class Segment:
     """What making segment ``k``'s frames needs besides its in-betweens: the keyframes'
     timeline frames ``ends``, the ``template`` (vertices, faces) on its first frame, every
     keyframe's own mesh (or None), what to keep of each frame, and the ``volumes`` of its
-    two keyframes' meshes as modelled (`measure.read_mesh`), which its in-betweens hold
+    two keyframes' meshes as modelled (`_modelled_volume`), which its in-betweens hold
     (None: their grids')."""
 
     k: int

@@ -459,10 +459,8 @@ def _sequence_tracked(stats, frames, measured, keyframes):
             "one mesh follows the shape on every frame (it moves rigidly where the grid is "
             "too coarse to judge it)")
     tracked[[kf.frame - frames[0] for kf in keyframes[1:]]] = False
-    for i in np.flatnonzero(tracked):  # the first keyframe's frame keeps its distance, 0
-        own = quality["mesh_sequence"][i]
-        quality["mesh_sequence"][i] = dict(measured[i], **{
-            key: value for key, value in own.items() if key.startswith("keyframe_")})
+    for i in np.flatnonzero(tracked[1:]) + 1:  # the first frame: the keyframe mesh itself
+        quality["mesh_sequence"][i] = measured[i]
     stats["tracked_frames"] = int(tracked.sum())
     if stats["output"] == "mesh_sequence" and reach:
         stats["output_reason"] += (f"; frames {frames[0]}-{frames[reach - 1]}, before it "
