@@ -162,7 +162,7 @@ class Chain:
         self.outputs = dataclasses.replace(
             options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
         self.inbetweens = Inbetweens(phis, grid, features, maps, options.map, options.motion,
-                                     cancel, motion_grid, (self.frames, kinds))
+                                     cancel, motion_grid, (self.frames, kinds), self.volumes)
 
     @functools.cached_property
     def template(self) -> tuple:
@@ -208,11 +208,8 @@ class Chain:
         """`Segment` ``k`` starting from the template's vertices ``start``, and its frames."""
         f0, f1 = self.frames[k], self.frames[k + 1]
         local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
-        volumes = None if self.volumes is None else tuple(self.volumes[k:k + 2])
-        if volumes is not None and None in volumes:
-            volumes = None
         return Segment(k, (f0, f1), (start, self.template[1]), self.keyframe_meshes,
-                       self.outputs, volumes), local
+                       self.outputs, _pair(self.volumes, k)), local
 
     def segment(self, k: int, start: np.ndarray, helper: Helper | None, rep: Reporter
                 ) -> tuple[np.ndarray, list[dict[str, Any]], dict[str, Any]]:
@@ -232,8 +229,13 @@ class Chain:
         its first: the next segment's ``start``, without making its frames."""
         segment, _ = self._segment(k, start)
         inb = self.inbetweens.make(k, None, None, Reporter())
-        _hold_volumes(inb, segment)
         return _template(inb, segment, _detail(inb, segment), 1.0)["vertices"]
+
+
+def _pair(volumes, k):
+    """Segment ``k``'s two keyframe volumes as modelled, or None where either is unknown."""
+    pair = None if volumes is None else tuple(volumes[k:k + 2])
+    return None if pair is None or None in pair else pair
 
 
 def _modelled_volume(vertices, triangles):
@@ -284,6 +286,10 @@ class Inbetweens:
     ``solved`` ({segment: (map A -> B, map B -> A, seconds)}) and ``bends`` ({segment:
     its `Bend`s}) may be filled beforehand with what was solved elsewhere (a farm's
     earlier tasks): a segment found there is not solved again.
+
+    ``volumes`` (per keyframe, its mesh's volume as modelled or None) are held by each
+    segment's in-betweens where both of its keyframes' are known
+    (`levelset.Inbetween.hold_volumes`).
     """
 
     def __init__(self, phis: Sequence[np.ndarray], grid: Grid,
@@ -291,7 +297,8 @@ class Inbetweens:
                  maps: Sequence[ArrayLike] | None, map_options: MapOptions,
                  motion_options: MotionOptions, cancel: Callable[[], bool] | None = None,
                  motion_grid: Grid | None = None,
-                 timing: tuple[np.ndarray, Sequence[str]] | None = None) -> None:
+                 timing: tuple[np.ndarray, Sequence[str]] | None = None,
+                 volumes: Sequence[float | None] | None = None) -> None:
         # the maps and the in-betweens are imported when first needed: this module is the
         # helper's preload and the live preview's import, which the motion stage (scipy.ndimage,
         # scikit-image) would slow
@@ -304,12 +311,19 @@ class Inbetweens:
         self.solved = {}  # segment -> its maps, solved ahead in a window
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
+        self.volumes = volumes
 
     def make(self, k: int, helper: Helper | None, split: FrameSplit | None,
              rep: Reporter) -> Inbetween:
-        """Segment ``k``'s in-betweens; ``split`` (`FrameSplit`, or None when no other
-        process makes frames) hears of them as soon as their recipe is known; progress to
-        0.5 of ``rep``."""
+        """Segment ``k``'s in-betweens, holding its keyframes' volumes as modelled where
+        known; ``split`` (`FrameSplit`, or None when no other process makes frames) hears
+        of them as soon as their recipe is known; progress to 0.5 of ``rep``."""
+        inb = self._make(k, helper, split, rep)
+        _hold_volumes(inb, _pair(self.volumes, k))
+        return inb
+
+    def _make(self, k, helper, split, rep):
+        """`make` but for the volumes held."""
         from ..motion.levelset import Inbetween
         from .maps import from_solved, pair_inbetweens
 
@@ -527,7 +541,7 @@ def _frames(inb, frames, segment, rep=None):
     frame) and both outputs' quality (``shape_keys``, ``mesh_sequence``)."""
     rep = rep or Reporter()
     (f0, f1), k = segment.ends, segment.k
-    _hold_volumes(inb, segment)
+    _hold_volumes(inb, segment.volumes)  # a helper's in-betweens are made from the recipe
     detail = _detail(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
@@ -540,11 +554,11 @@ def _frames(inb, frames, segment, rep=None):
     return records
 
 
-def _hold_volumes(inb, segment):
-    """Have the in-betweens hold the keyframes' volumes as modelled, where known and kept
-    (`levelset.Inbetween.hold_volumes`): a thin part's grid holds a fifth less or more."""
-    if segment.volumes is not None and inb.keep_volume:
-        inb.hold_volumes(segment.volumes)
+def _hold_volumes(inb, volumes):
+    """Have the in-betweens hold their keyframes' ``volumes`` as modelled, where known and
+    kept (`levelset.Inbetween.hold_volumes`): a thin part's grid holds a fifth less or more."""
+    if volumes is not None and inb.keep_volume:
+        inb.hold_volumes(volumes)
 
 
 def _detail(inb, segment):

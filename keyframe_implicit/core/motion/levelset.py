@@ -339,8 +339,11 @@ class Inbetween:
     def hold_volumes(self, volumes: tuple[float, float]) -> None:
         """Hold (V_A, V_B), the keyframes' volumes as modelled (their meshes'), instead of
         their grids' (`isovolume`; each part's share scaled with them, `components`); the
-        fields made before are made again."""
-        self._end_volumes = (float(volumes[0]), float(volumes[1]))
+        fields made before with others are made again."""
+        volumes = (float(volumes[0]), float(volumes[1]))
+        if volumes == self._end_volumes:
+            return
+        self._end_volumes = volumes
         self._components = None
         self._cache.clear()
 
