@@ -38,10 +38,13 @@ __all__ = ["Pieces", "shipped_frames", "mesh_pieces", "fold_angles", "neck_fold"
 
 def shipped_frames(animation: Animation) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per frame, the (vertices, faces) the bake ships in the output it chose
-    (``stats["output"]``): each frame's own surface for a mesh sequence, the tracked
-    template's vertices with its faces for shape keys."""
+    (``stats["output"]``): each frame's mesh in a mesh sequence (`Animation.sequence_frame`:
+    the tracked template before a topology change, else the frame's own surface), the
+    tracked template's vertices with its faces for shape keys."""
     if animation.stats.get("output") == "mesh_sequence":
-        return [(np.asarray(v, float), np.asarray(f, np.int64)) for v, f in animation.surfaces]
+        return [tuple(np.asarray(a, t) for a, t in zip(animation.sequence_frame(i),
+                                                       (float, np.int64)))
+                for i in range(len(animation.surfaces))]
     faces = np.asarray(animation.faces, np.int64)
     return [(np.asarray(v, float), faces) for v in animation.vertices]
 

@@ -75,13 +75,21 @@ def test_mesh_sequence_keyframe_frames_are_the_artists_meshes(scene):
 
 
 def test_mesh_sequence_in_betweens_get_uvs_and_materials(scene):
+    """The mesh sequence's first frames are the artist's mesh, tracked, with its UVs; the
+    later ones (at 12 cells the grid's material changes topology) their own surfaces, with
+    UVs and materials transferred."""
     a, b = sc.build(scene, resolution=12)
     obj = sc.bake(scene, "MESH_SEQUENCE")
+    first = sc.evaluated(obj, sc.FRAMES[0])
+    tracked = []
     for f in range(sc.FRAMES[0] + 1, sc.FRAMES[1]):
         out = sc.evaluated(obj, f)
-        assert len(out["co"]) != len(a.data.vertices)  # the frame's own surface
+        tracked.append(len(out["co"]) == len(a.data.vertices))
+        if tracked[-1]:
+            np.testing.assert_array_equal(out["uv"], first["uv"])
         uv = out["uv"][out["tri_loops"]]
         assert np.abs(uv).sum() > 0
         span = np.ptp(uv, axis=1).max(axis=1)
         assert span.max() < 0.5  # no triangle spans a seam (Suzanne's islands lie apart)
         assert set(np.unique(out["material"])) == {0, 1}
+    assert tracked[0] and not tracked[-1] and tracked == sorted(tracked, reverse=True)

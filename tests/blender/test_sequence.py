@@ -102,7 +102,12 @@ def test_sequence_blend_plays_without_the_add_on(scene, kfi, tmp_path):
 @pytest.mark.skipif(not bpy.app.build_options.alembic,
                     reason="this Blender is built without Alembic (Debian's 4.3 package)")
 def test_alembic_export_writes_per_frame_vertex_counts(scene, kfi, tmp_path):
-    kfi.build_spheres([("A", (-0.5, 0, 0), 0.6, 1), ("B", (0.0, 0, 0), 0.75, 7)])
+    _, b = kfi.build_spheres([("A", (-0.5, 0, 0), 0.6, 1), ("B", (0.0, 0, 0), 0.75, 7)])
+    # B modelled finer than A: its frame shows its own mesh, the frames before it A's tracked
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12, radius=0.75)
+    finer = bpy.context.active_object
+    b.data = finer.data
+    bpy.data.objects.remove(finer)
     scene.keyframe_implicit.output_mode = "MESH_SEQUENCE"
     assert bpy.ops.keyframe_implicit.bake(resolution=RES) == {"FINISHED"}
     out = scene.keyframe_implicit.output_object

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -45,6 +45,9 @@ class Animation:
         ``surfaces`` is the keyframe's own mesh).
     prepared : dict output kind -> `meshdata.MeshData`, the output meshes made so far
         (`output_mesh`; the worker process makes the one the bake will store).
+    tracked : (n,) bool array, optional: the frames the mesh sequence ships as the tracked
+        template rather than as their own surface (`chain.tracked_frames`: those before a
+        topology change); None or empty, none.
     """
 
     frames: np.ndarray
@@ -58,6 +61,39 @@ class Animation:
     attributes: MeshAttributes | None = None
     keyframe_attributes: dict[int, MeshAttributes] = field(default_factory=dict)
     prepared: dict[str, MeshData] = field(default_factory=dict)
+    tracked: np.ndarray | None = None
+
+    def is_tracked(self, i: int) -> bool:
+        """Whether the mesh sequence ships frame i as the tracked template (``tracked``)."""
+        return self.tracked is not None and i < len(self.tracked) and bool(self.tracked[i])
+
+    def sequence_frame(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, triangles) the mesh sequence ships on frame i: the tracked template
+        where ``tracked`` says so, else the frame's own surface."""
+        if self.is_tracked(i):
+            return self.vertices[i], self.faces
+        return self.surfaces[i]
+
+    def sequence_attributes(self, i: int) -> MeshAttributes | None:
+        """`attributes.MeshAttributes` of `sequence_frame` (i), or None: on a tracked frame
+        the artist's own (``attributes``), as on the shape keys, its custom normals turned
+        with their polygons (`_turned_normals`); else its surface's (`surface_attributes`)."""
+        if not self.is_tracked(i):
+            return self.surface_attributes(i)
+        attrs = self.attributes
+        if attrs is None or attrs.custom_normals is None or i == 0:
+            return attrs
+        return replace(attrs, custom_normals=_turned_normals(attrs, self.vertices[0],
+                                                             self.vertices[i]))
+
+    def sequence_velocity(self, i: int) -> np.ndarray:
+        """Velocity of `sequence_frame` (i)'s vertices, world units per frame: a tracked
+        frame's from its neighbours' template (one-sided at the ends), else ``velocities``."""
+        if not self.is_tracked(i):
+            return self.velocities[i]
+        lo, hi = max(i - 1, 0), min(i + 1, len(self.vertices) - 1)
+        step = np.asarray(self.vertices[hi], float) - np.asarray(self.vertices[lo], float)
+        return (step / max(hi - lo, 1)).astype(np.float32)
 
     def output_mesh(self, kind: str) -> MeshData:
         """`meshdata.MeshData` of the output ``kind`` ("shape_keys" or "mesh_sequence"),
@@ -86,3 +122,26 @@ class Animation:
         from ..surface.attributes import transfer
 
         return transfer(self.attributes, self.vertices[i], *self.surfaces[i])
+
+
+def _turned_normals(attributes: MeshAttributes, start: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """``attributes.custom_normals`` (world space, per loop) turned as each polygon turned
+    from the vertices ``start`` to ``now``: the rotation taking the frame of the polygon's
+    first corner (its first edge and its normal) at ``start`` to that at ``now``. Blender
+    keeps custom normals relative to their faces, so shape keys turn them the same way."""
+    first = np.asarray(attributes.loop_start, dtype=np.int64)
+    corners = np.asarray(attributes.loop_vertices, dtype=np.int64)
+    tri = np.stack([corners[first], corners[first + 1], corners[first + 2]], axis=1)
+
+    def frames(v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v, dtype=float)
+        a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+        e = b - a
+        n = np.cross(e, c - a)
+        e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-30)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        return np.stack([e, np.cross(n, e), n], axis=2)  # columns: the polygon's axes
+    turn = frames(now) @ np.swapaxes(frames(start), 1, 2)
+    poly = np.repeat(np.arange(len(first)), np.asarray(attributes.loop_total, dtype=np.int64))
+    normals = np.asarray(attributes.custom_normals, dtype=float)
+    return np.einsum("lij,lj->li", turn[poly], normals).astype(np.float32)

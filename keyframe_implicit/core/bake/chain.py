@@ -36,8 +36,9 @@ import numpy as np
 from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
-from ..surface.quality import frame_quality
-from ..surface.extract import extract_surface
+from ..fields.measure import read_mesh
+from ..surface.quality import LIMITS, failures, frame_quality
+from ..surface.extract import extract_surface, material_topology
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
@@ -47,7 +48,7 @@ from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Iterable, Sequence
+    from collections.abc import Callable, Iterable, Mapping, Sequence
 
     from numpy.typing import ArrayLike
 
@@ -55,7 +56,8 @@ if TYPE_CHECKING:
     from ..motion.levelset import Inbetween, Recipe
     from ..motion.options import MotionOptions
 
-__all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "HELPER_PRELOAD"]
+__all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "tracked_frames",
+           "TRACKED_LIMITS", "HELPER_PRELOAD"]
 
 #: What a helper process imports as it starts: everything a chain's work sends it.
 HELPER_PRELOAD = (__name__,)
@@ -156,11 +158,13 @@ class Chain:
         self.options, self.cancel = options, cancel
         self._given_template, self._first_phi, self.grid = template, phis[0], grid
         self.keyframe_meshes = keyframe_meshes
+        self.volumes = None if keyframe_meshes is None or grid.dim != 3 else [
+            _modelled_volume(*mesh) for mesh in keyframe_meshes]
         self.outputs = dataclasses.replace(
             options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
         self.inbetweens = Inbetweens(phis, grid, features, maps, options.map,
                                      options.segment_motion(len(phis) - 1), cancel,
-                                     motion_grid, (self.frames, kinds))
+                                     motion_grid, (self.frames, kinds), self.volumes)
 
     @functools.cached_property
     def template(self) -> tuple:
@@ -207,7 +211,7 @@ class Chain:
         f0, f1 = self.frames[k], self.frames[k + 1]
         local = np.arange(f0 if k == 0 else f0 + 1, f1 + 1)
         return Segment(k, (f0, f1), (start, self.template[1]), self.keyframe_meshes,
-                       self.outputs), local
+                       self.outputs, _pair(self.volumes, k)), local
 
     def segment(self, k: int, start: np.ndarray, helper: Helper | None, rep: Reporter
                 ) -> tuple[np.ndarray, list[dict[str, Any]], dict[str, Any]]:
@@ -228,6 +232,21 @@ class Chain:
         segment, _ = self._segment(k, start)
         inb = self.inbetweens.make(k, None, None, Reporter())
         return _template(inb, segment, _detail(inb, segment), 1.0)["vertices"]
+
+
+def _pair(volumes, k):
+    """Segment ``k``'s two keyframe volumes as modelled, or None where either is unknown."""
+    pair = None if volumes is None else tuple(volumes[k:k + 2])
+    return None if pair is None or None in pair else pair
+
+
+def _modelled_volume(vertices, triangles):
+    """The volume a keyframe mesh encloses as modelled (`measure.read_mesh`), or None when
+    it has holes or edges of three faces or more: its volume then depends on how it is
+    read, and the grid's reading is the one to hold."""
+    reading = read_mesh(vertices, triangles)
+    closed = not (reading.open_edges or reading.shared_edges or reading.non_orientable)
+    return reading.volume if closed else None
 
 
 def _checked_chain(phis, grid, frames, maps, features, keyframe_meshes):
@@ -269,6 +288,10 @@ class Inbetweens:
     ``solved`` ({segment: (map A -> B, map B -> A, seconds)}) and ``bends`` ({segment:
     its `Bend`s}) may be filled beforehand with what was solved elsewhere (a farm's
     earlier tasks): a segment found there is not solved again.
+
+    ``volumes`` (per keyframe, its mesh's volume as modelled or None) are held by each
+    segment's in-betweens where both of its keyframes' are known
+    (`levelset.Inbetween.hold_volumes`).
     """
 
     def __init__(self, phis: Sequence[np.ndarray], grid: Grid,
@@ -277,7 +300,8 @@ class Inbetweens:
                  segment_motion: Sequence[MotionOptions],
                  cancel: Callable[[], bool] | None = None,
                  motion_grid: Grid | None = None,
-                 timing: tuple[np.ndarray, Sequence[str]] | None = None) -> None:
+                 timing: tuple[np.ndarray, Sequence[str]] | None = None,
+                 volumes: Sequence[float | None] | None = None) -> None:
         # the maps and the in-betweens are imported when first needed: this module is the
         # helper's preload and the live preview's import, which the motion stage (scipy.ndimage,
         # scikit-image) would slow
@@ -291,12 +315,19 @@ class Inbetweens:
         self.solved = {}  # segment -> its maps, solved ahead in a window
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
+        self.volumes = volumes
 
     def make(self, k: int, helper: Helper | None, split: FrameSplit | None,
              rep: Reporter) -> Inbetween:
-        """Segment ``k``'s in-betweens; ``split`` (`FrameSplit`, or None when no other
-        process makes frames) hears of them as soon as their recipe is known; progress to
-        0.5 of ``rep``."""
+        """Segment ``k``'s in-betweens, holding its keyframes' volumes as modelled where
+        known; ``split`` (`FrameSplit`, or None when no other process makes frames) hears
+        of them as soon as their recipe is known; progress to 0.5 of ``rep``."""
+        inb = self._make(k, helper, split, rep)
+        _hold_volumes(inb, _pair(self.volumes, k))
+        return inb
+
+    def _make(self, k, helper, split, rep):
+        """`make` but for the volumes held."""
         from ..motion.levelset import Inbetween
         from .maps import from_solved, pair_inbetweens
 
@@ -408,10 +439,11 @@ class Kept:
                  outputs: SurfaceOptions) -> None:
         self.frames, self.outputs = frames, outputs
         self.vertices = np.empty((frames.size,) + tuple(template_shape))
-        self.stats = {"segments": [], "max_abs_phi": [], "uncovered_area": [],
+        self.stats = {"segments": [], "max_abs_phi": [], "steered": [], "uncovered_area": [],
                       "uncovered_fraction": []}
         if outputs.surfaces:
             self.stats["quality"] = {name: [] for name in outputs.measured}
+            self.stats["topology"] = []
         self.meshes, self.velocities, self.fields = [], [], []
 
     def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
@@ -420,6 +452,7 @@ class Kept:
         for row, rec in zip(rows, records):
             self.vertices[row] = rec["vertices"]
             st["max_abs_phi"].append(rec["max_abs_phi"])
+            st["steered"].append(rec["steered"])
             if outputs.levelsets:
                 self.fields.append(rec["levelset"])
             if outputs.coverage:
@@ -428,6 +461,7 @@ class Kept:
             if outputs.surfaces:
                 for name in outputs.measured:
                     st["quality"][name].append(rec[name])
+                st["topology"].append(rec["topology"])
             if outputs.keeps_meshes:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
@@ -450,13 +484,16 @@ _MAP_WINDOW = 2
 class Segment:
     """What making segment ``k``'s frames needs besides its in-betweens: the keyframes'
     timeline frames ``ends``, the ``template`` (vertices, faces) on its first frame, every
-    keyframe's own mesh (or None) and what to keep of each frame."""
+    keyframe's own mesh (or None), what to keep of each frame, and the ``volumes`` of its
+    two keyframes' meshes as modelled (`_modelled_volume`), which its in-betweens hold
+    (None: their grids')."""
 
     k: int
     ends: tuple
     template: tuple
     keyframe_meshes: list | None
     outputs: SurfaceOptions
+    volumes: tuple | None = None
 
 
 class FrameSplit:
@@ -517,7 +554,8 @@ def _frames(inb, frames, segment, rep=None, alongside=0):
     by another process meanwhile (`FrameSplit`): they are counted (`Reporter.elsewhere`)
     in step with these, as they are about as far."""
     rep = rep or Reporter()
-    f0, f1 = segment.ends
+    (f0, f1), k = segment.ends, segment.k
+    _hold_volumes(inb, segment.volumes)  # a helper's in-betweens are made from the recipe
     detail = _detail(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
@@ -531,6 +569,13 @@ def _frames(inb, frames, segment, rep=None, alongside=0):
     return records
 
 
+def _hold_volumes(inb, volumes):
+    """Have the in-betweens hold their keyframes' ``volumes`` as modelled, where known and
+    kept (`levelset.Inbetween.hold_volumes`): a thin part's grid holds a fifth less or more."""
+    if volumes is not None and inb.keep_volume:
+        inb.hold_volumes(volumes)
+
+
 def _detail(inb, segment):
     """The `template.DetailTrack` of a segment that ends on a keyframe's own mesh, else None."""
     meshes = segment.keyframe_meshes
@@ -540,20 +585,25 @@ def _detail(inb, segment):
 
 
 def _template(inb, segment, detail, s):
-    """The template at time ``s``: its ``vertices`` and ``max_abs_phi``, the largest |phi|
-    of their projection onto the level set."""
+    """The template at time ``s``: its ``vertices``, ``max_abs_phi``, the largest |phi|
+    of their projection onto the level set, and ``steered``, how far the zero set steered
+    it (`template.DetailTrack.guides`; 1 for the grid's template, always pulled onto it;
+    0 on a keyframe's own mesh)."""
     if detail is None:
         tr = track_template(inb, [s], template=segment.template, coverage=False)
-        return dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0])
+        return dict(vertices=tr.vertices[0], max_abs_phi=tr.stats["max_abs_phi"][0],
+                    steered=1.0)
     p, err = detail(s)
-    return dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0)
+    return dict(vertices=p, max_abs_phi=float(err.max()) if err.size else 0.0,
+                steered=detail.guides.get(float(s), 0.0))
 
 
 def _frame_outputs(inb, s, segment, p, rep):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
     are ``p``: its level set, uncovered area, the quality figures of the outputs measured,
-    own mesh and velocity. The frame's own surface is made whenever a figure needs it; its
-    mesh and velocities only for the mesh sequence."""
+    its material's topology (`extract.material_topology`), own mesh and velocity. The
+    frame's own surface is made whenever a figure needs it; its mesh and velocities
+    only for the mesh sequence."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
     out = {}
     if outputs.levelsets:
@@ -572,6 +622,7 @@ def _frame_outputs(inb, s, segment, p, rep):
     meshes = {"shape_keys": (p, faces), "mesh_sequence": own}
     for name in outputs.measured:
         out[name] = frame_quality(ls, grid, *meshes[name], surf)
+    out["topology"] = material_topology(ls)
     rep.check()
     if outputs.keeps_meshes:
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
@@ -590,3 +641,50 @@ def frame_mesh(surface: tuple[np.ndarray, np.ndarray] | None,
         v, tris = keyframe_meshes[k + int(s == 1.0)]
         return np.asarray(v, dtype=float).reshape(-1, 3), np.asarray(tris).reshape(-1, 3)
     return surface
+
+
+#: The limits a frame of the tracked template meets to ship in a mesh sequence before a
+#: topology change (`tracked_frames`): the clean-output limits without coverage. Before
+#: parts meet, a frame's own surface reaches ahead toward the contact (the blend of the
+#: two keyframes' fields bridges the gap), while the artist's mesh keeps each part's shape
+#: until they meet: coverage there measures the surface's lead, not a flaw of the mesh.
+TRACKED_LIMITS = {**LIMITS, "coverage": 0.0}
+
+#: The most the zero set may steer a frame's template (`template.DetailTrack.guides`) for
+#: the frame to count as moved rigidly by its paths (`tracked_frames`).
+RIGID_STEER = 0.05
+
+
+def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
+                   topology: Sequence[tuple[int, int]],
+                   steered: Sequence[float] | None = None) -> np.ndarray:
+    """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
+    (n,) bool over ``frames``.
+
+    One mesh follows the shape until its topology changes (parts meet or part, a hole
+    opens: the pieces or the Euler characteristic of a frame's material differ from the
+    first frame's, ``topology``), so those frames keep the artist's vertices, UVs and
+    sharp edges; from the change on, each frame is its own surface, and the switch comes
+    where the viewer expects a change. A frame before the change on which the template
+    stretches or folds ends the tracked frames there instead: its figures (``shape_keys``,
+    `quality.frame_quality`'s, as measured) relative to the first frame's, where the
+    template is the artist's mesh itself, break `TRACKED_LIMITS`. A frame whose template
+    its paths carried rigidly (``steered``, per frame, at most `RIGID_STEER`; None: every
+    frame steered) cannot stretch or fold: its figures measure how coarse the grid's
+    surface is, and it passes.
+
+    ``shape_keys`` is updated in place to those relative figures on the tracked frames.
+    """
+    n = len(frames)
+    first, start = shape_keys[0], tuple(topology[0])
+    steered = np.ones(n) if steered is None else np.asarray(steered, dtype=float)
+    end = n
+    for i, (q, t) in enumerate(zip(shape_keys, topology)):
+        rel = dict(q, area_ratio=q["area_ratio"] / first["area_ratio"],
+                   inverted_fraction=max(q["inverted_fraction"] - first["inverted_fraction"], 0.0))
+        rigid = steered[i] <= RIGID_STEER
+        if tuple(t) != start or (not rigid and failures(rel, TRACKED_LIMITS)):
+            end = i
+            break
+        shape_keys[i] = rel
+    return np.arange(n) < end

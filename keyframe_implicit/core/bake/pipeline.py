@@ -23,7 +23,7 @@ from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
 from ..surface.quality import choose_output, keyframe_distance
 from .animation import Animation
-from .chain import HELPER_PRELOAD, Chain
+from .chain import HELPER_PRELOAD, Chain, tracked_frames
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
                      keyframe_label, no_volume_message, notes, rigid_sweep, checked_mesh)
@@ -422,16 +422,21 @@ def finish_bake(plan: BakePlan, chain: Animation, t0: float, rep: Reporter) -> A
     stats.update(chain.stats)
     stats["loose_vertices"] = [m[2] for m in plan.checked_meshes]
     stats["notes"] = notes(keyframes, stats["loose_vertices"], stats["sdf"])
+    tracked = None
     if "quality" in stats:
         rep(0.98, "Measuring the keyframe frames")
+        measured = [dict(q) for q in stats["quality"]["shape_keys"]]
         _choose_output(stats, keyframes, chain, plan.grid.spacing, artist is not None,
                        plan.options.surface.output)
+        if artist is not None and "mesh_sequence" in stats["quality"]:
+            tracked = _sequence_tracked(stats, chain.frames, measured, keyframes,
+                                        plan.options.surface.output == "auto")
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return dataclasses.replace(
         chain, frames=np.asarray(chain.frames, dtype=np.int64),
         vertices=np.asarray(chain.vertices, dtype=np.float32),
-        faces=np.asarray(chain.faces, dtype=np.int64), stats=stats,
+        faces=np.asarray(chain.faces, dtype=np.int64), stats=stats, tracked=tracked,
         attributes=None if artist is None else artist[2],
         keyframe_attributes={} if artist is None else
         _keyframe_attributes(keyframes, plan.checked_meshes, artist[2]))
@@ -533,6 +538,31 @@ def _choose_output(stats, keyframes, chain, spacing, artist, output):
     stats["output"], stats["output_reason"] = (
         choose_output(chain.frames, quality) if output == "auto" else
         (output, "chosen in the output settings"))
+
+
+def _sequence_tracked(stats, frames, measured, keyframes, auto):
+    """The frames the mesh sequence ships as the artist's mesh, tracked (`chain.
+    tracked_frames`, from the shape keys' figures as ``measured``), but for the later
+    keyframes' frames, which show each keyframe's own mesh (the first keyframe's is the
+    template itself). Their mesh-sequence figures become the template's (what ships
+    there), the output's reason names them and ``stats["tracked_frames"]`` counts them.
+    When the template may ship on every frame, Auto's choice (``auto``: the output is not
+    set in the settings) becomes the shape keys."""
+    quality = stats["quality"]
+    tracked = tracked_frames(frames, measured, stats["topology"], stats["steered"])
+    reach = int(np.count_nonzero(tracked))
+    if auto and reach == len(frames) and stats["output"] == "mesh_sequence":
+        stats["output"], stats["output_reason"] = "shape_keys", (
+            "one mesh follows the shape on every frame (it moves rigidly where the grid is "
+            "too coarse to judge it)")
+    tracked[[kf.frame - frames[0] for kf in keyframes[1:]]] = False
+    for i in np.flatnonzero(tracked[1:]) + 1:  # the first frame: the keyframe mesh itself
+        quality["mesh_sequence"][i] = measured[i]
+    stats["tracked_frames"] = int(tracked.sum())
+    if stats["output"] == "mesh_sequence" and reach:
+        stats["output_reason"] += (f"; frames {frames[0]}-{frames[reach - 1]}, before it "
+                                   "changes, keep the artist's mesh")
+    return tracked
 
 
 def _artist_template(keyframe, mesh, tracked_mesh):

@@ -129,19 +129,24 @@ class ComponentVolumes:
     paths_a, paths_b : paths with ``node_positions(t, nodes)``
         A's paths (A -> B) and B's (B -> A): `trajectory.Trajectories` or
         `finepaths.FinePaths`.
+    volumes : (V_A, V_B), optional
+        The keyframes' whole volumes the shares are of (the meshes' as modelled, where
+        they differ from the grids'); default: the sums of their components' volumes.
     """
 
     def __init__(self, grid: Grid, phi_a: np.ndarray, phi_b: np.ndarray,
-                 paths_a: Trajectories | FinePaths, paths_b: Trajectories | FinePaths) -> None:
+                 paths_a: Trajectories | FinePaths, paths_b: Trajectories | FinePaths,
+                 volumes: tuple[float, float] | None = None) -> None:
         self.a = _Source(phi_a, grid, paths_a)
         self.b = _Source(phi_b, grid, paths_b)
         self.atoms = self.a.count * self.b.count
         self.atom_a = self.a.component * self.b.count + self.a.partners(self.b)
         self.atom_b = self.b.partners(self.a) * self.b.count + self.b.component
-        self.volumes = (self.a.weight.sum(), self.b.weight.sum())
+        grid_volumes = (self.a.weight.sum(), self.b.weight.sum())
+        self.volumes = grid_volumes if volumes is None else tuple(volumes)
         self.share = _fitted_shares(
-            np.bincount(self.atom_a, self.a.weight, minlength=self.atoms) / self.volumes[0],
-            np.bincount(self.atom_b, self.b.weight, minlength=self.atoms) / self.volumes[1],
+            np.bincount(self.atom_a, self.a.weight, minlength=self.atoms) / grid_volumes[0],
+            np.bincount(self.atom_b, self.b.weight, minlength=self.atoms) / grid_volumes[1],
             (self.a.count, self.b.count))
 
     def targets(self, labels: np.ndarray, count: int, s: float) -> np.ndarray:

@@ -356,6 +356,17 @@ class Inbetween:
         field += other
         return field, meeting
 
+    def hold_volumes(self, volumes: tuple[float, float]) -> None:
+        """Hold (V_A, V_B), the keyframes' volumes as modelled (their meshes'), instead of
+        their grids' (`isovolume`; each part's share scaled with them, `components`); the
+        fields made before with others are made again."""
+        volumes = (float(volumes[0]), float(volumes[1]))
+        if volumes == self._end_volumes:
+            return
+        self._end_volumes = volumes
+        self._components = None
+        self._cache.clear()
+
     def _keep_volume(self, field, s):
         """Shift by the one iso-value that gives (1 - s) V_A + s V_B (`isovolume`); then,
         where the shifted in-between has several components, each by its own iso-value,
@@ -373,7 +384,8 @@ class Inbetween:
             if self._components is None:
                 self._components = ComponentVolumes(self.grid, self.phi_a, self.phi_b,
                                                     self.forward.trajectories,
-                                                    self.backward.trajectories)
+                                                    self.backward.trajectories,
+                                                    volumes=self._end_volumes)
             own, errors = component_iso_values(field, self.grid, labels,
                                                self._components.targets(labels, count, s))
             iso_value += own[np.argmax(np.abs(own))]

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area"]
+__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area",
+           "material_topology"]
 
 
 def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
@@ -54,6 +55,20 @@ def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: bool = False) -> 
         return np.zeros(0) if per_face else 0.0
     ar = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
     return ar if per_face else float(ar.sum())
+
+
+def material_topology(levelset: ArrayLike) -> tuple[int, int]:
+    """(pieces, Euler characteristic) of the material ``levelset < 0``, its nodes joined
+    across faces, edges and corners (`skimage.measure.euler_number`): what changes when
+    parts meet or part, or a hole opens or closes. Read off the nodes rather than off
+    the surface marching cubes makes, whose corners where the field is exactly zero on a
+    node can leave a closed part with an odd V - E + F."""
+    from scipy import ndimage
+    from skimage.measure import euler_number
+
+    inside = np.asarray(levelset) < 0
+    full = np.ones((3,) * inside.ndim, dtype=bool)
+    return int(ndimage.label(inside, structure=full)[1]), int(euler_number(inside, connectivity=3))
 
 
 def loop_area(loop: ArrayLike) -> float:

@@ -36,10 +36,13 @@ if TYPE_CHECKING:
         vertices: np.ndarray
         faces: np.ndarray
         surfaces: list[tuple[np.ndarray, np.ndarray]]
-        velocities: list[np.ndarray]
         attributes: MeshAttributes | None
 
-        def surface_attributes(self, i: int) -> MeshAttributes | None: ...
+        def sequence_frame(self, i: int) -> tuple[np.ndarray, np.ndarray]: ...
+
+        def sequence_velocity(self, i: int) -> np.ndarray: ...
+
+        def sequence_attributes(self, i: int) -> MeshAttributes | None: ...
 
 __all__ = ["MeshData", "polygon_edges", "match_edges", "resolve_output", "output_mesh"]
 
@@ -164,11 +167,12 @@ def output_mesh(animation: Baked, kind: str) -> MeshData:
     """The `MeshData` of ``animation``'s output ``kind``.
 
     Shape keys: the template on the first frame, with the artist's polygons and attributes
-    when the template is their mesh. Mesh sequence: every frame's own surface, one after
-    another, with the face attribute `FRAME_ATTRIBUTE` (the frame's index) and the point
-    attribute ``"velocity"`` (world units per frame); each surface carries the attributes
-    transferred from the artist's mesh (`Animation.surface_attributes`), or else its
-    triangles without the degenerate ones.
+    when the template is their mesh. Mesh sequence: every frame's mesh one after another
+    (`Animation.sequence_frame`: the tracked template before a topology change, else the
+    frame's own surface), with the face attribute `FRAME_ATTRIBUTE` (the frame's index)
+    and the point attribute ``"velocity"`` (world units per frame); each frame carries its
+    attributes (`Animation.sequence_attributes`: the artist's own on a tracked frame, else
+    transferred from the artist's mesh), or else its triangles without the degenerate ones.
     """
     if kind == SHAPE_KEYS:
         polygons = animation.attributes
@@ -177,17 +181,19 @@ def output_mesh(animation: Baked, kind: str) -> MeshData:
         return MeshData.build(np.asarray(animation.vertices)[0], polygons)
     if kind != MESH_SEQUENCE:
         raise ValueError(f"unknown output {kind!r}: expected {SHAPE_KEYS!r} or {MESH_SEQUENCE!r}.")
-    surfaces = animation.surfaces
-    if len(surfaces) != len(np.asarray(animation.frames).reshape(-1)):
+    n = len(np.asarray(animation.frames).reshape(-1))
+    if len(animation.surfaces) != n:
         raise ValueError("This bake holds no per-frame surfaces: choose Shape Keys as the output.")
-    per_frame = [animation.surface_attributes(i) for i in range(len(surfaces))]
+    meshes = [animation.sequence_frame(i) for i in range(n)]
+    per_frame = [animation.sequence_attributes(i) for i in range(n)]
     parts = [a if a is not None else MeshAttributes.from_triangles(clean_faces(faces))
-             for (_, faces), a in zip(surfaces, per_frame)]
-    counts = [len(np.reshape(v, (-1, 3))) for v, _ in surfaces]
-    data = MeshData.build(np.concatenate([np.reshape(v, (-1, 3)) for v, _ in surfaces]),
+             for (_, faces), a in zip(meshes, per_frame)]
+    counts = [len(np.reshape(v, (-1, 3))) for v, _ in meshes]
+    data = MeshData.build(np.concatenate([np.reshape(v, (-1, 3)) for v, _ in meshes]),
                           concatenate(parts, counts))
     data.face_ints[FRAME_ATTRIBUTE] = np.repeat(np.arange(len(parts), dtype=np.int32),
                                             [p.n_polygons for p in parts])
     data.point_vectors["velocity"] = np.concatenate(
-        [np.reshape(v, (-1, 3)) for v in animation.velocities]).astype(np.float32)
+        [np.reshape(animation.sequence_velocity(i), (-1, 3)) for i in range(n)]
+    ).astype(np.float32)
     return data

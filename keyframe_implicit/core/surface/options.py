@@ -34,9 +34,10 @@ class SurfaceOptions:
         keys' figures to choose by (`quality.choose_output`) and the mesh sequence with
         its figures and velocities for when it is chosen; "shape_keys" the tracked
         template's figures alone, measured against the frame's own surface, which is not
-        kept; "mesh_sequence" the frame's own mesh with its velocities and figures, the
-        template's not measured. The output set in the panel is made either way; the
-        other one is then not there to pick.
+        kept; "mesh_sequence" the frame's own mesh with its velocities and figures, and the
+        template's, which say on which frames it ships the artist's mesh, tracked
+        (`chain.tracked_frames`). The output set in the panel is made either way; the other
+        one is then not there to pick.
     """
 
     coverage: bool = True
@@ -52,7 +53,7 @@ class SurfaceOptions:
     @property
     def measured(self) -> tuple[str, ...]:
         """The outputs whose quality figures each frame measures (`quality.frame_quality`)."""
-        return ("shape_keys", "mesh_sequence") if self.output == "auto" else (self.output,)
+        return ("shape_keys",) if self.output == "shape_keys" else ("shape_keys", "mesh_sequence")
 
     @property
     def keeps_meshes(self) -> bool:

@@ -286,6 +286,12 @@ def local_rotations(inb: Inbetweens, points: ArrayLike, s: float, step: float = 
     differences over ``step`` cells), split F = R S by `rotations.polar`:
     the locally rigid part of the motion (eq. 3.1's R(s)).
     """
+    return local_motion(inb, points, s, step)[0]
+
+
+def local_motion(inb: Inbetweens, points: ArrayLike, s: float,
+                 step: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """`local_rotations` and the stretch S (P, 3, 3) of the polar split F = R S."""
     from ..base.rotations import polar
 
     p = np.asarray(points, dtype=float)
@@ -295,7 +301,7 @@ def local_rotations(inb: Inbetweens, points: ArrayLike, s: float, step: float = 
                             + [p[None] - delta * e[None, None] for e in np.eye(d)])
     moved = inb.trajectory(probes.reshape(-1, d), s).reshape(2 * d, len(p), d)
     jac = np.stack([(moved[i] - moved[d + i]) / (2 * delta) for i in range(d)], axis=-1)
-    return polar(jac)[0]
+    return polar(jac)
 
 
 def surface_filter(points: np.ndarray, radius: float,
@@ -332,6 +338,11 @@ def same_vertices(landing: np.ndarray, end_vertices: ArrayLike, spacing: float,
     return bool(np.median(d) <= median_cells and d.max() <= max_cells)
 
 
+#: Stretch of the trajectories' local motion, |S - I|, from which the zero set steers the
+#: template fully (`DetailTrack`); a part moving more rigidly follows its paths.
+RIGID_STRAIN = 0.02
+
+
 class DetailTrack:
     """The artist's mesh of keyframe A carried through one segment with its sub-cell detail.
 
@@ -341,17 +352,27 @@ class DetailTrack:
     the trajectory of the artist's vertex V0 (eq. 3.1), P_s the projection
     onto the zero set at s (`project_to_zero_set`), L a low-pass filter over
     the mesh that removes wavelengths under about two cells
-    (`surface_filter`) and R(s) the local rotation of the trajectories
-    (`local_rotations`),
+    (`surface_filter`), u(s) = L[P_s(p(s)) - p(s)] that smooth pull and R(s)
+    the local rotation of the trajectories (`local_rotations`),
 
-        x(s) = p(s) + L[P_s(p(s)) - p(s)] - (1 - s) R(s) c_A + s R(s) R(1)^T c_B,
+        x(s) = p(s) + g (u(s) - R(s) [(1 - s) c_A + s R(1)^T u(1)])
+               + s R(s) R(1)^T (x(1) - p(1)),
 
-    where c_A = L[P_0(V0) - V0] is the smooth offset between the artist's
-    mesh and its own grid surface (so x(0) = V0) and c_B the rest needed to
-    land on keyframe B's own triangles: x(1) = C_B(p(1) + L[P_1(p(1)) - p(1)]),
-    the closest point on B's mesh. Detail under a cell thus travels with the
-    locally rigid motion; the grid only steers the shape at its own scale.
-    x(0) is returned exactly as given.
+    where c_A = u(0) is the smooth offset between the artist's mesh and its own
+    grid surface (so x(0) = V0) and x(1) = C_B(p(1) + u(1)), the closest point on
+    keyframe B's own triangles. The zero set steers the mesh by what its pull adds
+    to the keyframes' own offsets carried along; detail under a cell travels with
+    the locally rigid motion. With g = 1 this is p(s) + u(s) - (1 - s) R c_A +
+    s R R(1)^T c_B, c_B = x(1) - p(1) - u(1). x(0) is returned exactly as given.
+
+    The zero set guides, it does not constrain: g, per vertex, is the stretch of
+    the trajectories' local motion (|S - I| of F = R S, smoothed by L) over
+    `RIGID_STRAIN`, at most 1. Where the material moves rigidly its paths carry
+    the artist's mesh exactly, while the zero set of a part only a few cells
+    thick wobbles with the grid as the part turns (a rod 2 cells thick loses a
+    fifth of its volume to it, and a different fifth at every angle); where it
+    deforms, the zero set steers as it always did. ``guides`` keeps, per time s,
+    the largest g.
 
     When keyframe B is the same mesh as the template, posed (the artist
     duplicated A and moved its vertices: same vertex count, and the closest
@@ -375,6 +396,7 @@ class DetailTrack:
         from .attributes import closest_points
 
         self.inb = inb
+        self.guides = {}
         self.start = np.asarray(vertices)
         self.steps = projection_steps
         v0 = self.start.astype(float)
@@ -386,7 +408,9 @@ class DetailTrack:
         self.end_by_index = same_vertices(self.end, end_mesh[0], inb.grid.spacing)
         if self.end_by_index:
             self.end = np.asarray(end_mesh[0], dtype=float).copy()
-        self.offset_b = np.einsum("pji,pj->pi", local_rotations(inb, v0, 1.0), self.end - pulled)
+        rot_b = local_rotations(inb, v0, 1.0)
+        self.offset_b = np.einsum("pji,pj->pi", rot_b, self.end - pulled)
+        self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
 
     def _pull(self, p: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """p + L[P_s(p) - p], L[P_s(p) - p] and |phi| at P_s(p)."""
@@ -403,6 +427,12 @@ class DetailTrack:
         if s == 1.0:
             return self.end.copy(), np.zeros(len(self.end))
         v0 = self.start.astype(float)
-        pulled, _, err = self._pull(self.inb.trajectory(v0, s), s)
-        offset = s * self.offset_b - (1.0 - s) * self.offset_a
-        return pulled + np.einsum("pij,pj->pi", local_rotations(self.inb, v0, s), offset), err
+        p = self.inb.trajectory(v0, s)
+        _, pull, err = self._pull(p, s)
+        rot, stretch = local_motion(self.inb, v0, s)
+        expected = np.einsum("pij,pj->pi", rot, (1.0 - s) * self.offset_a + s * self.pull_b)
+        strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
+        guide = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
+        landing = np.einsum("pij,pj->pi", rot, s * (self.offset_b + self.pull_b))
+        self.guides[s] = float(guide.max(initial=0.0))
+        return p + guide[:, None] * (pull - expected) + landing, err
