@@ -656,14 +656,15 @@ RIGID_STEER = 0.05
 
 
 def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
-                   topology: Sequence[tuple[int, int]],
+                   topology: Sequence[tuple[int, ...]],
                    steered: Sequence[float] | None = None) -> np.ndarray:
     """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
     (n,) bool over ``frames``.
 
     One mesh follows the shape until its topology changes (parts meet or part, a hole
-    opens: the pieces or the Euler characteristic of a frame's material differ from the
-    first frame's, ``topology``), so those frames keep the artist's vertices, UVs and
+    opens, or parts come within two cells of meeting, where the frame's own surface starts
+    to bridge the gap: ``topology``, `extract.material_topology`, differs from the first
+    frame's), so those frames keep the artist's vertices, UVs and
     sharp edges; from the change on, each frame is its own surface, and the switch comes
     where the viewer expects a change. A frame before the change on which the template
     stretches or folds ends the tracked frames there instead: its figures (``shape_keys``,
