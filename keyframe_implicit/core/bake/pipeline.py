@@ -21,7 +21,7 @@ from ..base.progress import Reporter, Tally
 from ..motion.spline import bends_needed, check_key_interpolation
 from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
-from ..surface.quality import choose_output, keyframe_distance
+from ..surface.quality import OWN_SURFACES, choose_output, keyframe_distance
 from .animation import Animation
 from .chain import HELPER_PRELOAD, Chain, tracked_frames
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
@@ -559,9 +559,9 @@ def _sequence_tracked(stats, frames, measured, keyframes, auto):
     for i in np.flatnonzero(tracked[1:]) + 1:  # the first frame: the keyframe mesh itself
         quality["mesh_sequence"][i] = measured[i]
     stats["tracked_frames"] = int(tracked.sum())
-    if stats["output"] == "mesh_sequence" and reach:
-        stats["output_reason"] += (f"; frames {frames[0]}-{frames[reach - 1]}, before it "
-                                   "changes, keep the artist's mesh")
+    if stats["output"] == "mesh_sequence" and reach > 1:
+        stats["output_reason"] = (stats["output_reason"].removesuffix(OWN_SURFACES)
+                                  + f"; the artist's mesh up to frame {frames[reach - 1]}")
     return tracked
 
 

@@ -213,6 +213,11 @@ def worst_frame(frames: Sequence[int] | np.ndarray, per_frame: Sequence[Mapping[
     return int(frames[k]), per_frame[k], failures(per_frame[k], limits)
 
 
+#: How a mesh sequence's reason ends (`choose_output`); a bake whose first frames keep the
+#: artist's mesh says so instead (`pipeline`).
+OWN_SURFACES = ", so each frame has its own surface"
+
+
 def choose_output(frames: Sequence[int] | np.ndarray,
                   quality: Mapping[str, Sequence[Mapping[str, float]]],
                   limits: Mapping[str, Any] = LIMITS) -> tuple[str, str]:
@@ -232,7 +237,7 @@ def choose_output(frames: Sequence[int] | np.ndarray,
     if not fails:
         return "shape_keys", "one mesh follows the shape on every frame"
     return "mesh_sequence", (f"one mesh cannot follow the shape at frame {frame} (it would "
-                             "stretch, fold or leave gaps), so each frame has its own surface")
+                             f"stretch, fold or leave gaps){OWN_SURFACES}")
 
 
 def describe_worst(frames: Sequence[int] | np.ndarray, per_frame: Sequence[Mapping[str, float]],
