@@ -55,7 +55,8 @@ def test_frames_before_contact_are_the_artists_mesh(merge_bake):
     frames = frame_meshes(an.output_mesh(MESH_SEQUENCE), len(an.frames))
     near = next(i for i, t in enumerate(topo) if t[2] < topo[0][2])  # within two cells
     tracked = an.stats["tracked_frames"]
-    assert tracked == near and contact - 2 <= near <= contact  # every frame before that
+    # the artist's mesh until parts come within two cells or its volume strays by 1 %
+    assert 4 <= tracked <= near and contact - 2 <= near <= contact
     for i, (count, loops, uv) in enumerate(frames[:tracked]):
         assert count == len(kfs[0].vertices)
         np.testing.assert_array_equal(loops, attrs.loop_vertices)

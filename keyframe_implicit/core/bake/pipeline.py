@@ -549,7 +549,8 @@ def _sequence_tracked(stats, frames, measured, keyframes, auto):
     When the template may ship on every frame, Auto's choice (``auto``: the output is not
     set in the settings) becomes the shape keys."""
     quality = stats["quality"]
-    tracked = tracked_frames(frames, measured, stats["topology"], stats["steered"])
+    tracked = tracked_frames(frames, measured, stats["topology"], stats["steered"],
+                             stats["volumes"])
     reach = int(np.count_nonzero(tracked))
     if auto and reach == len(frames) and stats["output"] == "mesh_sequence":
         stats["output"], stats["output_reason"] = "shape_keys", (
