@@ -38,7 +38,7 @@ from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
 from ..fields.measure import read_mesh
 from ..surface.quality import LIMITS, failures, frame_quality
-from ..surface.extract import extract_surface, material_topology, mesh_volume
+from ..surface.extract import extract_surface, material_topology
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
@@ -602,9 +602,8 @@ def _template(inb, segment, detail, s):
 def _frame_outputs(inb, s, segment, p, rep):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
     are ``p``: its level set, uncovered area, the quality figures of the outputs measured,
-    its material's topology (`extract.material_topology`), the volumes of the template
-    (about its centroid, so that an open mesh's moves with it) and of the frame's own
-    surface (`tracked_frames`), own mesh and velocity. The
+    its material's topology (`extract.material_topology`), the volumes of the template's
+    pieces (`tracked_frames`), own mesh and velocity. The
     frame's own surface is made whenever a figure needs it; its mesh and velocities
     only for the mesh sequence."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
@@ -626,7 +625,7 @@ def _frame_outputs(inb, s, segment, p, rep):
     for name in outputs.measured:
         out[name] = frame_quality(ls, grid, *meshes[name], surf)
     out["topology"] = material_topology(ls)
-    out["volumes"] = (mesh_volume(p - p.mean(axis=0), faces), mesh_volume(*surf))
+    out["volumes"] = piece_volumes(p, faces)
     rep.check()
     if outputs.keeps_meshes:
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
@@ -658,15 +657,31 @@ TRACKED_LIMITS = {**LIMITS, "coverage": 0.0}
 #: the frame to count as moved rigidly by its paths (`tracked_frames`).
 RIGID_STEER = 0.05
 
-#: The most a tracked frame's template may swell or shrink against the frame's own surface
-#: since the first frame (`tracked_frames`): the volume step where the frames switch.
+#: The most a piece of a tracked frame's template may swell or shrink since the first
+#: frame (`tracked_frames`): the volume step where the frames switch.
 TRACKED_VOLUME = 0.01
+
+
+def piece_volumes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The volume of each connected piece of a mesh, about the piece's own centroid (so an
+    open piece's moves with it), in the order of its lowest vertex."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v),) * 2)
+    count, label = connected_components(graph, directed=False)
+    centre = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
+              / np.bincount(label, minlength=count)[:, None])
+    a, b, c = (v[f[:, i]] - centre[label[f[:, 0]]] for i in range(3))
+    return np.bincount(label[f[:, 0]], np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, count)
 
 
 def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
                    topology: Sequence[tuple[int, ...]],
                    steered: Sequence[float] | None = None,
-                   volumes: Sequence[tuple[float, float]] | None = None) -> np.ndarray:
+                   volumes: Sequence[np.ndarray] | None = None) -> np.ndarray:
     """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
     (n,) bool over ``frames``.
 
@@ -681,25 +696,25 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     template is the artist's mesh itself, break `TRACKED_LIMITS`. A frame whose template
     its paths carried rigidly (``steered``, per frame, at most `RIGID_STEER`; None: every
     frame steered) cannot stretch or fold: its figures measure how coarse the grid's
-    surface is, and it passes. A frame not so carried whose template swells or shrinks
-    against the frame's own surface by more than `TRACKED_VOLUME` since the first frame
-    (``volumes``, per frame (template, own surface)) ends them too: the volume would step
-    back where the frames switch.
+    surface is, and it passes. A frame on which a piece of the template swells or shrinks
+    by more than `TRACKED_VOLUME` since the first frame (``volumes``, per frame its pieces'
+    volumes, `piece_volumes`) ends them too: its volume would step back where the frames
+    switch to their own surfaces, which hold it.
 
     ``shape_keys`` is updated in place to those relative figures on the tracked frames.
     """
     n = len(frames)
     first, start = shape_keys[0], tuple(topology[0])
     steered = np.ones(n) if steered is None else np.asarray(steered, dtype=float)
-    ratio = (np.ones(n) if volumes is None else
-             np.array([t / o if o else 1.0 for t, o in volumes], dtype=float))
+    drift = (np.zeros(n) if volumes is None else
+             np.array([np.max(np.abs(v / volumes[0] - 1.0), initial=0.0) for v in volumes]))
     end = n
     for i, (q, t) in enumerate(zip(shape_keys, topology)):
         rel = dict(q, area_ratio=q["area_ratio"] / first["area_ratio"],
                    inverted_fraction=max(q["inverted_fraction"] - first["inverted_fraction"], 0.0))
         rigid = steered[i] <= RIGID_STEER
-        swells = abs(ratio[i] / ratio[0] - 1.0) > TRACKED_VOLUME
-        if tuple(t) != start or (not rigid and (swells or failures(rel, TRACKED_LIMITS))):
+        if (tuple(t) != start or drift[i] > TRACKED_VOLUME
+                or (not rigid and failures(rel, TRACKED_LIMITS))):
             end = i
             break
         shape_keys[i] = rel
