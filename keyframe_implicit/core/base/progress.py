@@ -68,11 +68,12 @@ class Reporter:
     def __call__(self, fraction: float, message: str = "") -> None:
         """Report ``fraction`` of this stage done, then check for cancellation."""
         if self.tally is None:
-            self._progress_to(fraction, message)
+            self.forward(fraction, message)
         self.check()
 
-    def _progress_to(self, fraction, message):
-        """Forward ``fraction`` of this stage, in the caller's range, and ``message``."""
+    def forward(self, fraction: float, message: str) -> None:
+        """Forward ``fraction`` of this stage, in the caller's range, and ``message``, with
+        no cancellation check (`step`'s reporters forward their own stage's words)."""
         if self._progress is not None:
             f = min(max(float(fraction), 0.0), 1.0)
             self._progress(self.start + f * (self.stop - self.start), message)
@@ -102,10 +103,10 @@ class Reporter:
         if self.tally is None:
             part = self.sub(index / count, (index + 1) / count)
             words = f"{stage} {index + 1}/{count}"
-            inner = Reporter(lambda f, _message: part._progress_to(f, words), self._cancel)
+            inner = Reporter(lambda f, _message: part.forward(f, words), self._cancel)
             inner(0.0)
             yield inner
-            part._progress_to(1.0, words)
+            part.forward(1.0, words)
             return
         self.tally.started(stage)
         inner = Reporter(lambda f, _message: self.tally.within(stage, f), self._cancel)
