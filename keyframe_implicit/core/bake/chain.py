@@ -38,7 +38,7 @@ from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
 from ..fields.measure import read_mesh
 from ..surface.quality import LIMITS, failures, frame_quality
-from ..surface.extract import extract_surface, material_topology
+from ..surface.extract import extract_surface, material_topology, piece_volumes
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
@@ -662,22 +662,6 @@ RIGID_STEER = 0.05
 TRACKED_VOLUME = 0.01
 
 
-def piece_volumes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """The volume of each connected piece of a mesh, about the piece's own centroid (so an
-    open piece's moves with it), in the order of its lowest vertex."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
-    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
-    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v),) * 2)
-    count, label = connected_components(graph, directed=False)
-    centre = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
-              / np.bincount(label, minlength=count)[:, None])
-    a, b, c = (v[f[:, i]] - centre[label[f[:, 0]]] for i in range(3))
-    return np.bincount(label[f[:, 0]], np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, count)
-
-
 def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
                    topology: Sequence[tuple[int, ...]],
                    steered: Sequence[float] | None = None,
@@ -697,9 +681,9 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     its paths carried rigidly (``steered``, per frame, at most `RIGID_STEER`; None: every
     frame steered) cannot stretch or fold: its figures measure how coarse the grid's
     surface is, and it passes. A frame on which a piece of the template swells or shrinks
-    by more than `TRACKED_VOLUME` since the first frame (``volumes``, per frame its pieces'
-    volumes, `piece_volumes`) ends them too: its volume would step back where the frames
-    switch to their own surfaces, which hold it.
+    by more than `TRACKED_VOLUME` since the first frame (``volumes``, per frame its
+    pieces' volumes, `extract.piece_volumes`) ends them too: its volume would step back
+    where the frames switch to their own surfaces, which hold it.
 
     ``shape_keys`` is updated in place to those relative figures on the tracked frames.
     """

@@ -24,8 +24,8 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "mesh_area", "loop_area",
-           "material_topology"]
+__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "piece_volumes", "mesh_area",
+           "loop_area", "material_topology"]
 
 
 def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
@@ -36,6 +36,22 @@ def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
         return 0.0
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def piece_volumes(vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
+    """The volume of each connected piece of a mesh, about the piece's own centroid (so an
+    open piece's moves with it), in the order of its lowest vertex."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v),) * 2)
+    count, label = connected_components(graph, directed=False)
+    centre = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
+              / np.bincount(label, minlength=count)[:, None])
+    a, b, c = (v[f[:, i]] - centre[label[f[:, 0]]] for i in range(3))
+    return np.bincount(label[f[:, 0]], np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, count)
 
 
 @overload
