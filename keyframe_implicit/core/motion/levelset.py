@@ -329,15 +329,11 @@ class Inbetween:
         """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach,
         and where a keyframe's parts meet (None: nowhere, or no surface tension)."""
         w = self.outside_value
-        tension = self.options.surface_tension
-        if tension > 0:  # where parts meet, for `tension.fill_creases`
-            reach = meeting_reach(self.grid, tension)
+        tension = self.options.surface_tension  # where parts meet, for `tension.fill_creases`
+        reach = meeting_reach(self.grid, tension) if tension > 0 else None
 
-            def carried(transport, t, other):
-                return transport.carry_meeting(t, other, reach)
-        else:
-            def carried(transport, t, other):
-                return transport.carry(t, other=other), None
+        def carried(transport, t, other):
+            return transport.carry_meeting(t, other, reach)
         if self.threads > 1:
             with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
                 back = pool.submit(carried, self.backward, 1.0 - s, self.forward)

@@ -445,13 +445,14 @@ class Transport:
         return self._carried(t, other, values)[0]
 
     def carry_meeting(self, t: float, other: Transport | None,
-                      reach: float) -> tuple[np.ndarray, np.ndarray | None]:
+                      reach: float | None) -> tuple[np.ndarray, np.ndarray | None]:
         """`carry`, and where this keyframe's parts meet at time t: the nodes that moved
         cells of two different parts (`ndimage.label` of its material, each region cell
         taking the part nearest it) reach with values under ``reach`` (world units), i.e.
-        within ``reach`` of both parts' carried surfaces. None for a keyframe of one part."""
+        within ``reach`` of both parts' carried surfaces. None for a keyframe of one part,
+        or when ``reach`` is None (not asked)."""
         out, target, cell, vals = self._carried(t, other, None)
-        parts = self._cell_part
+        parts = None if reach is None else self._cell_part
         if parts is None:
             return out, None
         near = vals < reach
