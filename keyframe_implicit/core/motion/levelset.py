@@ -61,6 +61,7 @@ from .isovolume import component_iso_values, volume_iso_value
 from .options import MotionOptions
 from .components import ComponentVolumes, component_labels
 from .spline import start_velocity
+from .band import band_depth, touches_surface
 from .tension import fill_creases, meeting_reach
 from ..surface.extract import enclosed_volume
 from .trajectory import Trajectories
@@ -184,6 +185,10 @@ class Inbetween:
         self.stats["trajectory"] = forward.trajectories.stats
         if backward is not None:
             self.stats["trajectory_back"] = backward.trajectories.stats
+            tension = self.options.surface_tension
+            forward.band_depth = backward.band_depth = band_depth(
+                self.options.band_cells, grid, tension,
+                tension > 0 and (forward.parts or backward.parts))
             self.stats["map_agreement_h"] = map_agreement(grid, forward.trajectories,
                                                           backward.trajectories, phi_a < 0)
         self._coef_b = None  # Psi's spline coefficients, for the one-sided form
@@ -306,18 +311,14 @@ class Inbetween:
         if s in self._cache:
             return self._cache[s]
         t0 = time.perf_counter()
-        if self.backward is not None:
-            field, meeting = self._two_sided(s)
-            field = fill_creases(field.reshape(self.grid.shape), meeting, self.grid,
-                                 self.options.surface_tension,
-                                 min(1.0, min(s, 1.0 - s) / _TENSION_EASE))
-        elif self.options.resample == "lookup":
-            field = self._one_sided(s)
+        if self.backward is None:
+            field = (self._one_sided(s) if self.options.resample == "lookup"
+                     else self._one_sided_idw(s))
+            field = field.reshape(self.grid.shape)
+            if self.keep_volume:
+                field = self._keep_volume(field, s)
         else:
-            field = self._one_sided_idw(s)
-        field = field.reshape(self.grid.shape)
-        if self.keep_volume:
-            field = self._keep_volume(field, s)
+            field = self._banded(s)
         self.stats["levelset_seconds"] += time.perf_counter() - t0
         self.stats["levelset_calls"] += 1
         if len(self._cache) >= _CACHED_FIELDS:  # a frame asks for its field several times
@@ -325,9 +326,36 @@ class Inbetween:
         self._cache[s] = field
         return field
 
+    def _banded(self, s):
+        """The two-sided in-between at s from the transports' narrow bands (`band`); made
+        again from their whole regions where the band's floor comes near its surface."""
+        field, deep = self._two_sided_frame(s)
+        self.stats.setdefault("deep_nodes", {})[s] = int(np.count_nonzero(deep))
+        if deep.any() and touches_surface(field, deep, self.grid):
+            self.stats.setdefault("band_widened", []).append(s)
+            depths = self.forward.band_depth, self.backward.band_depth
+            self.forward.band_depth = self.backward.band_depth = np.inf
+            try:
+                field, _ = self._two_sided_frame(s)
+            finally:
+                self.forward.band_depth, self.backward.band_depth = depths
+        return field
+
+    def _two_sided_frame(self, s):
+        """The blend (`_two_sided`) with its creases filled and its volume kept, and the
+        nodes that took a band's deep value (bool, grid.shape)."""
+        field, meeting, deep = self._two_sided(s)
+        field = fill_creases(field.reshape(self.grid.shape), meeting, self.grid,
+                             self.options.surface_tension,
+                             min(1.0, min(s, 1.0 - s) / _TENSION_EASE))
+        if self.keep_volume:
+            field = self._keep_volume(field, s)
+        return field, deep.reshape(self.grid.shape)
+
     def _two_sided(self, s):
-        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach,
-        and where a keyframe's parts meet (None: nowhere, or no surface tension)."""
+        """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach;
+        where a keyframe's parts meet (None: nowhere, or no surface tension); and where
+        either transport took its band's deep value."""
         w = self.outside_value
         tension = self.options.surface_tension  # where parts meet, for `tension.fill_creases`
         reach = meeting_reach(self.grid, tension) if tension > 0 else None
@@ -337,11 +365,11 @@ class Inbetween:
         if self.threads > 1:
             with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
                 back = pool.submit(carried, self.backward, 1.0 - s, self.forward)
-                phi_s, meet_a = carried(self.forward, s, self.backward)
-                psi_s, meet_b = back.result()
+                phi_s, meet_a, deep_a = carried(self.forward, s, self.backward)
+                psi_s, meet_b, deep_b = back.result()
         else:
-            phi_s, meet_a = carried(self.forward, s, self.backward)
-            psi_s, meet_b = carried(self.backward, 1.0 - s, self.forward)
+            phi_s, meet_a, deep_a = carried(self.forward, s, self.backward)
+            psi_s, meet_b, deep_b = carried(self.backward, 1.0 - s, self.forward)
         meetings = [m for m in (meet_a, meet_b) if m is not None]
         meeting = (np.logical_or.reduce(meetings).reshape(self.grid.shape) if meetings
                    else None)
@@ -350,7 +378,7 @@ class Inbetween:
         field *= 1.0 - s  # in place: both are grid-sized and this call's own
         other *= s
         field += other
-        return field, meeting
+        return field, meeting, deep_a | deep_b
 
     def hold_volumes(self, volumes: tuple[float, float]) -> None:
         """Hold (V_A, V_B), the keyframes' volumes as modelled (their meshes'), instead of

@@ -58,6 +58,11 @@ class MotionOptions:
         clay pressed together: the blend's crease. 1 (default), as a liquid: the concave
         folds where the frame moves are filled over about two cells, so the neck rounds
         off within a few frames; larger, rounder. A split's neck thins the same way.
+    band_cells : float
+        Two-sided only: how deep inside the material, in cells, each frame's transports
+        read their fields (`band.Band`); deeper, only the inside is known (3). A frame
+        whose surface comes near the band's floor is made again on the whole region; inf
+        reads the whole region always.
     """
 
     transport: str = "two-sided"
@@ -71,6 +76,7 @@ class MotionOptions:
     newton_steps: int = 6
     interpolation: str = "cubic"
     surface_tension: float = 1.0
+    band_cells: float = 3.0
 
     def __post_init__(self) -> None:
         if self.resample not in RESAMPLES:
@@ -79,6 +85,9 @@ class MotionOptions:
             raise ValueError(f"transport must be one of {TRANSPORTS}, got {self.transport!r}.")
         if not self.surface_tension >= 0:
             raise ValueError(f"surface_tension must be 0 or more, got {self.surface_tension!r}.")
+        if not self.band_cells >= 1:
+            raise ValueError(f"band_cells must be 1 or more (inf: the whole region), got "
+                             f"{self.band_cells!r}.")
         if self.resample == "idw" and self.transport != "one-sided":
             raise ValueError('resample="idw" is the thesis\'s one-sided form: '
                              'use it with transport="one-sided".')

@@ -35,6 +35,7 @@ from ..base.elements import cofactor
 from ..base.grid import Grid
 from ..base.progress import Reporter
 from ..base.sampling import multilinear_in_cells, sample
+from .band import Band, inside
 from .options import MotionOptions
 
 if TYPE_CHECKING:
@@ -382,8 +383,9 @@ class Transport:
         self._torn = (np.zeros(len(self._cells), bool) if torn is None
                       else np.asarray(torn)[np.unravel_index(self._cells, grid.shape)])
         self.truncation = self.border_value if truncation is None else float(truncation)
-        # the map at the corner nodes (`_mapped_at`)
-        self._corner_mapped: np.ndarray | None = None
+        self.band_depth = np.inf  # the whole region, read (`band.Band`; set by `levelset`)
+        self._lift: np.ndarray | None = None  # `_lifted`, made once
+        self._band: tuple[tuple, Band] | None = None  # `_band_for`'s last, with its key
 
     def read(self, field: np.ndarray, u: np.ndarray, coef: np.ndarray | None = None) -> np.ndarray:
         """A field's value at continuous node-index coordinates u (M, d).
@@ -403,14 +405,18 @@ class Transport:
 
     def sources(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Inverse lookup at time t: (target node, source point in index coordinates) pairs."""
-        target, cell, local = self._sources_in_cells(t)
+        band = Band.whole(self._cnodes_local)
+        target, cell, local = self._sources_in_cells(t, band)
         return target, _index_coordinates(self.grid, self._cells, cell, local)
 
-    def _sources_in_cells(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """`sources` as (target node, source cell, local coordinates (d, M)) (`_lookup_in_cells`)."""
-        pos = self.trajectories.node_positions(t, self._corner_nodes)
-        return _lookup_in_cells(self.grid, _corner_gather(self.grid, pos, self._cnodes_local),
-                                self._cells, newton_steps=self.newton_steps, check=self._check)
+    def _sources_in_cells(self, t: float,
+                          band: Band) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`sources` of the ``band``'s cells as (target node, source cell (an index into
+        ``band.cells``), local coordinates (d, M)) (`_lookup_in_cells`)."""
+        pos = self.trajectories.node_positions(t, self._corner_nodes[band.nodes])
+        return _lookup_in_cells(self.grid, _corner_gather(self.grid, pos, band.local),
+                                self._cells[band.cells], newton_steps=self.newton_steps,
+                                check=self._check)
 
     def value_at(self, points: ArrayLike) -> np.ndarray:
         """The keyframe's own field at world points (P, d)."""
@@ -423,13 +429,14 @@ class Transport:
         Each source point x carries its own keyframe's value f(x); with
         ``other`` (the other keyframe's `Transport`) it carries
 
-            v_t(x) = (1 - w) f(x) + w max(f(x), g(y(x))),
+            v_t(x) = f(x) + w max(0, g(y(x)) - f(x)) = (1 - w) f + w max(f, g(y)),
 
         g the other keyframe's field and y this transport's map: where the
         map takes material into the other keyframe's empty space (a tear:
         a merge seen backwards, or a split), that material fades out on the
         way, while the other keyframe never adds depth to this one's empty
-        space. The fade's weight w is t, as fast as straight-timed paths open
+        space. The lift max(0, g(y) - f) is taken at the region's nodes once and
+        read multilinearly between them (`_lifted`). The fade's weight w is t, as fast as straight-timed paths open
         the tear from its start. Paths bent through a chain's keyframes leave
         a keyframe without spreading its material (their velocity there has no
         divergence, `spline.incompressible`), so their tear opens from rest and
@@ -440,63 +447,91 @@ class Transport:
         (``torn``) the weight is min(2 t, 1): that material is gone by
         half-way. ``values(u)`` (u source points in index coordinates)
         replaces both. Values are truncated at
-        ``truncation``; overlaps keep the smallest.
+        ``truncation``; overlaps keep the smallest. With a finite `band_depth`
+        only the narrow band is read (`band.Band`): the nodes its deep cells cover
+        take -`band_depth`.
         """
         return self._carried(t, other, values)[0]
 
     def carry_meeting(self, t: float, other: Transport | None,
-                      reach: float | None) -> tuple[np.ndarray, np.ndarray | None]:
-        """`carry`, and where this keyframe's parts meet at time t: the nodes that moved
-        cells of two different parts (`ndimage.label` of its material, each region cell
-        taking the part nearest it) reach with values under ``reach`` (world units), i.e.
-        within ``reach`` of both parts' carried surfaces. None for a keyframe of one part,
-        or when ``reach`` is None (not asked)."""
-        out, target, cell, vals = self._carried(t, other, None)
+                      reach: float | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """`carry`, where this keyframe's parts meet at time t, and the nodes that took
+        the band's deep value (bool, grid.size).
+
+        Parts meet at the nodes that moved cells of two different parts (`ndimage.label`
+        of its material, each region cell taking the part nearest it) reach with values
+        under ``reach`` (world units), i.e. within ``reach`` of both parts' carried
+        surfaces. None for a keyframe of one part, or when ``reach`` is None (not asked)."""
+        out, target, cell, vals, band, deep = self._carried(t, other, None, reach)
         parts = None if reach is None else self._cell_part
         if parts is None:
-            return out, None
+            return out, None, deep
+        parts = parts[band.cells]
         near = vals < reach
         count = np.zeros(self.grid.size, np.int16)
         for k in range(int(parts.max()) + 1):
             reached = np.zeros(self.grid.size, bool)
             reached[target[near & (parts[cell] == k)]] = True
             count += reached
-        return out, count >= 2
+        return out, count >= 2, deep
 
     @functools.cached_property
     def _cell_part(self) -> np.ndarray | None:
         """The part (0-based) of every region cell (`carry_meeting`), or None."""
         return _cell_parts(self.grid, self.field < 0, self._cells, self._corner_nodes)
 
-    def _carried(self, t, other, values):
-        """`carry`'s field, with the inverse lookup's target nodes, their source cells and
-        the values they carry."""
-        target, cell, local = self._sources_in_cells(t)
-        source = _index_coordinates(self.grid, self._cells, cell, local)
+    @property
+    def parts(self) -> bool:
+        """Whether the keyframe has several parts (`carry_meeting` can find them meeting)."""
+        return self._cell_part is not None
+
+    def _carried(self, t, other, values, reach=None):
+        """`carry`'s field, with the inverse lookup's target nodes, their source cells (in
+        the band), the values they carry, the `band.Band` moved, and the nodes that took
+        its deep value (bool, grid.size; `band.inside`)."""
+        faded = other is not None and t > 0 and values is None
+        band = (Band.whole(self._cnodes_local) if values is not None
+                else self._band_for(other if faded else None, reach))
+        target, cell, local = self._sources_in_cells(t, band)
+        source = _index_coordinates(self.grid, self._cells[band.cells], cell, local)
         if values is not None:
             vals = values(source)
         else:
             vals = self.read(self.field, source, self._coef)
-            if other is not None and t > 0:
-                y = self._mapped_at(cell, local)
+            if faded:
                 fade = t if self.trajectories.bend is None else t * t * (3.0 - 2.0 * t)
-                fade = np.where(self._torn[cell], min(2.0 * t, 1.0), fade)
-                vals = (1.0 - fade) * vals + fade * np.maximum(vals, other.value_at(y))
+                fade = np.where(self._torn[band.cells[cell]], min(2.0 * t, 1.0), fade)
+                vals += fade * multilinear_in_cells(self._lifted(other)[band.nodes, None],
+                                                    band.local, cell, local)[:, 0]
         vals = np.minimum(vals, self.truncation)
         out = np.full(self.grid.size, np.inf)
         np.minimum.at(out, target, vals)
         out[np.isinf(out)] = np.nan
-        return out, target, cell, vals
+        deep = inside(out, self.grid) if band.deep else np.zeros(self.grid.size, bool)
+        out[deep] = -band.depth
+        return out, target, cell, vals, band, deep
 
-    def _mapped_at(self, cell: np.ndarray, local: np.ndarray) -> np.ndarray:
-        """The map y(x) at source points given by their region cells and local coordinates:
-        multilinear in the cell, as the trajectories read it (`Trajectories.__call__` at
-        t = 1), from the map's values at the region's corner nodes, kept once made. The
-        lookup has found each point's cell, so it is not searched for again; a point up to
-        `_ON_FACE` outside its cell reads that cell's polynomial, not the next cell's."""
-        if self._corner_mapped is None:
-            self._corner_mapped = self.trajectories.node_positions(1.0, self._corner_nodes)
-        return multilinear_in_cells(self._corner_mapped, self._cnodes_local, cell, local)
+    def _lifted(self, other: Transport) -> np.ndarray:
+        """max(0, g(y(x)) - f(x)) at the region's corner nodes x (`carry`): how far the
+        other keyframe's field g at the map's image lies above this one's f."""
+        if self._lift is None:
+            y = self.trajectories.node_positions(1.0, self._corner_nodes)
+            own = self.field.reshape(-1)[self._corner_nodes]
+            self._lift = np.maximum(other.value_at(y) - own, 0.0)
+        return self._lift
+
+    def _band_for(self, other: Transport | None, reach: float | None) -> Band:
+        """The `band.Band` a frame moves: its cells' values lie between f and f plus the
+        lift (with ``other``); a cell counts as beyond the truncation only where that is
+        also beyond ``reach``, so that `carry_meeting` sees every value under it."""
+        beyond = self.truncation if reach is None or reach <= self.truncation else np.inf
+        key = (other is not None, beyond, self.band_depth)
+        if self._band is None or self._band[0] != key:
+            own = self.field.reshape(-1)[self._corner_nodes]
+            upper = own if other is None else own + self._lifted(other)
+            self._band = (key, Band.of(self._cnodes_local, own, upper, beyond,
+                                       self.band_depth, self.grid.spacing))
+        return self._band[1]
 
     def surface_motion(self, t: float, near: float,
                        dt: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
