@@ -77,8 +77,9 @@ def motion_arg(value, n):
     return None if value == "auto" else n if value == "full" else int(value)
 
 
-def run_one(name, n, processes, motion="auto"):
-    """Bake one case at ``n`` cells; figures as a dict (runs in the child)."""
+def run_one(name, n, processes, motion="auto", options=None):
+    """Bake one case at ``n`` cells (``options``: animate's stage options); figures as a dict
+    (runs in the child)."""
     from keyframe_implicit.core import animate
     from keyframe_implicit.core.bake.memory import estimate_memory
     from keyframe_implicit.core.bake.pipeline import _material_fraction
@@ -86,7 +87,7 @@ def run_one(name, n, processes, motion="auto"):
     kfs, features = keyframes(name)
     t0 = time.perf_counter()
     anim = animate(kfs, features, resolution=n, processes=processes,
-                   motion_resolution=motion_arg(motion, n))
+                   motion_resolution=motion_arg(motion, n), **(options or {}))
     total = time.perf_counter() - t0
     st = anim.stats
     segs = st["segments"]
@@ -107,10 +108,10 @@ def run_one(name, n, processes, motion="auto"):
                 estimate_mb=est / 2 ** 20)
 
 
-def run_child(name, n, processes, motion="auto"):
+def run_child(name, n, processes, motion="auto", options=None):
     """Run `run_one` in a fresh interpreter; its result dict (or the error it printed)."""
     cmd = [sys.executable, os.path.abspath(__file__), "--child", name, str(n), str(processes),
-           str(motion)]
+           str(motion), json.dumps(options or {})]
     out = subprocess.run(cmd, capture_output=True, text=True)
     if out.returncode != 0:
         return dict(case=name, n=n, error=out.stderr.strip().splitlines()[-25:])
@@ -175,13 +176,18 @@ def main():
     ap.add_argument("--motion", default="auto",
                     help='motion_resolution: "auto" (the bake\'s choice), "full" (the size: one '
                          'grid) or a number of cells')
-    ap.add_argument("--child", nargs=4, metavar=("CASE", "N", "P", "M"), help=argparse.SUPPRESS)
+    ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="stage options for the bakes (JSON values), e.g. band_cells=Infinity")
+    ap.add_argument("--child", nargs=5, metavar=("CASE", "N", "P", "M", "OPTIONS"),
+                    help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         print(json.dumps(run_one(args.child[0], int(args.child[1]), int(args.child[2]),
-                                 args.child[3])))
+                                 args.child[3], json.loads(args.child[4]))))
         return
-    run_rows(args.sizes, args.cases, lambda name, n: run_child(name, n, args.processes, args.motion),
+    options = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in args.set)}
+    run_rows(args.sizes, args.cases,
+             lambda name, n: run_child(name, n, args.processes, args.motion, options),
              print_table, args.json)
 
 
