@@ -65,6 +65,7 @@ def register() -> None:
     props.ON_CHANGE.update(live_preview=preview.toggled, show_keyframes=result_view.toggled,
                            motion_auto=limits.motion_auto_changed)
     props.ON_CHANGE["object"] = edits.object_picked  # a keyframe's object, picked in its row
+    props.ON_CHANGE["input"] = preview.edited  # a setting the bake reads: a new preview
     for name, handler in preview.HANDLERS:
         getattr(bpy.app.handlers, name).append(handler)
 

@@ -117,6 +117,7 @@ class KFI_OT_remove_keyframe(bpy.types.Operator):
         done = edits.keyframe_removed(context.scene, settings, index)
         settings.keyframes.remove(index)
         settings.active_keyframe_index = min(index, max(len(settings.keyframes) - 1, 0))
+        preview.edited()
         msg = f"Removed keyframe {index + 1}" + (f" '{obj.name}'." if obj is not None else ".")
         if done.joined:
             msg += (f" Joined {validate.count(done.joined, 'feature pair')} through it into "

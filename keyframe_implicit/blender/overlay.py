@@ -18,11 +18,14 @@ if TYPE_CHECKING:
     import gpu
     from numpy.typing import ArrayLike
 
-__all__ = ["available", "batch", "draw", "COLOR"]
+__all__ = ["available", "batch", "draw", "COLOR", "STALE_COLOR"]
 
 #: The preview's colour (linear RGB: an orange apart from Blender's default greys and the
 #: selection's) and opacity.
 COLOR = (1.0, 0.45, 0.1, 0.55)
+#: The colour of a preview whose inputs were edited since it was solved: a fainter grey,
+#: until the new solve's frame replaces it.
+STALE_COLOR = (0.55, 0.55, 0.55, 0.3)
 #: Direction the light comes from (world space, normalised below).
 _LIGHT = np.array([0.3, -0.5, 0.8])
 
@@ -42,8 +45,9 @@ def available() -> bool:
     return _shader() is not None
 
 
-def vertex_colors(vertices: ArrayLike, triangles: ArrayLike) -> np.ndarray:
-    """(V, 4) float32 colours: `COLOR` lit by `_LIGHT` along each vertex's normal (the
+def vertex_colors(vertices: ArrayLike, triangles: ArrayLike,
+                  color: tuple[float, float, float, float] = COLOR) -> np.ndarray:
+    """(V, 4) float32 colours: ``color`` lit by `_LIGHT` along each vertex's normal (the
     area-weighted sum of its triangles' normals), both sides lit alike."""
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
@@ -56,20 +60,21 @@ def vertex_colors(vertices: ArrayLike, triangles: ArrayLike) -> np.ndarray:
     light = _LIGHT / np.linalg.norm(_LIGHT)
     shade = 0.35 + 0.65 * np.abs(normals @ light)
     colors = np.empty((len(v), 4), dtype=np.float32)
-    colors[:, :3] = shade[:, None] * np.asarray(COLOR[:3])
-    colors[:, 3] = COLOR[3]
+    colors[:, :3] = shade[:, None] * np.asarray(color[:3])
+    colors[:, 3] = color[3]
     return colors
 
 
 def batch(vertices: np.ndarray, triangles: np.ndarray,
+          color: tuple[float, float, float, float] = COLOR,
           ) -> tuple[gpu.types.GPUShader, gpu.types.GPUBatch] | None:
-    """(shader, batch) drawing the mesh, or None where drawing is unavailable."""
+    """(shader, batch) drawing the mesh in ``color``, or None where drawing is unavailable."""
     shader = _shader()
     if shader is None or len(triangles) == 0:
         return None
     from gpu_extras.batch import batch_for_shader
 
-    colors = vertex_colors(vertices, triangles)
+    colors = vertex_colors(vertices, triangles, color)
     return shader, batch_for_shader(shader, "TRIS", {"pos": vertices, "color": colors},
                                     indices=triangles)
 

@@ -236,6 +236,9 @@ def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context) -> Non
     state = preview.state
     if state.message:
         _wrapped(layout, context, state.message, "ERROR")
+    elif state.stale:
+        layout.label(text="Preview: updating to your edit\u2026 (grey until then)",
+                     icon="SORTTIME")
     elif state.figures:
         f = state.figures
         _wrapped(layout, context, f"Preview grid {f['resolution']} cells, motion "

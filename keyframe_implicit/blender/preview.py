@@ -14,9 +14,12 @@ undo and redo work with it on as with it off.
 
 When it updates:
 
-- a keyframe object or a feature Empty changes (depsgraph_update_post): `schedule` sets a
-  solve `COALESCE` seconds after the last such change, so a drag asks for one solve, after
-  it; the worker cancels a solve in flight when a new one comes;
+- a keyframe object or a feature Empty changes (depsgraph_update_post), or a setting the
+  bake reads (a keyframe's frame, Interpolation or Surface Tension, the resolutions, the
+  weights, the keyframe list: `edited`): `schedule` sets a solve `COALESCE` seconds after
+  the last such change, so a drag asks for one solve, after it; the worker cancels a solve
+  in flight when a new one comes. Until a frame of that solve comes back, the overlay shown
+  is drawn in `overlay.STALE_COLOR`: never a frame of old inputs passed off as current;
 - the frame changes (frame_change_post): the new frame is asked for at once; the worker
   keeps the last request of each kind, so scrubbing never queues.
 
@@ -42,7 +45,7 @@ from . import diagnostics, features, overlay, scene_io, validate
 if TYPE_CHECKING:
     from .props import KFI_Session
 
-__all__ = ["State", "state", "start", "stop", "toggled", "turn_off", "schedule", "tick",
+__all__ = ["State", "state", "start", "stop", "toggled", "turn_off", "schedule", "edited", "tick",
            "active", "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post",
            "HANDLERS"]
 
@@ -70,6 +73,8 @@ class State:
         The preview shown: the last frame the worker answered.
     drawn : (shader, batch) or None
         Its `overlay.batch` (None where drawing is unavailable).
+    stale : bool
+        The mesh shown is from inputs edited since (drawn in `overlay.STALE_COLOR`).
     figures : dict
         Of the last solve (`core.bake.preview.Preview.figures`).
     message : str
@@ -80,6 +85,7 @@ class State:
         self.worker = self.handle = self.due = None
         self.solve_id = 0
         self.mesh = self.drawn = None
+        self.stale = False
         self.figures = {}
         self.message = ""
 
@@ -154,6 +160,29 @@ def schedule() -> None:
         state.due = clock() + COALESCE
 
 
+def edited(*_args: object) -> None:
+    """An input of the bake changed (also `props.ON_CHANGE`'s handler of the settings the
+    bake reads): `schedule` a solve and mark the overlay shown as stale."""
+    if state.worker is None:
+        return
+    schedule()
+    if not state.stale:
+        state.stale = True
+        _show(state.mesh)
+
+
+def _show(mesh):
+    """Draw ``mesh`` ((frame, vertices, triangles) or None), in the stale colour while
+    `State.stale`."""
+    state.mesh = mesh
+    state.drawn = None
+    if mesh is not None:
+        color = overlay.STALE_COLOR if state.stale else overlay.COLOR
+        diagnostics.step(f"the overlay of {len(mesh[2])} triangles")
+        state.drawn = overlay.batch(mesh[1], mesh[2], color)
+    _redraw()
+
+
 def _watched(scene):
     """The objects whose change needs a new solve: the keyframe objects and feature Empties
     (the originals' pointers)."""
@@ -173,7 +202,7 @@ def on_depsgraph_update(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) 
                if isinstance(u.id, bpy.types.Object)
                and (u.is_updated_transform or u.is_updated_geometry)]
     if changed and {o.as_pointer() for o in changed} & _watched(scene):
-        schedule()
+        edited()
 
 
 @bpy.app.handlers.persistent
@@ -243,12 +272,9 @@ def _take(answer):
     elif kind == "solved":
         state.figures = answer[2]
     elif kind == "frame":
-        frame, vertices, triangles = answer[2:]
-        state.mesh = (frame, vertices, triangles)
-        diagnostics.step(f"the overlay of {len(triangles)} triangles")
-        state.drawn = overlay.batch(vertices, triangles)
-        diagnostics.mark("shown", frame)
-        _redraw()
+        state.stale = state.due is not None  # edits since this solve went out
+        _show(tuple(answer[2:5]))
+        diagnostics.mark("shown", answer[2])
     elif kind == "failed":
         state.message = f"Live preview: {validate.with_menu_paths(answer[3])}"
         state.mesh = state.drawn = None

@@ -32,7 +32,8 @@ def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
     return obj is not None and obj.type == "MESH"
 
 
-#: What runs when a setting with a side effect changes, by property name. The modules that
+#: What runs when a setting with a side effect changes, by property name ("input": every
+#: other setting the bake reads, which the live preview follows). The modules that
 #: act on a setting fill it in when the add-on registers (`blender.register`), so the
 #: settings, which every other module reads, import none of them. A handler gets the
 #: property group that changed (`KFI_Settings`, `KFI_Session`, or the `KFI_Keyframe`
@@ -40,12 +41,14 @@ def _is_mesh(_self: "KFI_Keyframe", obj: bpy.types.Object | None) -> bool:
 ON_CHANGE: dict[str, Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]] = {}
 
 
-def _on_change(name: str) -> Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]:
-    """The ``update`` callback of setting ``name``: the handler `ON_CHANGE` holds for it."""
+def _on_change(*names: str) -> Callable[[bpy.types.PropertyGroup, bpy.types.Context], None]:
+    """The ``update`` callback of a setting: the handlers `ON_CHANGE` holds for ``names``,
+    in order."""
     def update(group: bpy.types.PropertyGroup, context: bpy.types.Context) -> None:
-        handler = ON_CHANGE.get(name)
-        if handler is not None:
-            handler(group, context)
+        for name in names:
+            handler = ON_CHANGE.get(name)
+            if handler is not None:
+                handler(group, context)
 
     return update
 
@@ -73,9 +76,10 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
         type=bpy.types.Object,
         poll=_is_mesh,
         description="Mesh object whose (evaluated, world-space) shape is this keyframe",
-        update=_on_change("object"),
+        update=_on_change("object", "input"),
     )
-    frame: IntProperty(name="Frame", default=1, description="Timeline frame of this keyframe")
+    frame: IntProperty(name="Frame", default=1, description="Timeline frame of this keyframe",
+                       update=_on_change("input"))
     interpolation: EnumProperty(
         name="Interpolation",
         items=(
@@ -89,6 +93,7 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
         ),
         default="SMOOTH",
         description="How the motion passes this keyframe",
+        update=_on_change("input"),
     )
     surface_tension: FloatProperty(
         name="Surface Tension", default=1.0, min=0.0, soft_max=2.0, step=10,
@@ -96,6 +101,7 @@ class KFI_Keyframe(bpy.types.PropertyGroup):
                     "clay pressed together (a sharp crease where they touch), 1 as a liquid "
                     "(the neck rounds off within a few frames), more for rounder. A part "
                     "that splits thins the same way",
+        update=_on_change("input"),
     )
     display_type: StringProperty(
         name="Display As", default="", options={"HIDDEN"},
@@ -117,6 +123,7 @@ class KFI_Settings(bpy.types.PropertyGroup):
         description="How much detail the shapes keep: grid cells along the longest side of "
         "the keyframes' bounding box. Memory and time grow with its cube: the line below "
         "says how much memory it needs, and Bake waits for a resolution that fits",
+        update=_on_change("input"),
     )
     motion_resolution: IntProperty(
         name="Motion Resolution",
@@ -128,6 +135,7 @@ class KFI_Settings(bpy.types.PropertyGroup):
         "on, in cells across the keyframes' longest side, like Resolution (equal to it: the "
         "motion at full detail). Raise it when thin parts move together that should move "
         "apart. 0 is Auto",
+        update=_on_change("input"),
     )
     motion_auto: BoolProperty(
         name="Auto", get=lambda self: self.motion_resolution == 0, set=_set_motion_auto,
@@ -140,18 +148,21 @@ class KFI_Settings(bpy.types.PropertyGroup):
         name="Volume", default=default_weights()["volume"], min=0.0, soft_max=100.0,
         description="How strictly every part keeps its volume while it moves. Raise it when "
         "in-betweens shrink or swell (thesis eq. 2.6: the volume term (det F - 1)^2)",
+        update=_on_change("input"),
     )
     rigidity_weight: FloatProperty(
         name="Rigidity", default=default_weights()["rigidity"], min=0.0, soft_max=100.0,
         description="How stiffly the parts move, without stretching or shearing. Raise it when "
         "in-betweens look rubbery; lower it for soft, fluid shapes (thesis eq. 2.6: the "
         "rigidity term ||F^T F - I||^2)",
+        update=_on_change("input"),
     )
     levelset_weight: FloatProperty(
         name="Shape Match", default=default_weights()["levelset"], min=0.0, soft_max=100.0,
         description="How closely the first keyframe's shape is pulled onto the next one's. "
         "Raise it when parts of the motion miss the next keyframe's shape (thesis eq. 2.6: "
         "the level-set matching term)",
+        update=_on_change("input"),
     )
     output_collection: StringProperty(
         name="Collection",

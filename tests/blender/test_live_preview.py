@@ -112,6 +112,25 @@ def test_moving_an_empty_schedules_one_solve_and_the_frame_comes_back(live, cloc
     assert _solves() == 2, "one move asked for more than one solve"
 
 
+@pytest.mark.parametrize("edit", [("keyframe", "interpolation", "EASE"),
+                                  ("settings", "resolution", 24)])
+def test_a_setting_the_bake_reads_schedules_a_solve_and_greys_the_preview_until_it_is_back(
+        live, clock, edit):
+    state = preview.state
+    _until(lambda: state.mesh is not None)
+    assert not state.stale
+    settings = bpy.context.scene.keyframe_implicit
+    owner, name, value = edit
+    setattr(settings.keyframes[0] if owner == "keyframe" else settings, name, value)
+    assert state.due == clock.now + preview.COALESCE, f"changing {name} asked for no solve"
+    assert state.stale and state.mesh is not None  # the old frame stays, marked
+    clock.now = state.due
+    preview.tick()
+    assert _solves() == 2
+    _until(lambda: not state.stale)  # the new solve's frame replaces it
+    assert state.mesh is not None and state.message == ""
+
+
 def test_ten_moves_within_100_ms_coalesce_into_one_solve(live, clock):
     state = preview.state
     empty = _feature_empty()
