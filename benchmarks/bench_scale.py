@@ -1,11 +1,13 @@
 """How a whole bake scales with the grid: seconds per stage, peak memory, cost growth.
 
 Every (case, size) runs `core.animate` end to end in a fresh subprocess: the
-keyframes are meshes (marching cubes of the case's fields on a fixed 97^3
-grid, so the input is the same at every size), 24 frames between them.
-Cases: the single-segment cases of `compare.py` and the sphere -> ellipsoid
-of `bench_solver.py`; on request (``--cases splash``) the three-segment splash,
-24 frames a segment, its stages summed over the segments.
+keyframes are meshes (a scanned mesh's own, else marching cubes of the case's fields on a
+fixed 97^3 grid, so the input is the same at every size), 24 frames between them.
+Cases: the single-segment cases of `compare.py`, the sphere -> ellipsoid
+of `bench_solver.py`, and a scanned mesh (the npm package's bunny, `cases.bunny_mesh`)
+morphed into a ball and squashed (``bunny``, ``bunny-squash``); on request
+(``--cases splash``) the three-segment splash, 24 frames a segment, its stages summed
+over the segments.
 
     python benchmarks/bench_scale.py                  # 64 128
     python benchmarks/bench_scale.py --sizes 64 128 192 256
@@ -37,7 +39,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path[:0] = [ROOT, HERE]
 
-CASES = ("rigid", "merge", "split", "bend", "squash", "morph", "ellipsoid")
+CASES = ("rigid", "merge", "split", "bend", "squash", "morph", "ellipsoid", "bunny",
+         "bunny-squash")
 CHAINS = ("splash",)  # several segments: printed, not in the slope
 MESH_NODES = 97
 STAGES = (("sdf", "distance"), ("maps", "maps"), ("trajectories", "trajectories"),
@@ -45,21 +48,21 @@ STAGES = (("sdf", "distance"), ("maps", "maps"), ("trajectories", "trajectories"
 
 
 def keyframes(name):
-    """(keyframes, features) of a case: meshes of its fields, 24 frames apart (1, 25, ...)."""
+    """(keyframes, features) of a case: its meshes (`cases.keyframe_meshes`), 24 frames
+    apart (1, 25, ...)."""
     from keyframe_implicit.core import Keyframe
-    from keyframe_implicit.core.surface.extract import extract_surface
 
     if name == "ellipsoid":
         from bench_solver import sphere_case
+        from keyframe_implicit.core.surface.extract import extract_surface
 
         grid, phi_a, phi_b, fa, fb = sphere_case(MESH_NODES)
-        fields, features = [phi_a, phi_b], [(fa, fb)]
+        meshes, features = [extract_surface(f, grid) for f in (phi_a, phi_b)], [(fa, fb)]
     else:
         import cases
 
         case = cases.make_case(name, MESH_NODES)
-        grid, fields, features = case.grid, case.fields, case.features
-    meshes = [extract_surface(f, grid) for f in fields]
+        meshes, features = cases.keyframe_meshes(case), case.features
     return [Keyframe(v, t, 1 + 24 * k) for k, (v, t) in enumerate(meshes)], features
 
 

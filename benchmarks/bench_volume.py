@@ -29,19 +29,15 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [os.path.dirname(HERE), HERE]
 
 MESH_NODES = 129
-MESHES = {"bunny": "bunny_mesh", "scan": "scan_mesh"}
 
 
 def keyframes(name):
     """(keyframes, features) of a case, its keyframes on frames 1 and 25."""
     import cases
     from keyframe_implicit.core import Keyframe
-    from keyframe_implicit.core.surface.extract import extract_surface
 
     case = cases.make_case(name, MESH_NODES)
-    meshes = [extract_surface(f, case.grid) for f in case.fields]
-    if name in MESHES:
-        meshes[0] = getattr(cases, MESHES[name])()
+    meshes = cases.keyframe_meshes(case)
     return [Keyframe(v, t, 1 + 24 * k) for k, (v, t) in enumerate(meshes)], case.features
 
 

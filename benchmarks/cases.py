@@ -15,8 +15,9 @@ exact (closest point by a vectorised bisection on the Lagrange parameter).
 unequal merge and split (two balls of radii 0.13 and 0.18 and one ball of their volume),
 ``scan``, the Stanford bunny as scanned (open, 100k triangles, the copy the pymeshfix
 package ships) into a ball of its volume, sampled by `keyframe_implicit.core.mesh_to_sdf`,
-and ``bunny``, the same into a ball from the closed 3.7k-triangle bunny of the npm package
-``bunny`` (fetched on first use into the user's cache, `bunny_mesh`).
+``bunny``, the same into a ball from the closed 3.7k-triangle bunny of the npm package
+``bunny`` (fetched on first use into the user's cache, `bunny_mesh`), and ``bunny-squash``,
+that bunny squashed to 0.6 of its height at equal volume.
 
 The rigid case also carries ``truth(points, s)``: the signed distance of the
 solid turned by ``s`` times the keyframe rotation about its centroid, with
@@ -42,13 +43,13 @@ from keyframe_implicit.core.base.grid import Grid
 from keyframe_implicit.shapes import capsule_sdf as sd_capsule
 from keyframe_implicit.shapes import sphere_sdf as sd_sphere
 
-__all__ = ["Case", "make_grid", "make_case", "CASE_NAMES", "EXTRA_CASES", "ALL_CASES", "rotation"]
+__all__ = ["Case", "make_grid", "make_case", "keyframe_meshes", "CASE_NAMES", "EXTRA_CASES", "ALL_CASES", "rotation"]
 
 #: The seven-case table (what ``compare.py`` runs by default).
 CASE_NAMES = ("rigid", "merge", "split", "bend", "squash", "morph", "splash")
 #: Cases run by name only (``compare.py --cases``): the unequal merge and split, whose parts
 #: keep their own volume while apart, and two scanned meshes (96^3 resolves their ears).
-EXTRA_CASES = ("unequal-merge", "unequal-split", "scan", "bunny")
+EXTRA_CASES = ("unequal-merge", "unequal-split", "scan", "bunny", "bunny-squash")
 ALL_CASES = CASE_NAMES + EXTRA_CASES
 
 
@@ -74,6 +75,15 @@ class Case:
     truth: object = None
     expected_components: list = field(default_factory=list)
     info: dict = field(default_factory=dict)
+
+
+def keyframe_meshes(case: Case) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The case's keyframes as meshes, (vertices, triangles) each: its own where it has one
+    (``info["meshes"]``, a scanned mesh), else marching cubes of its field."""
+    from keyframe_implicit.core.surface.extract import extract_surface
+
+    own = case.info.get("meshes", [None] * len(case.fields))
+    return [extract_surface(f, case.grid) if m is None else m for f, m in zip(case.fields, own)]
 
 
 def make_grid(n: int) -> Grid:
@@ -439,7 +449,26 @@ def _into_ball(name, mesh, grid):
     centre = x[inside].mean(axis=0)
     R = (3 * enclosed_volume(phi_a, grid) / (4 * np.pi)) ** (1 / 3)
     fa = centre + 0.1 * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
-    return Case(name, grid, [phi_a, sd_sphere(x, centre, R)], [(fa, fa.copy())], None, [1, 1])
+    return Case(name, grid, [phi_a, sd_sphere(x, centre, R)], [(fa, fa.copy())], None, [1, 1],
+                {"meshes": [mesh, None]})
+
+
+def _squashed(name, mesh, grid, height=0.6):
+    """A mesh squashed to ``height`` of itself along z and widened to keep its volume,
+    about its centroid (the npm bunny sits with its ears up: they flatten); feature points
+    on the centroid and the three axes follow the squash. ``info["meshes"]`` holds both
+    keyframe meshes, exact."""
+    from keyframe_implicit.core import mesh_to_sdf
+
+    vertices, triangles = mesh
+    phi_a = mesh_to_sdf(vertices, triangles, grid)
+    centre = grid.points()[phi_a < 0].mean(axis=0)
+    scale = np.array([1 / np.sqrt(height), 1 / np.sqrt(height), height])
+    squashed = centre + (vertices - centre) * scale
+    fa = centre + 0.1 * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    fb = centre + (fa - centre) * scale
+    return Case(name, grid, [phi_a, mesh_to_sdf(squashed, triangles, grid)], [(fa, fb)], None,
+                [1, 1], {"meshes": [(vertices, triangles), (squashed, triangles)]})
 
 
 def _scan(grid):
@@ -452,9 +481,15 @@ def _bunny(grid):
     return _into_ball("bunny", bunny_mesh(), grid)
 
 
+def _bunny_squash(grid):
+    """The npm package's bunny squashed to 0.6 of its height at equal volume."""
+    return _squashed("bunny-squash", bunny_mesh(), grid)
+
+
 _BUILDERS = {"rigid": _rigid, "merge": _merge, "split": _split, "bend": _bend, "squash": _squash,
              "morph": _morph, "splash": _splash, "unequal-merge": _unequal_merge,
-             "unequal-split": _unequal_split, "scan": _scan, "bunny": _bunny}
+             "unequal-split": _unequal_split, "scan": _scan, "bunny": _bunny,
+             "bunny-squash": _bunny_squash}
 
 
 def make_case(name: str, n: int) -> Case:
