@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
     from ..base.grid import Grid
 
-__all__ = ["part_labels", "parts_on", "part_crack"]
+__all__ = ["part_labels", "parts_on", "part_crack", "cut_components"]
 
 
 def part_labels(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayLike,
@@ -73,6 +73,15 @@ def part_crack(parts: np.ndarray) -> np.ndarray:
         np.minimum(low, v, out=low)
         np.maximum(high, v, out=high)
     return low < high
+
+
+def cut_components(components: np.ndarray, parts: np.ndarray) -> tuple[np.ndarray, int]:
+    """Component labels (0 outside, 1.. on the material) cut where ``parts`` differ: one
+    label per (component, part) met on the material, and their count. On a coarse grid
+    two parts a cell apart may share a component; here they never do."""
+    pairs = components * (int(parts.max()) + 1) + parts
+    keys = np.unique(pairs[components > 0])
+    return np.where(components > 0, np.searchsorted(keys, pairs) + 1, 0), len(keys)
 
 
 def _nearest_label(labels: np.ndarray) -> np.ndarray:

@@ -35,6 +35,9 @@ Algorithm (docs/method.md, section 4)
 * With ``tear`` (off by default): where a level's map spreads a component of A over
   several of B, that level is solved again with the component cut into pieces, and
   every finer level tears where its start does (`tear`, docs/method.md, section 4).
+* With ``separate_parts`` (on by default): where A's components go to different
+  components of B, the cells between them leave every level's solve, so each part is
+  mapped as a body of its own however close they are (`parts`).
 
 Weights, feature patches and the integration region (docs/method.md, section 2)
 -------------------------------------------------------------------------------
@@ -382,7 +385,8 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
 
     t0 = time.perf_counter()
     rep(0.0, "Initial map (radial basis functions)")
-    init = initial_map(phi_a, phi_b, grid, xa, yb)
+    parts = _parts(phi_a, phi_b, grid, xa, yb, options, parts)
+    init = initial_map(phi_a, phi_b, grid, xa, yb, parts)
     y0 = init.mapped if options.initial is None else options.initial
     timing["initial map"] = time.perf_counter() - t0
     disp0 = y0 - grid.points()
@@ -392,12 +396,6 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (grid.dim * i) for i in range(nlev)])
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
-    if not options.separate_parts:
-        parts = None
-    elif parts is None:
-        parts = part_labels(phi_a, phi_b, grid, xa, yb)
-    else:
-        parts = grid.check_field(parts, "parts").astype(np.int64)
     corr, tear, pieces = None, None, None
     level_stats = []
     with _second_thread() as pool:
@@ -436,6 +434,16 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
     region[system.active] = True
     return MapResult(mapped=y0 + corr, stats=stats, grid=grid, region=region.reshape(grid.shape),
                      material=phi_a < 0, components=init.components, tear=tear, parts=parts)
+
+
+def _parts(phi_a, phi_b, grid, xa, yb, options, parts):
+    """The parts the map keeps apart: None without ``separate_parts``, the ``parts`` given,
+    or those of the fields (`parts.part_labels`)."""
+    if not options.separate_parts:
+        return None
+    if parts is None:
+        return part_labels(phi_a, phi_b, grid, xa, yb)
+    return grid.check_field(parts, "parts").astype(np.int64)
 
 
 def _pieces(parts, grid, level):

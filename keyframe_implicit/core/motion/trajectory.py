@@ -79,6 +79,7 @@ from ..base.multigrid import BlockMultigrid, block_pcg
 from ..base.progress import Reporter
 from ..base.rotations import polar, rigid_fit, rotation_exp, rotation_log
 from ..base.sampling import cell_weights, sample
+from ..map.parts import cut_components
 from .options import MotionOptions
 
 if TYPE_CHECKING:
@@ -230,14 +231,6 @@ def _checked(grid, mapped, material, components, method, margin_cells, margin_we
     return y, mat, components
 
 
-def _apart(components, parts):
-    """``components`` (labels on the material) cut where ``parts`` differ: one label per
-    (component, part) met on the material."""
-    pairs = components * (int(parts.max()) + 1) + parts
-    keys = np.unique(pairs[components > 0])
-    return np.where(components > 0, np.searchsorted(keys, pairs) + 1, 0)
-
-
 class Trajectories:
     """As-rigid-as-possible node paths x(s) from x to the map y(x) (section 3.1).
 
@@ -295,7 +288,7 @@ class Trajectories:
                                       margin_weight)
         self._parts = None if parts is None else np.asarray(parts).reshape(-1)
         if self._parts is not None:  # a component the parts cut is a body per part
-            components = _apart(components, self._parts.reshape(grid.shape))
+            components, _ = cut_components(components, self._parts.reshape(grid.shape))
         d = grid.dim
 
         self.grid = grid
