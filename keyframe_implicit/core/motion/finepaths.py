@@ -161,15 +161,19 @@ class FinePaths:
                 foreign = (own == p)[:, None] & (coarse.parts[corner] != p)
                 if foreign.any():
                     at = corner[foreign]
-                    disp[foreign] = (coarse.body_positions(s, at, self._nearest_of(p)[at])
-                                     - coarse.grid.node_points(at))
+                    like = self._nearest_of(p)[at]
+                    disp[foreign] = coarse.body_positions(s, at, like) - coarse.grid.node_points(at)
+                    if coarse.bend is not None:
+                        disp[foreign] += coarse.bend(s, like)
         return x + np.einsum("pk,pkd->pd", w, disp)
 
     def _nearest_of(self, part):
-        """The motion node of ``part`` nearest each motion node (flat indices)."""
+        """The material motion node of ``part`` (any node of it, where it holds no motion
+        node of material) nearest each motion node (flat indices)."""
         if part not in self._nearest:
             mgrid = self.coarse.grid
-            away = (self.coarse.parts != part).reshape(mgrid.shape)
+            own = (self.coarse.parts == part).reshape(mgrid.shape)
+            away = ~(own & self.coarse.material) if (own & self.coarse.material).any() else ~own
             _, idx = ndimage.distance_transform_edt(away, return_indices=True)
             self._nearest[part] = np.ravel_multi_index(tuple(idx), mgrid.shape).reshape(-1)
         return self._nearest[part]
