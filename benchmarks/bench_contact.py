@@ -224,11 +224,18 @@ def run_case(name: str, resolution: int, motion: str, options: dict | None = Non
     """Bake case ``name`` and measure it: one row. ``options``: stage options for
     `core.animate` (e.g. ``{"trust_strain": 0.3}``)."""
     from contact_cases import make_contact_case
+
+    return bake_and_measure(make_contact_case(name, MESH_NODES), resolution, motion, options)
+
+
+def bake_and_measure(case: Case, resolution: int, motion: str,
+                     options: dict | None = None) -> dict:
+    """`run_case` of a given ``case`` (its fields on the benchmark box): one row, or
+    ``error`` where the bake refuses it."""
     from keyframe_implicit.core import animate
 
-    case = make_contact_case(name, MESH_NODES)
     kfs = keyframes(case)
-    row = {"case": name, "resolution": resolution}
+    row = {"case": case.name, "resolution": resolution}
     t0 = time.perf_counter()
     try:
         anim = animate(kfs, case.features, resolution=resolution, processes=1, levelsets=True,

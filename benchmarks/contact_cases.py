@@ -28,7 +28,7 @@ import cases
 from cases import Case, make_grid, rotation, sd_box, sd_spheroid
 from keyframe_implicit.shapes import sphere_sdf as sd_sphere
 
-__all__ = ["CONTACT_CASES", "EVENTS", "SCISSORS_H", "make_contact_case"]
+__all__ = ["CONTACT_CASES", "EVENTS", "SCISSORS_H", "make_contact_case", "scissors_case"]
 
 #: The contact table's cases, in its order.
 CONTACT_CASES = ("drop", "splash", "merge", "unequal-merge", "split", "unequal-split", "torus",
@@ -91,10 +91,11 @@ def scissors_plates(h: float = SCISSORS_H) -> list[tuple[np.ndarray, np.ndarray]
             for sign in (1.0, -1.0)]
 
 
-def _scissors(grid):
-    """Two close plates turn opposite ways (-90 and +90 degrees about z), like scissors."""
+def _scissors(grid, h=SCISSORS_H):
+    """Two close plates turn opposite ways (-90 and +90 degrees about z), like scissors:
+    6 ``h`` thick, 1.5 ``h`` apart."""
     x = grid.points()
-    plates = scissors_plates()
+    plates = scissors_plates(h)
     fields = [np.minimum(*[sd_box(x, c, half) for c, half in plates]),
               np.minimum(*[sd_box(x, c, half[[1, 0, 2]]) for c, half in plates])]
     fa, fb = [], []
@@ -103,7 +104,14 @@ def _scissors(grid):
         fa.append(pts)
         fb.append(pts @ rotation((0, 0, 1), turn).T)
     return Case("scissors", grid, fields, [(np.vstack(fa), np.vstack(fb))], None, [2, 2],
-                {"turns": (-90.0, 90.0), "h48": SCISSORS_H})
+                {"turns": (-90.0, 90.0), "h48": h})
+
+
+def scissors_case(n: int, h: float = SCISSORS_H) -> Case:
+    """The scissors on the ``n``^3 benchmark grid, their plates 6 ``h`` thick and 1.5 ``h``
+    apart (a bake's cell at resolution r is about 1.22 / r: 1.5 of its cells at
+    ``h`` = 1.22 / r)."""
+    return _scissors(make_grid(n), h)
 
 
 _BUILDERS = {"drop": _drop, "torus": _torus, "scissors": _scissors}

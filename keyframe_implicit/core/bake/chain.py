@@ -393,18 +393,20 @@ class Inbetweens:
             self.solve(range(nseg), helper, rep.sub(0.0, 0.7))
             solved = [self.solved[k] for k in range(nseg)]
             forward = [res.mapped for res, _, _ in solved]
-            ends = [dict(material=res.material, components=res.components)
+            ends = [dict(material=res.material, components=res.components, parts=res.parts)
                     for res, _, _ in solved]
             back = [None if b is None else b.mapped for _, b, _ in solved]
+            back_parts = [None if b is None else b.parts for _, b, _ in solved]
         else:
             forward, ends = list(self.maps), [{} for _ in range(nseg)]
-            back = [None] * nseg
+            back, back_parts = [None] * nseg, [None] * nseg
         with rep.sub(0.7, 1.0).step(PATHS, 0, 1):
-            self._bend(forward, back, ends, common)
+            self._bend(forward, back, ends, back_parts, common)
 
-    def _bend(self, forward, back, ends, common):
+    def _bend(self, forward, back, ends, back_parts, common):
         """`bend_all` once the maps are known: the maps B -> A a one-sided solve lacks (by
-        inversion), the paths' velocities at the keyframes and every segment's bends."""
+        inversion), the paths' velocities at the keyframes and every segment's bends
+        (``back_parts``: the parts each map B -> A keeps apart, or None)."""
         from ..motion.levelset import back_map, path_start_velocity
 
         nseg = len(self.phis) - 1
@@ -419,7 +421,8 @@ class Inbetweens:
             if side == "forward":
                 return path_start_velocity(self.phis[k], self.grid, forward[k], **ends[k],
                                            **common)
-            return path_start_velocity(self.phis[k + 1], self.grid, back[k], **common)
+            return path_start_velocity(self.phis[k + 1], self.grid, back[k],
+                                       parts=back_parts[k], **common)
 
         jobs = velocities_needed(self.timing[1])
         with ThreadPoolExecutor(max_workers=2) as pool:  # independent: one per core

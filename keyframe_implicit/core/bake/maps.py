@@ -108,7 +108,7 @@ def pair_inbetweens(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid,
         res, back, _ = solve_maps_shared(ends, solve_grid, [features], range(1), two_sided,
                                          helper, rep.sub(0.0, 0.8), cancel, map_options)[0]
     else:
-        res, back = _solve_maps(*ends, solve_grid, *features, two_sided, parallel,
+        res, back = _solve_maps(ends, 0, solve_grid, features, two_sided, parallel,
                                 rep.sub(0.0, 0.8), cancel, map_options)
     with rep.sub(0.8, 1.0).step(PATHS, 0, 1):
         return from_solved(phi_a, phi_b, grid, res, back, motion_options,
@@ -150,6 +150,24 @@ class OnMotionGrid(Sequence):
             self._read[k] = on_motion_grid(self.phis[k], self.grid, self.motion_grid)
         return self._read[k]
 
+    def parts(self, k: int, j: int, features: Sequence[ArrayLike]) -> np.ndarray | None:
+        """The parts of keyframe ``k``'s map onto keyframe ``j`` (``features``: the pair
+        (points of k, points of j)), found on the surface grid, where a gap of one cell
+        shows, and read at the motion grid's nodes (`map.parts`)."""
+        from ..map.parts import part_labels, parts_on
+
+        parts = part_labels(self.phis[k], self.phis[j], self.grid, *features)
+        return None if parts is None else parts_on(parts, self.grid, self.motion_grid)
+
+
+def _given_parts(phis: Sequence[ArrayLike], k: int, j: int, features: Sequence[ArrayLike],
+                 map_options: MapOptions) -> np.ndarray | None:
+    """The parts the map of keyframe ``k`` onto ``j`` is given (`OnMotionGrid.parts`), or
+    None: on one grid `solve_map` finds them itself."""
+    if not (isinstance(phis, OnMotionGrid) and map_options.separate_parts):
+        return None
+    return phis.parts(k, j, features)
+
 
 def from_solved(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, res: MapResult,
                 back: MapResult | None, motion_options: MotionOptions, seconds: float,
@@ -167,16 +185,17 @@ def from_solved(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, res: MapResult,
                   components=res.components, options=motion_options,
                   motion_grid=None if res.grid == grid else res.grid, bends=bends,
                   cracks=tuple(None if m is None or m.tear is None else m.tear.crack
-                               for m in (res, back)))
+                               for m in (res, back)),
+                  parts=tuple(None if m is None else m.parts for m in (res, back)))
     if on_maps is not None:
         on_maps(Recipe((phi_a, phi_b, grid, res.mapped), inputs))
     return Inbetween.from_map(phi_a, phi_b, grid, res.mapped, stats=st, map_result=res,
                               map_result_back=back, cancel=cancel, **inputs)
 
 
-def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel, rep, cancel,
-                map_options):
-    """The map A -> B and, for the two-sided transport, B -> A (feature pairs swapped).
+def _solve_maps(phis, k, grid, features, two_sided, parallel, rep, cancel, map_options):
+    """The map A -> B of keyframes ``k`` and ``k + 1`` of ``phis`` and, for the two-sided
+    transport, B -> A (feature pairs swapped).
 
     The two solves are independent: with ``parallel`` and two cores free the
     backward one runs in a second thread (numpy and scipy release the GIL in
@@ -185,17 +204,23 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
     """
     from ..map.solver import solve_map  # here: a process that only reads maps never loads it
 
+    phi_a, phi_b = phis[k], phis[k + 1]
+    features_a, features_b = features
+    forward = dict(options=map_options,
+                   parts=_given_parts(phis, k, k + 1, features, map_options))
     if not two_sided:
         with rep.step(MAPS, 0, 1) as part:
             return solve_map(phi_a, phi_b, grid, features_a, features_b, progress=part,
-                             cancel=cancel, options=map_options), None
+                             cancel=cancel, **forward), None
+    backward = dict(options=map_options,
+                    parts=_given_parts(phis, k + 1, k, features[::-1], map_options))
     if not (parallel and cores() >= 2):
         with rep.step(MAPS, 0, 2) as part:
             res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=part,
-                            cancel=cancel, options=map_options)
+                            cancel=cancel, **forward)
         with rep.step(MAPS, 1, 2) as part:
             back = solve_map(phi_b, phi_a, grid, features_b, features_a, progress=part,
-                             cancel=cancel, options=map_options)
+                             cancel=cancel, **backward)
         return res, back
     failed = threading.Event()
 
@@ -204,11 +229,11 @@ def _solve_maps(phi_a, phi_b, grid, features_a, features_b, two_sided, parallel,
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         job = pool.submit(solve_map, phi_b, phi_a, grid, features_b, features_a, cancel=stop,
-                          options=map_options)
+                          **backward)
         try:
             with rep.step(MAPS, 0, 2) as part:
                 res = solve_map(phi_a, phi_b, grid, features_a, features_b, progress=part,
-                                cancel=cancel, options=map_options)
+                                cancel=cancel, **forward)
         except BaseException:
             failed.set()
             raise
@@ -246,7 +271,7 @@ def solve_maps_shared(phis: Sequence[ArrayLike], grid: Grid,
         out, n = {}, len(window)
         for i, k in enumerate(window):
             start = time.perf_counter()
-            res, back = _solve_maps(phis[k], phis[k + 1], grid, *features[k], two_sided, True,
+            res, back = _solve_maps(phis, k, grid, features[k], two_sided, True,
                                     rep.sub(i / n, (i + 1) / n), cancel, map_options)
             out[k] = (res, back, time.perf_counter() - start)
         return out
@@ -258,13 +283,18 @@ def solve_maps_shared(phis: Sequence[ArrayLike], grid: Grid,
         (fa, fb), a, b = features[k], phis[k], phis[k + 1]
         return (a, b, grid, fa, fb) if side == 0 else (b, a, grid, fb, fa)
 
+    def keywords(job):
+        k, side = job
+        ends = (k, k + 1, features[k]) if side == 0 else (k + 1, k, features[k][::-1])
+        return {"options": map_options, "parts": _given_parts(phis, *ends, map_options)}
+
     def here(job, stop):
         mine.append(job)
         with rep.step(MAPS, len(mine) - 1, len(jobs)) as part:
-            return solve_map(*arguments(job), progress=part, cancel=stop, options=map_options)
+            return solve_map(*arguments(job), progress=part, cancel=stop, **keywords(job))
 
     def there(job):
-        return solve_map, arguments(job), {"options": map_options}
+        return solve_map, arguments(job), keywords(job)
 
     done, ends, _ = share(jobs, here, there, helper, check=rep.check, cancel=cancel,
                           on_theirs=lambda _job: rep.elsewhere(MAPS))

@@ -10,6 +10,7 @@ feature constraints C y = d (eq. 2.14-2.20), by constrained Gauss-Newton, coarse
 ``system``       eq. 2.6 discretised on one grid: energy, gradient, Hessian
 ``hierarchy``    the nested grids and the corrections carried between them
 ``tear``         where a map spreads one component over several: its pieces and crack
+``parts``        components apart in both keyframes: the cells between them leave the solve
 ``coarse``       the coarse correction of the linear solves
 ``solver``       `solve_map`: the Gauss-Newton iteration (sec. 2.5)
 ``result``       `MapResult`, what a solve returns

@@ -84,6 +84,10 @@ class MapOptions:
         its own (`tear`). Off by default: the pieces keep det F near 1, but the crack
         they leave shows as a groove at a merge's neck (benchmarks/README.md, "Maps
         that tear"). False: one continuous map, which stretches across the gap.
+    separate_parts : bool
+        Components of A that go to different components of B are bodies of their own:
+        the cells between them leave the solve, however close they are (`parts`).
+        False: one map over both, whose gap drags each by the other.
     """
 
     weights: dict = field(default_factory=default_weights)
@@ -105,6 +109,7 @@ class MapOptions:
     reuse_hessian: bool = True
     min_det: float = 0.2
     tear: bool = False
+    separate_parts: bool = True
 
     @classmethod
     def from_keywords(cls, **keywords: Any) -> MapOptions:

@@ -47,6 +47,7 @@ from ..base import elements
 from ..base.grid import Grid
 from ..base.rotations import rigid_fit
 from ..base.sampling import sample
+from .parts import cut_components
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -285,7 +286,7 @@ def _blend(maps: list[np.ndarray], labels: np.ndarray, pts: np.ndarray) -> np.nd
 
 
 def initial_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, features_a: ArrayLike,
-                features_b: ArrayLike) -> InitialMap:
+                features_b: ArrayLike, parts: np.ndarray | None = None) -> InitialMap:
     """Initial map y(x) of every node (eq. 2.1-2.5 per component, rigid fallback).
 
     Parameters
@@ -293,6 +294,9 @@ def initial_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, features_a: Ar
     phi_a, phi_b : signed distance grids of keyframes A and B (negative inside).
     grid : `Grid`.
     features_a, features_b : (N, d) paired feature points (world units), N >= 0.
+    parts : int array (grid.shape), optional
+        The parts the map keeps apart (`parts.part_labels`): a component they cut is one
+        component per part, each with its own map.
 
     Returns
     -------
@@ -302,6 +306,8 @@ def initial_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, features_a: Ar
     xa = np.asarray(features_a, dtype=float).reshape(-1, d)
     ya = np.asarray(features_b, dtype=float).reshape(-1, d)
     labels, n = label_material(phi_a)
+    if parts is not None:
+        labels, n = cut_components(labels, parts)
     labels_b, nb = label_material(phi_b)
     pts = grid.points().reshape(-1, d)
     comp_of = _nearest_label(labels, grid, xa) if len(xa) else np.zeros(0, dtype=np.int64)

@@ -37,6 +37,9 @@ class MapResult:
     tear : `tear.Tear` or None
         The pieces of A's torn components and the crack between them, where the map
         spreads a component of A over several of B (`tear.find_tear`).
+    parts : int array (grid.shape) or None
+        The part of every node where A's components go to different components of B
+        (`parts.part_labels`): the map tears between parts, and so do its trajectories.
     """
 
     mapped: np.ndarray
@@ -47,3 +50,4 @@ class MapResult:
     components: np.ndarray | None = field(default=None)
 
     tear: Tear | None = field(default=None)
+    parts: np.ndarray | None = field(default=None)

@@ -35,6 +35,9 @@ Algorithm (docs/method.md, section 4)
 * With ``tear`` (off by default): where a level's map spreads a component of A over
   several of B, that level is solved again with the component cut into pieces, and
   every finer level tears where its start does (`tear`, docs/method.md, section 4).
+* With ``separate_parts`` (on by default): where A's components go to different
+  components of B, the cells between them leave every level's solve, so each part is
+  mapped as a body of its own however close they are (`parts`).
 
 Weights, feature patches and the integration region (docs/method.md, section 2)
 -------------------------------------------------------------------------------
@@ -68,7 +71,8 @@ from .hierarchy import coarse_to_fine, correction, fields_on, prolong, start_map
 from .rbf import initial_map
 from .system import HESSIAN_DTYPE, MapSystem, constrained_system, det_floor
 from .result import MapResult
-from .tear import find_tear, prolong_pieces
+from .parts import part_crack, part_labels, parts_on
+from .tear import Tear, find_tear, prolong_pieces
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -289,15 +293,17 @@ def _line_search(system, y, dy, E, slope, floor, weights, chunk, min_det, check,
     return None
 
 
-def _level(pa, pb, g, xa, yb, options, base, corr, tear, rep, timing, pool, refine=True):
+def _level(pa, pb, g, xa, yb, options, base, corr, tear, gaps, rep, timing, pool,
+           refine=True):
     """One level of the hierarchy solved: its system (without the cells of the ``tear``'s
-    crack, if any), the solution on its active nodes, its correction of ``base`` on every
-    node, det F figures, term energies and the level's stats. It starts from ``corr`` on
-    this level's grid: a coarser level's correction prolonged (``refine``, as far as
-    `start_map` allows), or this level's own, to be solved again."""
+    crack, if any, nor those of the ``gaps`` between separate parts), the solution on its
+    active nodes, its correction of ``base`` on every node, det F figures, term energies
+    and the level's stats. It starts from ``corr`` on this level's grid: a coarser level's
+    correction prolonged (``refine``, as far as `start_map` allows), or this level's own,
+    to be solved again."""
     t0 = time.perf_counter()
-    system = constrained_system(pa, pb, g, xa, yb, options, base,
-                                None if tear is None else tear.crack)
+    crack = gaps if tear is None else tear.crack if gaps is None else tear.crack | gaps
+    system = constrained_system(pa, pb, g, xa, yb, options, base, crack)
     if refine:
         start, y = start_map(system, base, corr, options)
     else:
@@ -322,6 +328,7 @@ def _level(pa, pb, g, xa, yb, options, base, corr, tear, rep, timing, pool, refi
 
 def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayLike,
               features_b: ArrayLike, *, options: MapOptions | None = None,
+              parts: ArrayLike | None = None,
               progress: Callable[[float, str], object] | None = None,
               cancel: Callable[[], bool] | None = None, **keywords: Any) -> MapResult:
     """Map keyframe A's grid nodes onto keyframe B (thesis chapter 2).
@@ -338,6 +345,10 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
     options : `options.MapOptions`, optional
         All settings at once: how the bake passes them. Give them so or as keywords,
         not both.
+    parts : int ndarray, grid.shape, optional
+        The part of every node (`parts.part_labels`), where ``grid``'s fields cannot tell
+        the parts apart: on a motion grid, the surface grid's parts read at its nodes
+        (`parts.parts_on`). Read with ``separate_parts`` only; by default found here.
     progress, cancel : callables, see `keyframe_implicit.core.base.progress`.
     **keywords
         Any field of `options.MapOptions` (``max_iterations`` 20, ``tolerance`` 1 %,
@@ -374,7 +385,8 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
 
     t0 = time.perf_counter()
     rep(0.0, "Initial map (radial basis functions)")
-    init = initial_map(phi_a, phi_b, grid, xa, yb)
+    parts = _parts(phi_a, phi_b, grid, xa, yb, options, parts)
+    init = initial_map(phi_a, phi_b, grid, xa, yb, parts)
     y0 = init.mapped if options.initial is None else options.initial
     timing["initial map"] = time.perf_counter() - t0
     disp0 = y0 - grid.points()
@@ -384,7 +396,7 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
     # work per level grows ~2**d per refinement: give progress slices accordingly
     cost = np.array([2.0 ** (grid.dim * i) for i in range(nlev)])
     edges = np.concatenate([[0.05], 0.05 + 0.9 * np.cumsum(cost) / cost.sum()])
-    corr, tear = None, None
+    corr, tear, pieces = None, None, None
     level_stats = []
     with _second_thread() as pool:
         for li, g in enumerate(grids):  # coarse to fine; the last is ``grid``
@@ -394,20 +406,24 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
             if not np.any(pa < 0):
                 continue  # material too thin for this coarse level
             step = None if corr is None else prolong(corr, g.shape)
+            coarse_pieces, pieces = pieces, None if parts is None else _pieces(parts, grid, g)
             if tear is not None:  # a coarser level tore: this one tears where its start does
                 coarse, tear = tear, find_tear(pa, pb, g, base + step)
                 if tear is not None:  # and each piece starts from its own coarse piece
                     step = prolong_pieces(corr, coarse, tear, int(options.extension_passes))
+            elif coarse_pieces is not None:  # each part starts from its own coarse part
+                step = prolong_pieces(corr, coarse_pieces, pieces, int(options.extension_passes))
+            gaps = None if pieces is None else pieces.crack
             timing["setup"] += time.perf_counter() - t0
             part = rep.sub(edges[li], edges[li + 1])
             system, y, corr, dets, energies, st = _level(pa, pb, g, xa, yb, options, base, step,
-                                                         tear, part, timing, pool)
+                                                         tear, gaps, part, timing, pool)
             level_stats.append(st)
             if tear is None and options.tear:
                 tear = find_tear(pa, pb, g, base + corr)
                 if tear is not None:  # this level once more, each piece a body of its own
                     system, y, corr, dets, energies, st = _level(
-                        pa, pb, g, xa, yb, options, base, corr, tear, part, timing, pool,
+                        pa, pb, g, xa, yb, options, base, corr, tear, gaps, part, timing, pool,
                         refine=False)
                     level_stats.append(st)
     rep(1.0, "Volume map done")
@@ -417,7 +433,24 @@ def solve_map(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayL
     region = np.zeros(grid.size, dtype=bool)
     region[system.active] = True
     return MapResult(mapped=y0 + corr, stats=stats, grid=grid, region=region.reshape(grid.shape),
-                     material=phi_a < 0, components=init.components, tear=tear)
+                     material=phi_a < 0, components=init.components, tear=tear, parts=parts)
+
+
+def _parts(phi_a, phi_b, grid, xa, yb, options, parts):
+    """The parts the map keeps apart: None without ``separate_parts``, the ``parts`` given,
+    or those of the fields (`parts.part_labels`)."""
+    if not options.separate_parts:
+        return None
+    if parts is None:
+        return part_labels(phi_a, phi_b, grid, xa, yb)
+    return grid.check_field(parts, "parts").astype(np.int64)
+
+
+def _pieces(parts, grid, level):
+    """The parts on the nodes of a ``level`` of ``grid``'s hierarchy, as the `tear.Tear`
+    of a map that tears between them (each part maps onto itself)."""
+    own = parts_on(parts, grid, level)
+    return Tear(own, part_crack(own), np.arange(1, own.max() + 1), 0.0)
 
 
 def _map_stats(system, y, dets, energies, weights, level_stats, init):

@@ -66,6 +66,20 @@ def material_mass(material: ArrayLike, grid: Grid, motion_grid: Grid) -> np.ndar
     return out.reshape(motion_grid.shape)
 
 
+def _surface_parts(grid: Grid, material: np.ndarray, coarse: Trajectories) -> np.ndarray:
+    """The part of every surface node (flat): that of its nearest material component, each
+    component taking the part most of its nodes' motion cells' nearest corners hold."""
+    labels, count = ndimage.label(material)
+    idx = np.rint(coarse.grid.to_index(grid.to_world(np.argwhere(material)))).astype(np.int64)
+    idx = np.clip(idx, 0, np.asarray(coarse.grid.shape) - 1)
+    votes = coarse.parts.reshape(coarse.grid.shape)[tuple(idx.T)]
+    part = np.zeros(count + 1, np.int64)
+    for c in range(1, count + 1):
+        part[c] = np.bincount(votes[labels[material] == c]).argmax()
+    _, near = ndimage.distance_transform_edt(labels == 0, return_indices=True)
+    return part[labels[tuple(near)]].reshape(-1)
+
+
 class FinePaths:
     """The paths x(s) of a surface grid's nodes, interpolated from coarser trajectories.
 
@@ -80,16 +94,24 @@ class FinePaths:
     margin_cells : float
         The region's margin around the material, in surface cells (as
         `trajectory.Trajectories` ``margin_cells``).
+
+    Where the coarse trajectories keep parts apart (``coarse.parts``), a motion cell may
+    hold two parts across a gap narrower than itself: a surface node reads the corners
+    of another part moved rigidly with its own part's body (`Trajectories.
+    body_positions`), so a rigid part stays rigid up to the gap.
     """
 
     def __init__(self, grid: Grid, coarse: Trajectories, material: ArrayLike,
                  margin_cells: float) -> None:
         self.grid, self.coarse, self.dim = grid, coarse, grid.dim
         self.stats = coarse.stats
-        dist = ndimage.distance_transform_edt(~np.asarray(material, dtype=bool))
+        material = np.asarray(material, dtype=bool)
+        dist = ndimage.distance_transform_edt(~material)
         self._region = (dist <= float(margin_cells)).reshape(-1)
         self._weights: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._mapped: np.ndarray | None = None
+        self._parts = None if coarse.parts is None else _surface_parts(grid, material, coarse)
+        self._nearest: dict[int, np.ndarray] = {}  # per part: its nearest motion node
 
     @property
     def bend(self) -> Bend | None:
@@ -109,21 +131,52 @@ class FinePaths:
             disp = coarse.mapped - coarse.grid.points()
             out = np.empty((self.grid.size, d))
             for lo in range(0, self.grid.size, _CHUNK):
-                x = self.grid.node_points(np.arange(lo, min(lo + _CHUNK, self.grid.size)))
-                out[lo:lo + len(x)] = x + sample(disp, coarse.grid, x)
+                nodes = np.arange(lo, min(lo + _CHUNK, self.grid.size))
+                if self._parts is None:
+                    x = self.grid.node_points(nodes)
+                    out[lo:lo + len(x)] = x + sample(disp, coarse.grid, x)
+                else:
+                    out[lo:lo + len(nodes)] = self._read(1.0, nodes)
             self._mapped = out.reshape(self.grid.shape + (d,))
         return self._mapped
 
     def node_positions(self, s: float, nodes: ArrayLike) -> np.ndarray:
         """Positions x(s) of the surface nodes with the given flat indices, (len(nodes), d)."""
         nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
-        x = self.grid.node_points(nodes)
         if float(s) == 0.0:
-            return x
+            return self.grid.node_points(nodes)
+        return self._read(s, nodes)
+
+    def _read(self, s, nodes):
+        """`node_positions` at 0 < s <= 1: the motion nodes' displacements interpolated,
+        those of another part's corners replaced by the node's own part's body."""
+        x = self.grid.node_points(nodes)
         w, cnodes, inv = self._cells_of(nodes, x)
         coarse = self.coarse
-        disp = coarse.node_positions(s, cnodes) - coarse.grid.node_points(cnodes)
-        return x + np.einsum("pk,pkd->pd", w, disp[inv])
+        disp = (coarse.node_positions(s, cnodes) - coarse.grid.node_points(cnodes))[inv]
+        if self._parts is not None:
+            own = self._parts[nodes]
+            corner = cnodes[inv]
+            for p in np.unique(own):
+                foreign = (own == p)[:, None] & (coarse.parts[corner] != p)
+                if foreign.any():
+                    at = corner[foreign]
+                    like = self._nearest_of(p)[at]
+                    disp[foreign] = coarse.body_positions(s, at, like) - coarse.grid.node_points(at)
+                    if coarse.bend is not None:
+                        disp[foreign] += coarse.bend(s, like)
+        return x + np.einsum("pk,pkd->pd", w, disp)
+
+    def _nearest_of(self, part):
+        """The material motion node of ``part`` (any node of it, where it holds no motion
+        node of material) nearest each motion node (flat indices)."""
+        if part not in self._nearest:
+            mgrid = self.coarse.grid
+            own = (self.coarse.parts == part).reshape(mgrid.shape)
+            away = ~(own & self.coarse.material) if (own & self.coarse.material).any() else ~own
+            _, idx = ndimage.distance_transform_edt(away, return_indices=True)
+            self._nearest[part] = np.ravel_multi_index(tuple(idx), mgrid.shape).reshape(-1)
+        return self._nearest[part]
 
     def __call__(self, points: ArrayLike, s: float) -> np.ndarray:
         """Positions at time s of points given at time 0 ((P, d) -> (P, d)): the motion

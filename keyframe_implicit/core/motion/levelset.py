@@ -201,6 +201,7 @@ class Inbetween:
                  components: np.ndarray | None = None, motion_grid: Grid | None = None,
                  bends: tuple[Bend | None, Bend | None] | None = None,
                  cracks: tuple[np.ndarray | None, np.ndarray | None] | None = None,
+                 parts: tuple[np.ndarray | None, np.ndarray | None] | None = None,
                  options: MotionOptions | None = None, stats: dict[str, Any] | None = None,
                  map_result: object = None, map_result_back: object = None,
                  cancel: Callable[[], bool] | None = None, **keywords: Any) -> Inbetween:
@@ -232,6 +233,9 @@ class Inbetween:
             The cells of the maps' grid where the forward and the backward map tear
             (`map.tear.Tear.crack`): the transport along that map leaves them out, so the
             pieces part with empty space between them.
+        parts : (int ndarray or None, int ndarray or None), optional
+            The parts of the maps' grid's nodes that the forward and the backward map
+            keep apart (`map.result.MapResult.parts`): their trajectories tear there too.
         options : `options.MotionOptions`, optional
             All settings at once: how the bake passes them. Give them so or as keywords,
             not both.
@@ -268,13 +272,13 @@ class Inbetween:
             material = paths.on_motion(phi_a) < 0
         forward, backward = _transports(phi_a, phi_b, paths, mapped, mapped_back, material,
                                         components, options, cancel, bends or (None, None),
-                                        cracks or (None, None))
+                                        cracks or (None, None), parts or (None, None))
         st = dict(stats or {}, trajectory_setup_seconds=time.perf_counter() - t0)
         out = cls(phi_a, phi_b, grid, forward, backward, options=options, stats=st,
                   map_result=map_result, map_result_back=map_result_back)
         out._recipe = Recipe((phi_a, phi_b, grid, mapped), dict(
             mapped_back=mapped_back, material=material, components=components,
-            motion_grid=motion_grid, bends=bends, cracks=cracks, options=options))
+            motion_grid=motion_grid, bends=bends, cracks=cracks, parts=parts, options=options))
         return out
 
     @property
@@ -524,23 +528,25 @@ class _Paths:
             return field
         return on_motion_grid(field, self.grid, self.motion_grid)
 
-    def __call__(self, field, mapped, material, components=None, bend=None):
+    def __call__(self, field, mapped, material, components=None, bend=None, parts=None):
         """The paths of the keyframe whose surface-grid field is ``field``, along ``mapped``
-        (``material``, ``components`` and the ``bend`` on the maps' grid)."""
-        solved = self.solved(field, mapped, material, components)
+        (``material``, ``components``, the ``bend`` and the ``parts`` on the maps' grid)."""
+        solved = self.solved(field, mapped, material, components, parts)
         solved.bend = bend
         if self.motion_grid is None:
             return solved
         return FinePaths(self.grid, solved, field < 0, self.keywords["margin_cells"])
 
-    def solved(self, field, mapped, material, components=None):
+    def solved(self, field, mapped, material, components=None, parts=None):
         """The as-rigid-as-possible paths on the maps' grid (`trajectory.Trajectories`)."""
         if self.motion_grid is None:
-            return Trajectories(self.grid, mapped, material, components, **self.keywords)
+            return Trajectories(self.grid, mapped, material, components, parts=parts,
+                                **self.keywords)
         mass = material_mass(field < 0, self.grid, self.motion_grid)
         kw = dict(self.keywords, margin_cells=same_width(self.keywords["margin_cells"],
                                                          self.grid, self.motion_grid))
-        return Trajectories(self.motion_grid, mapped, material, components, mass=mass, **kw)
+        return Trajectories(self.motion_grid, mapped, material, components, mass=mass,
+                            parts=parts, **kw)
 
     def cells(self, crack):
         """A bool over the maps' grid's cells (None: None) on the surface grid's cells:
@@ -563,26 +569,28 @@ class _Paths:
 
 
 def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, options, cancel,
-                bends, cracks=(None, None)):
+                bends, cracks=(None, None), parts=(None, None)):
     """The forward transport of A's field along the map A -> B, and (two-sided) the backward
     one of B's field along B -> A (`invert_map` of the forward one when not given), both
     truncated at one value so that the far field is one value; their paths bent by
-    ``bends`` (forward, backward), the cells of each map's crack left out (``cracks``)."""
+    ``bends`` (forward, backward), the cells of each map's crack left out (``cracks``), the
+    paths of each map's ``parts`` apart."""
     lookup = dict(options.lookup_keywords(), cancel=cancel)
 
-    def carried(field, y, mat, comps=None, bend=None, crack=None):
-        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps, bend),
+    def carried(field, y, mat, comps=None, bend=None, crack=None, part=None):
+        return Transport(field, paths(field, np.asarray(y, dtype=float), mat, comps, bend, part),
                          torn=paths.cells(crack), **lookup)
 
     backward = None
     if options.two_sided and mapped_back is not None:
         with ThreadPoolExecutor(max_workers=1) as pool:  # two trajectory solves, two cores
             back = pool.submit(carried, phi_b, mapped_back, paths.on_motion(phi_b) < 0,
-                               None, bends[1], cracks[1])
-            forward = carried(phi_a, mapped, material, components, bends[0], cracks[0])
+                               None, bends[1], cracks[1], parts[1])
+            forward = carried(phi_a, mapped, material, components, bends[0], cracks[0],
+                              parts[0])
             backward = back.result()
     else:
-        forward = carried(phi_a, mapped, material, components, bends[0], cracks[0])
+        forward = carried(phi_a, mapped, material, components, bends[0], cracks[0], parts[0])
         if options.two_sided:
             backward = carried(phi_b, paths.back_map(forward), paths.on_motion(phi_b) < 0,
                                None, bends[1])
@@ -594,10 +602,12 @@ def _transports(phi_a, phi_b, paths, mapped, mapped_back, material, components, 
 
 def back_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, mapped: ArrayLike, *,
              material: np.ndarray | None = None, components: np.ndarray | None = None,
+             parts: np.ndarray | None = None,
              motion_grid: Grid | None = None, options: MotionOptions | None = None,
              cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """The map B -> A of a segment given only its map A -> B: `invert_map` of the forward
-    paths, on the maps' grid (as `Inbetween.from_map` makes it when not given)."""
+    paths, on the maps' grid (as `Inbetween.from_map` makes it when not given; ``parts``
+    those of the map A -> B)."""
     options = options or MotionOptions()
     paths = _Paths(grid, motion_grid, options, cancel)
     if material is None:
@@ -605,23 +615,23 @@ def back_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, mapped: ArrayLike
     forward, _ = _transports(phi_a, phi_b, paths, np.asarray(mapped, dtype=float), None,
                              material, components,
                              dataclasses.replace(options, transport="one-sided"), cancel,
-                             (None, None))
+                             (None, None), parts=(parts, None))
     return paths.back_map(forward)
 
 
 def path_start_velocity(field: np.ndarray, grid: Grid, mapped: ArrayLike, *,
                         material: np.ndarray | None = None, components: np.ndarray | None = None,
-                        motion_grid: Grid | None = None, options: MotionOptions | None = None,
+                        parts: np.ndarray | None = None, motion_grid: Grid | None = None, options: MotionOptions | None = None,
                         cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """The velocity (per unit s) as they leave their keyframe of the paths a segment's
-    transport of ``field`` follows along ``mapped`` (``material``, ``components`` on the
-    maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them, on the
+    transport of ``field`` follows along ``mapped`` (``material``, ``components``, ``parts``
+    on the maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them, on the
     maps' grid: (size, d), for `spline.chain_bends`."""
     paths = _Paths(grid, motion_grid, options or MotionOptions(), cancel)
     if material is None:
         material = paths.on_motion(field) < 0
     return start_velocity(paths.solved(field, np.asarray(mapped, dtype=float), material,
-                                       components))
+                                       components, parts))
 
 
 def _from_recipe(args, kwargs):

@@ -79,6 +79,7 @@ from ..base.multigrid import BlockMultigrid, block_pcg
 from ..base.progress import Reporter
 from ..base.rotations import polar, rigid_fit, rotation_exp, rotation_log
 from ..base.sampling import cell_weights, sample
+from ..map.parts import cut_components
 from .options import MotionOptions
 
 if TYPE_CHECKING:
@@ -256,6 +257,10 @@ class Trajectories:
         component's translation (global method); default 1 on the material, 0 elsewhere.
         On a motion grid: the surface grid's material restricted to its nodes
         (`finepaths.material_mass`), so the centroids are the surface material's.
+    parts : int ndarray, shape grid.shape, optional
+        The part of every node, where the map tears between parts that are apart in
+        both keyframes (`map.parts`): the cells with corners in two parts leave the
+        solve, so each part moves as a body of its own (global method).
     tolerance : float
         Global method: CG stops when the residual of every coordinate is below
         ``tolerance`` times its right-hand side's norm (the default keeps positions
@@ -277,10 +282,13 @@ class Trajectories:
                  method: str = MotionOptions.trajectory_method,
                  margin_cells: float = MotionOptions.trajectory_margin_cells,
                  margin_weight: float = MotionOptions.trajectory_margin_weight,
-                 mass: ArrayLike | None = None, tolerance: float = 1e-5,
-                 cancel: Callable[[], bool] | None = None) -> None:
+                 mass: ArrayLike | None = None, parts: ArrayLike | None = None,
+                 tolerance: float = 1e-5, cancel: Callable[[], bool] | None = None) -> None:
         y, mat, components = _checked(grid, mapped, material, components, method, margin_cells,
                                       margin_weight)
+        self._parts = None if parts is None else np.asarray(parts).reshape(-1)
+        if self._parts is not None:  # a component the parts cut is a body per part
+            components, _ = cut_components(components, self._parts.reshape(grid.shape))
         d = grid.dim
 
         self.grid = grid
@@ -347,6 +355,20 @@ class Trajectories:
         """Flat bool mask of the region's nodes: the material and its margin."""
         return self._region
 
+    @property
+    def parts(self) -> np.ndarray | None:
+        """The part of every node (flat), or None: the parts the paths keep apart."""
+        return self._parts
+
+    def body_positions(self, s: float, nodes: ArrayLike, like: ArrayLike) -> np.ndarray:
+        """Positions at time s of the grid ``nodes`` moved rigidly with the body of the
+        nodes ``like`` (one each): x_bar + s (y_bar - x_bar) + R^s (x - x_bar), that
+        body's motion carried beyond it (where a part's motion is read across a gap)."""
+        nodes, like = (np.asarray(n, dtype=np.int64).reshape(-1) for n in (nodes, like))
+        xb, yb, _, rv = self._body_arrays(like)
+        rel = self.grid.node_points(nodes) - xb
+        return xb + s * (yb - xb) + np.einsum("nij,nj->ni", rotation_exp(s * rv, self.dim), rel)
+
     def _local(self, nodes):
         """Index of each node among the active nodes (global method), -1 where not active."""
         loc = np.searchsorted(self._nodes, nodes)
@@ -399,6 +421,10 @@ class Trajectories:
         """`setup`: ``region_dist`` holds each region node's distance to the material."""
         grid, d = self.grid, self.dim
         _, nodes, lc = elements.cells_within(grid, self.region_nodes())
+        if self._parts is not None:  # no edge joins two parts
+            part = self._parts[nodes][lc]
+            used, lc = np.unique(lc[np.all(part == part[:, :1], axis=1)], return_inverse=True)
+            nodes, lc = nodes[used], lc.reshape(-1, 2 ** d)
         touch = self.material.reshape(-1)[nodes][lc].any(axis=1)  # a corner inside
         nc, n = len(lc), nodes.size
         if nc == 0:
