@@ -72,6 +72,15 @@ def no_blender_deprecations():
         yield
 
 
+@pytest.fixture(autouse=True)
+def own_work_cache(tmp_path, monkeypatch):
+    """Each test's bakes keep their work (`blender.work_cache`) in a folder of its own: a bake
+    never takes what an earlier test's left."""
+    from keyframe_implicit.blender import work_cache
+
+    monkeypatch.setattr(work_cache, "directory", lambda: str(tmp_path / "work_cache"))
+
+
 @pytest.fixture
 def scene():
     keyframe_implicit.unregister()

@@ -60,6 +60,7 @@ def test_one_empty_moved_solves_exactly_its_pairs_maps_and_bakes_as_from_scratch
     assert {tuple(p) for p in solves} == {tuple(feats[1][0][0] + (moved, 0, 0)),
                                           tuple(feats[1][1][0])}
     assert cache.counts["distance"] == {"hits": 3, "misses": 3}
+    assert again.stats["kept"] == {"distance": 3, "maps": 1}
     solves.clear()
     fresh = _bake(moved)
     assert len(solves) == 4

@@ -94,6 +94,11 @@ class WorkCache:
         self._lock = threading.Lock()  # a chain's two threads may ask at once
         self.counts = {}
 
+    def hits(self) -> dict[str, int]:
+        """Per kind of key, the results taken from the cache so far."""
+        with self._lock:
+            return {kind: tally["hits"] for kind, tally in self.counts.items()}
+
     @property
     def memory_used(self) -> int:
         """Bytes of results held in memory."""

@@ -202,7 +202,7 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
     cache : `cache.WorkCache`, optional
         Distance grids and maps kept by content: those of the same inputs are taken from
         it instead of computed, the others kept there (a re-bake after one Empty moved
-        solves only its pair's maps).
+        solves only its pair's maps); how many of each were taken: ``stats["kept"]``.
     **stage_options
         The stages' own settings, each the field of the same name, checked before any
         work (an unknown one is refused with a ValueError that lists the known ones):
@@ -248,6 +248,7 @@ def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, Arra
     rep = Tally(progress, bake_steps(plan)).reporter(cancel)
     rep.check()
     blas, given = one_blas_thread(), helper
+    before = {} if cache is None else cache.hits()
     try:
         if helper is None and options.processes > 1:
             helper = Helper(HELPER_PRELOAD)
@@ -258,6 +259,8 @@ def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, Arra
         blas.restore_original_limits()
         if helper is not None and helper is not given:
             helper.close()
+    if cache is not None:
+        plan.stats["kept"] = {kind: n - before.get(kind, 0) for kind, n in cache.hits().items()}
     return finish_bake(plan, chain, t0, rep)
 
 
