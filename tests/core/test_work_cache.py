@@ -1,6 +1,8 @@
 """Work kept by content (`core.bake.cache`): a re-bake solves only what an edit changed,
 counted by the map solver's calls, and gives what a bake from scratch gives."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -105,3 +107,13 @@ def test_keys_follow_exactly_their_inputs():
     assert content_key("maps", a, "x") != content_key("maps", a + 1e-12, "x")
     assert content_key("maps", a, "x") != content_key("distance", a, "x")
     assert content_key("maps", a.astype(np.float32)) != content_key("maps", a)
+    # options read field by field: an array among them by its values, not its short repr
+    big = np.zeros(5000)
+    changed = big.copy()
+    changed[2500] = 1.0
+    options = BakeOptions().map
+    assert content_key("maps", options) == content_key("maps", BakeOptions().map)
+    assert (content_key("maps", dataclasses.replace(options, initial=big))
+            != content_key("maps", dataclasses.replace(options, initial=changed)))
+    assert content_key("maps", options) != content_key(
+        "maps", dataclasses.replace(options, weights={**options.weights, "volume": 29.0}))

@@ -19,6 +19,7 @@ the bake changes reaches the cache.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import pathlib
@@ -58,15 +59,28 @@ def grid_key(grid: Grid | None) -> str:
 
 
 def content_key(kind: str, *parts: Any) -> str:
-    """The key of a ``kind`` of result computed from ``parts``: arrays by their values
-    (`array_digest`), anything else by its ``repr`` (options are dataclasses of numbers and
-    names, whose repr is exact)."""
+    """The key of a ``kind`` of result computed from ``parts`` (`_text`)."""
     digest = hashlib.blake2b(kind.encode(), digest_size=20)
     for part in parts:
-        text = array_digest(part) if isinstance(part, np.ndarray) else repr(part)
-        digest.update(text.encode())
+        digest.update(_text(part).encode())
         digest.update(b"\0")
     return f"{kind}-{digest.hexdigest()}"
+
+
+def _text(part: Any) -> str:
+    """``part`` written out whole: an array by its values (`array_digest`: its repr elides
+    them), a dataclass (options) field by field, a mapping or a sequence item by item, and
+    anything else (numbers, names, None) by its repr, which is exact."""
+    if isinstance(part, np.ndarray):
+        return array_digest(part)
+    if dataclasses.is_dataclass(part) and not isinstance(part, type):
+        fields = (f"{f.name}={_text(getattr(part, f.name))}" for f in dataclasses.fields(part))
+        return f"{type(part).__name__}({', '.join(fields)})"
+    if isinstance(part, dict):
+        return "{" + ", ".join(f"{_text(k)}: {_text(v)}" for k, v in part.items()) + "}"
+    if isinstance(part, (list, tuple)):
+        return "[" + ", ".join(_text(v) for v in part) + "]"
+    return repr(part)
 
 
 class WorkCache:
