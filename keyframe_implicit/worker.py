@@ -274,7 +274,8 @@ def main() -> None:
     try:
         try:
             result = pipeline.bake(**arguments, options=options, helper=helper,
-                                   cache=None if folder is None else WorkCache(folder),
+                                   cache=None if folder is None else WorkCache(
+                                       folder, memory_bytes=0),  # it bakes once: disk only
                                    progress=lambda f, m: send(parent, ("progress", f, m)))
         finally:  # before the output mesh: the helper's memory goes with it
             if helper is not None:

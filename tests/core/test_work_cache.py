@@ -99,6 +99,10 @@ def test_cache_is_bounded_in_memory_and_on_disk_and_cleared(tmp_path):
     assert cache.clear() > 0
     assert cache.memory_used == 0 and cache.disk_used() == 0 and other.get(last) is not None
     assert WorkCache(tmp_path / "cache").get(last) is None
+    disk_only = WorkCache(tmp_path / "cache", memory_bytes=0)  # a worker's: it bakes once
+    disk_only.put(last, blocks[last])
+    assert disk_only.memory_used == 0
+    np.testing.assert_array_equal(disk_only.get(last), blocks[last])
 
 
 def test_keys_follow_exactly_their_inputs():

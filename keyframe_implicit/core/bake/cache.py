@@ -92,7 +92,8 @@ class WorkCache:
         Where results are also kept on disk (made when first needed): the directory of a
         user's cache or temporary files, never the add-on's own folder. None: memory only.
     memory_bytes, disk_bytes : int
-        The bounds; the least recently used results go first past them.
+        The bounds; the least recently used results go first past them (0 in memory: on
+        disk only, for a process that bakes once).
 
     Attributes
     ----------
@@ -167,7 +168,7 @@ class WorkCache:
         self._memory[key] = data
         self._memory.move_to_end(key)
         used = self.memory_used
-        while used > self.memory_bytes and len(self._memory) > 1:
+        while used > self.memory_bytes:
             _, old = self._memory.popitem(last=False)
             used -= len(old)
 
