@@ -335,6 +335,7 @@ class KFI_MT_menu(bpy.types.Menu):
         layout.separator()
         layout.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
         layout.operator("keyframe_implicit.export_farm_job", icon="NETWORK_DRIVE")
+        layout.operator("keyframe_implicit.clear_cache", icon="TRASH")
 
 
 def menu_func(self: bpy.types.Menu, context: bpy.types.Context) -> None:
