@@ -17,6 +17,8 @@ answers, each carrying the id of the request it answers):
   ``("solved", id, figures)`` then ``("frame", id, frame, vertices, triangles)``;
 - ``("frame", id, frame)``: answered by ``("frame", id, frame, vertices, triangles)``;
 - ``("stop", id)``: the work in flight ends, nothing more is answered for earlier ids;
+- ``("clear", id)``: the work kept between solves (`Preview.cache`) is dropped at once, not
+  answered;
 - any failure: ``("failed", id, type name, text, is a ValueError)``.
 
 A solve or a stop cancels the work in flight (the core's ``cancel`` callable, checked
@@ -91,6 +93,10 @@ class PreviewWorker:
         """End the work in flight; returns the request's id."""
         return self._request("stop")
 
+    def clear(self) -> int:
+        """Drop the work the worker keeps between solves; returns the request's id."""
+        return self._request("clear")
+
     def _read(self):
         while True:
             try:
@@ -132,13 +138,17 @@ class _Requests:
     for, and cancels the work in flight that a new request makes pointless. When stdin
     ends (the parent has gone) the worker ends, with nothing to answer."""
 
-    def __init__(self, parent, sender):
+    def __init__(self, parent, sender, cache):
         self._ready = threading.Condition()
         self._solve = self._frame = None
         self._busy = None  # (kind, threading.Event) of the work in flight
+        self._cache = cache
         follow_parent(parent, self._take, rename=(sender, ROOT), code=0)
 
     def _take(self, message):
+        if message[0] == "clear":  # at once, beside any work: the cache has its own lock
+            self._cache.clear()
+            return
         with self._ready:
             kind = message[0]
             if kind == "solve":
@@ -169,10 +179,13 @@ def main() -> None:
     """The worker: answer requests (module docstring) until stdin ends."""
     lower_priority()
     parent, sender = connect_parent()
-    requests = _Requests(parent, sender)
+    from .core.bake.cache import WorkCache
+
+    cache = WorkCache()
+    requests = _Requests(parent, sender, cache)
     from .core.bake.preview import Preview  # only now (module docstring)
 
-    preview = Preview()
+    preview = Preview(cache)
     while True:
         message, cancelled = requests.next()
         kind, rid = message[:2]

@@ -19,7 +19,9 @@ Protocol: the bake's messages (`core.base.wire`) on the worker's standard stream
 - parent -> stdin: the sender's package name, then `bake`'s keyword arguments (the
   keyframes, the feature pairs and their names, the `BakeOptions`) and,
   optionally, ``output_mode`` (the output setting: the worker then also makes the output's
-  mesh, `Animation.output_mesh`, so Blender's main loop only copies it in). The worker
+  mesh, `Animation.output_mesh`, so Blender's main loop only copies it in) and ``cache_dir``
+  (a folder where the bakes keep their work by content, `core.bake.cache.WorkCache`: the
+  distance grids and maps an edit left as they were are taken from it). The worker
   leaves as soon as stdin reaches its end (the parent has gone: `wire.follow_parent`).
 - worker -> stdout: ``("progress", fraction, message)`` any number of times, then
   ``("done", animation)`` or ``("failed", type name, text, is a ValueError)``. Whatever else
@@ -263,13 +265,17 @@ def main() -> None:
     arguments = receive(parent, (sender, ROOT))
     follow_parent(parent)  # a worker whose parent has gone stops at once, not bakes on
     from .core.bake import pipeline  # only now (module docstring)
+    from .core.bake.cache import WorkCache
     from .core.surface.meshdata import resolve_output
 
     mode = arguments.pop("output_mode", None)
+    folder = arguments.pop("cache_dir", None)
     options = dataclasses.replace(arguments.pop("options"), processes=_PROCESSES)
     try:
         try:
             result = pipeline.bake(**arguments, options=options, helper=helper,
+                                   cache=None if folder is None else WorkCache(
+                                       folder, memory_bytes=0),  # it bakes once: disk only
                                    progress=lambda f, m: send(parent, ("progress", f, m)))
         finally:  # before the output mesh: the helper's memory goes with it
             if helper is not None:

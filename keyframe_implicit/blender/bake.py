@@ -35,7 +35,7 @@ import bpy
 
 from ..core.base.progress import Cancelled
 from ..worker import Worker, WorkerError
-from . import output, scene_io, validate, volumes
+from . import output, scene_io, validate, volumes, work_cache
 from .diagnostics import Diagnostics
 
 if TYPE_CHECKING:  # read by type checkers only
@@ -82,6 +82,7 @@ class BakeJob:
         self._lock = threading.Lock()
         self._thread = None
         self._worker = None
+        self._cache_dir = work_cache.directory()  # read here: `_bake` runs in another thread
 
     # -- cancellation (the path ESC uses) ---------------------------------
     def cancel(self) -> None:
@@ -111,7 +112,8 @@ class BakeJob:
             if self._cancel.is_set():
                 raise Cancelled("cancelled before start")
             self._worker = Worker(dict(self.inputs.core_arguments(),
-                                       output_mode=self.inputs.output_mode))
+                                       output_mode=self.inputs.output_mode,
+                                       cache_dir=self._cache_dir))
         return self._worker.result(self._progress)
 
     def run(self) -> str:

@@ -9,7 +9,7 @@ from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProp
 
 from ..core.base.progress import Cancelled
 from . import (bake, diagnostics, edits, farm, features, limits, preview, result_view,
-               validate)
+               validate, work_cache)
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -336,6 +336,7 @@ class KFI_MT_menu(bpy.types.Menu):
         layout.separator()
         layout.operator("keyframe_implicit.bake", icon="RENDER_ANIMATION")
         layout.operator("keyframe_implicit.export_farm_job", icon="NETWORK_DRIVE")
+        layout.operator("keyframe_implicit.clear_cache", icon="TRASH")
 
 
 def menu_func(self: bpy.types.Menu, context: bpy.types.Context) -> None:
@@ -588,6 +589,25 @@ class KFI_OT_export_farm_job(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class KFI_OT_clear_cache(bpy.types.Operator):
+    """Forget the distance fields and maps kept for the next bake and the live preview: the next bake computes everything again"""
+
+    bl_idname = "keyframe_implicit.clear_cache"
+    bl_label = "Clear Cache"
+    bl_options = set()  # files and the preview's memory only: no undo step
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            freed = work_cache.clear()
+        except OSError as exc:
+            self.report({"ERROR"}, f"Clear Cache failed: {exc}")
+            return {"CANCELLED"}
+        preview.clear_cache()
+        self.report({"INFO"}, f"Cache cleared: {freed / 2**20:,.1f} MB freed in "
+                              f"{work_cache.directory()}.")
+        return {"FINISHED"}
+
+
 classes = (
     KFI_OT_add_keyframe,
     KFI_OT_remove_keyframe,
@@ -599,5 +619,6 @@ classes = (
     KFI_OT_snap_features,
     KFI_OT_bake,
     KFI_OT_export_farm_job,
+    KFI_OT_clear_cache,
     KFI_MT_menu,
 )

@@ -202,7 +202,8 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context: bpy.types.Context) -> None:
-        """The weights of eq. 2.6, the output kind and the volume export."""
+        """The weights of eq. 2.6, the Motion Resolution and the button that clears the work
+        kept for re-bakes (`work_cache`)."""
         settings = context.scene.keyframe_implicit
         col = self.layout.column(align=True)
         col.label(text="What the in-betweens keep:")
@@ -215,6 +216,7 @@ class KFI_PT_advanced(_Sidebar, bpy.types.Panel):
         col.prop(settings, "motion_auto")
         if not settings.motion_auto:
             col.prop(settings, "motion_resolution", text="Cells")
+        self.layout.operator("keyframe_implicit.clear_cache", icon="TRASH")
 
 
 def _memory(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:

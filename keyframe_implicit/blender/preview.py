@@ -138,6 +138,13 @@ def stop() -> None:
     _redraw()
 
 
+def clear_cache() -> None:
+    """Have the worker drop the work it keeps between solves (`core.bake.cache.WorkCache`);
+    nothing while the preview is off (its worker, and its cache, are gone then)."""
+    if state.worker is not None and state.worker.alive:
+        state.worker.clear()
+
+
 def toggled(session: KFI_Session, _context: bpy.types.Context) -> None:
     """The Live Preview toggle's handler (`props.ON_CHANGE`): start or stop the preview."""
     if session.live_preview:

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, overload
 import numpy as np
 
 from ..core.surface.attributes import MeshAttributes
+from ..core.bake.gridfit import lattice_spacing
 from ..core.bake.options import BakeOptions
 from ..core.bake.keyframe import Keyframe
 from ..core.fields.measure import MeshReading
@@ -560,17 +561,15 @@ def _encloses(kf: ListedKeyframe) -> bool:
 
 
 def surface_cell(listed: Sequence[ListedKeyframe], objects: Sequence[bpy.types.Object | None],
-                 points: Iterable[np.ndarray], resolution: int,
-                 depsgraph: bpy.types.Depsgraph) -> float:
-    """The bake's cell at ``resolution``: the longest side of the box of the keyframes' faces
-    and the feature ``points`` (`core.bake.gridfit.fit_grid` without the rigid sweeps, which
-    can only widen it), over ``resolution``; 0 when no keyframe encloses a volume."""
+                 resolution: int, depsgraph: bpy.types.Depsgraph) -> float:
+    """The bake's cell at ``resolution``: the lattice spacing of the longest side of the box
+    of the keyframes' faces (`core.bake.gridfit.lattice_spacing`, as `fit_grid` reads it: the
+    feature points widen the grid, not its cells); 0 when no keyframe encloses a volume."""
     corners = [cached_surface(obj, depsgraph).bounds for kf, obj in zip(listed, objects)
                if _encloses(kf)]
     if not corners:
         return 0.0
-    box = np.concatenate(corners + [np.asarray(p).reshape(-1, 3) for p in points])
-    return float(np.ptp(box, axis=0).max()) / resolution
+    return lattice_spacing(float(np.ptp(np.concatenate(corners), axis=0).max()), resolution)
 
 
 def _off_surface(found: Iterable[features.Pair], listed: Sequence[ListedKeyframe],
@@ -586,7 +585,7 @@ def _off_surface(found: Iterable[features.Pair], listed: Sequence[ListedKeyframe
           for i, rows in empties_on(found, len(listed)).items()}
     points = {i: np.array([tuple(e.matrix_world.translation) for _, _, e in rows])
               for i, rows in on.items()}
-    h = surface_cell(listed, objects, points.values(), resolution, depsgraph)
+    h = surface_cell(listed, objects, resolution, depsgraph)
     out: dict[str, list[tuple[str, float]]] = {}
     for i, rows in on.items():
         if h <= 0 or not rows or not _encloses(listed[i]):

@@ -50,6 +50,7 @@ _EXPORTS = {
     "animate": "bake.pipeline",
     "bake": "bake.pipeline",
     "BakeOptions": "bake.options",
+    "WorkCache": "bake.cache",
     "Keyframe": "bake.keyframe",
     "Animation": "bake.animation",
     "Cancelled": "base.progress",

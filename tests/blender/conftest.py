@@ -72,6 +72,16 @@ def no_blender_deprecations():
         yield
 
 
+@pytest.fixture(autouse=True)
+def own_work_cache(tmp_path_factory, monkeypatch):
+    """Each test's bakes keep their work (`blender.work_cache`) in a folder of its own: a bake
+    never takes what an earlier test's left (not in ``tmp_path``, which tests list)."""
+    from keyframe_implicit.blender import work_cache
+
+    folder = str(tmp_path_factory.mktemp("work_cache"))
+    monkeypatch.setattr(work_cache, "directory", lambda: folder)
+
+
 @pytest.fixture
 def scene():
     keyframe_implicit.unregister()

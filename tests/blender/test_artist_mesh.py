@@ -76,9 +76,9 @@ def test_mesh_sequence_keyframe_frames_are_the_artists_meshes(scene):
 
 def test_mesh_sequence_in_betweens_get_uvs_and_materials(scene):
     """The mesh sequence's first frames are the artist's mesh, tracked, with its UVs; the
-    later ones (at 12 cells the grid's material changes topology) their own surfaces, with
+    later ones (at 10 cells the grid's material changes topology) their own surfaces, with
     UVs and materials transferred."""
-    a, b = sc.build(scene, resolution=12)
+    a, b = sc.build(scene, resolution=10)
     obj = sc.bake(scene, "MESH_SEQUENCE")
     first = sc.evaluated(obj, sc.FRAMES[0])
     tracked = []

@@ -42,7 +42,7 @@ def _by_segment(scene):
 def _cell(scene):
     inputs = scene_io.read(scene, meshes=False)
     objects = [kf.object for kf in scene.keyframe_implicit.keyframes]
-    return scene_io.surface_cell(inputs.listed_keyframes, objects, [], inputs.resolution,
+    return scene_io.surface_cell(inputs.listed_keyframes, objects, inputs.resolution,
                                  bpy.context.evaluated_depsgraph_get())
 
 

@@ -8,7 +8,8 @@ import keyframe_implicit
 from keyframe_implicit.blender import features, ops, panel, props, validate
 
 OPS = ("add_keyframe", "remove_keyframe", "move_keyframe", "add_feature_pair", "pair_selected",
-       "remove_feature_pair", "select_pair", "snap_features", "bake", "export_farm_job")
+       "remove_feature_pair", "select_pair", "snap_features", "bake", "export_farm_job",
+       "clear_cache")
 
 
 def test_operators_are_registered_undoable_and_searchable(scene):
@@ -20,8 +21,10 @@ def test_operators_are_registered_undoable_and_searchable(scene):
     assert sorted(c.bl_idname.split(".")[1] for c in operators) == sorted(OPS)
     for cls in operators:
         # every operator that changes the scene is one undo step; the bake has no redo panel
-        # (see test_redo_panels); Export Farm Job writes files only: no undo step
-        expected = {ops.KFI_OT_bake: {"UNDO"}, ops.KFI_OT_export_farm_job: set()}
+        # (see test_redo_panels); Export Farm Job writes files only, Clear Cache removes them:
+        # no undo step
+        expected = {ops.KFI_OT_bake: {"UNDO"}, ops.KFI_OT_export_farm_job: set(),
+                    ops.KFI_OT_clear_cache: set()}
         assert cls.bl_options == expected.get(cls, {"REGISTER", "UNDO"})
         assert cls.bl_idname.startswith("keyframe_implicit.")
         assert cls.__doc__  # the F3 search / tooltip text

@@ -7,6 +7,15 @@ import numpy as np
 import pytest
 
 from keyframe_implicit.core import Grid, MemoryLimitError, check_memory, estimate_memory, fit_grid
+from keyframe_implicit.core.bake import gridfit
+from keyframe_implicit.core.bake.gridfit import LATTICE_STEPS, lattice_spacing
+
+
+def _on_lattice(g):
+    """Whether ``g``'s origin is a whole multiple of its spacing, which is a ladder step."""
+    index = g.origin / g.spacing
+    step = np.log2(g.spacing) * LATTICE_STEPS
+    return np.array_equal(index, np.round(index)) and step == pytest.approx(round(step), abs=1e-9)
 
 
 def test_grid_holds_all_keyframes_with_padding_and_resolution_on_longest_side():
@@ -16,26 +25,62 @@ def test_grid_holds_all_keyframes_with_padding_and_resolution_on_longest_side():
     g = fit_grid([a, b], 30, padding_cells=3)
     pts = np.concatenate([a, b])
     lo, hi = pts.min(0), pts.max(0)
-    assert g.dim == 3
-    assert g.spacing == pytest.approx((hi - lo).max() / 30)
-    # longest axis: exactly resolution + 2 * padding cells
-    longest = int(np.argmax(hi - lo))
-    assert g.shape[longest] - 1 == 30 + 6
-    # every point at least padding cells inside the box, box centred on the points
+    assert g.dim == 3 and _on_lattice(g)
+    # the ladder step nearest to the asked cell: within half a step (2**(1/16)) of it
+    assert abs(np.log2(g.spacing / ((hi - lo).max() / 30))) <= 0.5 / LATTICE_STEPS + 1e-12
+    # every point at least padding cells inside the box, at most one cell more
     assert np.all(lo - g.origin >= 3 * g.spacing - 1e-9)
     assert np.all(g.upper - hi >= 3 * g.spacing - 1e-9)
-    np.testing.assert_allclose((g.origin + g.upper) / 2, (lo + hi) / 2, atol=1e-12)
-    # other axes: no more than one cell of slack beyond the padding
-    assert np.all((g.upper - g.origin) - (hi - lo) <= (6 + 1) * g.spacing + 1e-9)
+    assert np.all(lo - g.origin < 4 * g.spacing) and np.all(g.upper - hi < 4 * g.spacing)
 
 
 def test_extra_points_and_2d_keyframes():
     a = np.array([[0.0, 0.0], [1.0, 0.5]])
     g = fit_grid([a], 10, padding_cells=2, extra_points=[[3.0, 0.2]])
-    assert g.dim == 2 and g.spacing == pytest.approx(0.3)
-    assert g.contains(np.array([[3.0, 0.2], [0.0, 0.0]]), margin=2 * 0.3 - 1e-9).all()
+    # the extra point widens the box, not the cells: the keyframe's side sets them
+    assert g.dim == 2 and g.spacing == lattice_spacing(1.0, 10) == 2 ** (-27 / LATTICE_STEPS)
+    assert g.contains(np.array([[3.0, 0.2], [0.0, 0.0]]), margin=2 * g.spacing - 1e-9).all()
     g1 = fit_grid(a, 10, padding_cells=0)  # a single array is one keyframe
-    assert g1.shape == (11, 6)
+    assert g1.shape == (12, 7) and np.array_equal(g1.origin, [0.0, 0.0])
+
+
+def test_grids_stay_on_their_lattice_while_points_move_within_a_cell():
+    """An extra point (an Empty) moved within its lattice cell, or a keyframe moved by less
+    than a cell so that its box keeps to the same lattice cells, leaves the grid and the
+    motion grid as they were; moved by whole cells, the grid moves by them."""
+    rng = np.random.default_rng(3)
+    a = rng.uniform([-1, 0, 0], [1, 0.5, 0.3], size=(50, 3))
+    b = rng.uniform([0, -0.2, 0], [2.0, 0.4, 0.6], size=(40, 3))
+    empty = np.array([[2.3, 0.1, 0.2]])
+    g = fit_grid([a, b], 30, extra_points=empty)
+    h = g.spacing
+    cell = np.floor(empty / h)
+    moved = (cell + rng.uniform(0.05, 0.95, size=(7, 3))) * h  # anywhere in its cell
+    for e in moved:
+        assert fit_grid([a, b], 30, extra_points=e[None]) == g
+    lo, hi = np.concatenate([a, b, empty]).min(0), np.concatenate([a, b, empty]).max(0)
+    room = np.minimum(lo - np.floor(lo / h) * h, np.ceil(hi / h) * h - hi)  # to a lattice line
+    nudge = 0.9 * room.min() * np.array([1.0, -1.0, 1.0]) / np.sqrt(3)
+    assert np.linalg.norm(nudge) < h
+    assert fit_grid([a, b + nudge], 30, extra_points=empty) == g
+    assert gridfit.motion_grid(fit_grid([a, b + nudge], 30, extra_points=empty), 30, 17) == \
+        gridfit.motion_grid(g, 30, 17)
+    whole = 5 * h * np.array([1.0, -2.0, 3.0])
+    far = fit_grid([a + whole, b + whole], 30, extra_points=empty + whole)
+    assert far.shape == g.shape and far.spacing == h
+    np.testing.assert_allclose(far.origin, g.origin + whole, atol=1e-12)
+    # a keyframe grown by a small fraction keeps the spacing (the ladder's step)
+    assert fit_grid([a, b * 1.001], 30).spacing == fit_grid([a, b], 30).spacing
+
+
+def test_motion_grid_sits_on_its_own_lattice_and_covers_the_grid():
+    g = fit_grid([np.array([[0.1, 0.2, 0.3], [1.3, 0.9, 0.7]])], 24)
+    mg = gridfit.motion_grid(g, 24, 10)
+    assert mg.spacing == pytest.approx(g.spacing * 2.4)
+    index = mg.origin / mg.spacing
+    np.testing.assert_array_equal(index, np.round(index))
+    assert np.all(g.origin - mg.origin >= 2 * mg.spacing - 1e-9)
+    assert np.all(mg.upper - g.upper >= 2 * mg.spacing - 1e-9)
 
 
 @pytest.mark.parametrize("args, kwargs, words", [
@@ -89,7 +134,8 @@ def test_oversized_request_fails_before_any_work_and_names_what_fits():
     assert "lower the resolution" in str(err)
     assert estimate_memory(fit_grid(pts, fits), material_fraction=0.3)["peak"] <= limit
     assert estimate_memory(fit_grid(pts, fits + 1), material_fraction=0.3)["peak"] > limit
-    assert fits in (99, 100)  # the limit was the estimate at resolution 100
+    # the limit was the estimate at resolution 100: the largest resolution on its ladder step
+    assert fits >= 100 and fit_grid(pts, fits) == fit_grid(pts, 100)
     # within the limit: the grid comes back
     assert isinstance(fit_grid(pts, fits, max_bytes=limit, material_fraction=0.3), Grid)
     # nothing fits at all

@@ -1,6 +1,6 @@
 """The live preview's frames (`core.bake.preview`): each the bake's own mesh on that frame,
 at the preview's resolutions, to 1e-6 h whatever order the frames are asked in; distance grids
-kept while only the feature points move.
+and the other pairs' maps kept while one pair's feature points move.
 """
 
 import numpy as np
@@ -59,6 +59,7 @@ def test_moved_feature_keeps_the_distance_grids_and_matches_a_new_bake():
     keyframes, feats = _chain(shift=0.03)
     again = preview.solve(keyframes, feats)
     assert again["distance_grids_kept"] == 3 and again["grid_shape"] == first["grid_shape"]
+    assert first["maps_kept"] == 0 and again["maps_kept"] == 1  # the other pair's maps
     anim = animate(keyframes, feats, resolution=again["resolution"],
                    motion_resolution=again["motion_resolution"])
     after = preview.frame(2)

@@ -5,7 +5,10 @@
 ``keyframe``  `Keyframe`: one keyframe's mesh in world space and its timeline frame
 ``options``   `BakeOptions`: a bake's options, built once, each stage reading its part
 ``checks``    refusals before any heavy work, and the result checked after
-``gridfit``   the one grid holding every keyframe and feature point
+``gridfit``   the one grid holding every keyframe and feature point, on a lattice in
+              world space
+``cache``     `WorkCache`: distance grids and maps kept under a key of exactly their
+              inputs, in memory and on disk, for a re-bake and the preview to reuse
 ``memory``    the memory model: a request that would not fit is refused first
 ``steps``     the bake's counted steps, as its progress names them, and their costs
 ``maps``      `inbetween`: a pair's two maps solved (threads or helper), then its

@@ -42,7 +42,8 @@ from ..surface.extract import extract_surface, material_topology, piece_volumes
 from ..surface.options import SurfaceOptions
 from .animation import Animation
 from .options import BakeOptions, refuse_unread
-from .steps import FRAMES, PATHS
+from .cache import content_key, grid_key
+from .steps import FRAMES, MAPS, PATHS
 from ..surface.template import DetailTrack, initial_template, track_template, uncovered_area
 from ..motion.spline import (bends_needed, chain_bends, check_key_interpolation,
                              velocities_needed)
@@ -55,6 +56,7 @@ if TYPE_CHECKING:
     from ..map.options import MapOptions
     from ..motion.levelset import Inbetween, Recipe
     from ..motion.options import MotionOptions
+    from .cache import WorkCache
 
 __all__ = ["animate_chain", "Chain", "Inbetweens", "Kept", "frame_mesh", "tracked_frames",
            "TRACKED_LIMITS", "HELPER_PRELOAD"]
@@ -143,7 +145,8 @@ class Chain:
 
     The parameters are `animate_chain`'s, the options as one `options.BakeOptions`, of
     which the chain reads the key interpolation, the processes and the three stages'
-    options.
+    options; and ``cache`` (`cache.WorkCache`), where the pairs' maps are looked for before
+    they are solved and kept once they are (`Inbetweens`).
     """
 
     def __init__(self, phis: Sequence[ArrayLike], grid: Grid,
@@ -152,7 +155,7 @@ class Chain:
                  template: tuple[ArrayLike, ArrayLike] | None = None,
                  keyframe_meshes: Sequence[tuple[ArrayLike, ArrayLike]] | None = None,
                  motion_grid: Grid | None = None,
-                 cancel: Callable[[], bool] | None = None) -> None:
+                 cancel: Callable[[], bool] | None = None, cache: WorkCache | None = None) -> None:
         phis, self.frames = _checked_chain(phis, grid, frames, maps, features, keyframe_meshes)
         kinds = check_key_interpolation(options.key_interpolation, len(phis))
         self.options, self.cancel = options, cancel
@@ -164,7 +167,7 @@ class Chain:
             options.surface, surfaces=options.surface.surfaces and grid.dim == 3)
         self.inbetweens = Inbetweens(phis, grid, features, maps, options.map,
                                      options.segment_motion(len(phis) - 1), cancel,
-                                     motion_grid, (self.frames, kinds), self.volumes)
+                                     motion_grid, (self.frames, kinds), self.volumes, cache)
 
     @functools.cached_property
     def template(self) -> tuple:
@@ -292,6 +295,10 @@ class Inbetweens:
     ``volumes`` (per keyframe, its mesh's volume as modelled or None) are held by each
     segment's in-betweens where both of its keyframes' are known
     (`levelset.Inbetween.hold_volumes`).
+
+    With a ``cache`` (`cache.WorkCache`) a segment's maps are taken from it when it holds
+    those of the same inputs (`map_key`), and kept there once solved; ``reused`` counts the
+    segments taken.
     """
 
     def __init__(self, phis: Sequence[np.ndarray], grid: Grid,
@@ -301,7 +308,8 @@ class Inbetweens:
                  cancel: Callable[[], bool] | None = None,
                  motion_grid: Grid | None = None,
                  timing: tuple[np.ndarray, Sequence[str]] | None = None,
-                 volumes: Sequence[float | None] | None = None) -> None:
+                 volumes: Sequence[float | None] | None = None,
+                 cache: WorkCache | None = None) -> None:
         # the maps and the in-betweens are imported when first needed: this module is the
         # helper's preload and the live preview's import, which the motion stage (scipy.ndimage,
         # scikit-image) would slow
@@ -316,6 +324,21 @@ class Inbetweens:
         self.timing = timing
         self.bends = None if timing is None or not bends_needed(timing[1]) else {}
         self.volumes = volumes
+        self.cache, self.reused = (cache if maps is None else None), 0
+
+    def map_key(self, k: int) -> str:
+        """What segment ``k``'s maps depend on (`cache.content_key`): its keyframes' distance
+        grids, the grid and motion grid, its feature pairs, the map options on the grid the
+        maps are solved on and whether the map B -> A is solved too. Not the timing: the
+        bends are made from the maps."""
+        from .maps import on_solve_grid
+
+        solve_grid = self.grid if self.motion_grid is None else self.motion_grid
+        fa, fb = (np.asarray(f, dtype=np.float64) for f in self.features[k])
+        return content_key("maps", self.phis[k], self.phis[k + 1], grid_key(self.grid),
+                           grid_key(self.motion_grid), fa, fb,
+                           on_solve_grid(self.map_options, self.grid, solve_grid),
+                           self.motion_options.two_sided)
 
     def make(self, k: int, helper: Helper | None, split: FrameSplit | None,
              rep: Reporter) -> Inbetween:
@@ -339,30 +362,42 @@ class Inbetweens:
             return Inbetween.from_map(a, b, self.grid, self.maps[k], cancel=cancel,
                                       options=self.segment_motion[k],
                                       motion_grid=self.motion_grid)
-        if helper is None and k not in self.solved:
+        if helper is None and k not in self.solved and self.cache is None:
             return pair_inbetweens(a, b, self.grid, self.features[k], self.map_options,
                                    self.segment_motion[k], progress=rep.sub(0.0, 0.5),
                                    cancel=cancel, on_maps=on_maps,
                                    motion_grid=self.motion_grid)
         if k not in self.solved:
-            self.solve(range(k, min(k + _MAP_WINDOW, len(self.phis) - 1)), helper,
-                        rep.sub(0.0, 0.4))
+            window = 1 if helper is None else _MAP_WINDOW  # one process: a segment at a time
+            self.solve(range(k, min(k + window, len(self.phis) - 1)), helper, rep.sub(0.0, 0.4))
         res, back, seconds = self.solved.pop(k)
         with rep.sub(0.4, 0.5).step(PATHS, 0, 1):
             return from_solved(a, b, self.grid, res, back, self.segment_motion[k], seconds,
                                on_maps=on_maps, cancel=cancel)
 
     def solve(self, window: Iterable[int], helper: Helper | None, rep: Reporter) -> None:
-        """The maps of the segments in ``window``, into ``solved``."""
+        """The maps of the segments in ``window``, into ``solved``: those the cache holds
+        taken from it, the others solved and kept there."""
         from .maps import on_solve_grid, solve_maps_shared
 
         window = [k for k in window if k not in self.solved]  # given, or solved before
+        keys = {k: self.map_key(k) for k in window} if self.cache is not None else {}
+        for k, key in keys.items():
+            kept = self.cache.get(key)
+            if kept is not None:
+                self.solved[k] = kept + (0.0,)  # (map A -> B, map B -> A, seconds here)
+                self.reused += 1
+                rep.elsewhere(MAPS, 2 if self.motion_options.two_sided else 1)
+        window = [k for k in window if k not in self.solved]
         if not window:
             return
         solve_grid = self.grid if self.motion_grid is None else self.motion_grid
-        self.solved.update(solve_maps_shared(
+        solved = solve_maps_shared(
             self.solve_phis, solve_grid, self.features, window, self.motion_options.two_sided,
-            helper, rep, self.cancel, on_solve_grid(self.map_options, self.grid, solve_grid)))
+            helper, rep, self.cancel, on_solve_grid(self.map_options, self.grid, solve_grid))
+        for k in solved if self.cache is not None else ():
+            self.cache.put(keys[k], solved[k][:2])
+        self.solved.update(solved)
 
     def _make_bent(self, k, helper, on_maps, rep):
         """`make` with the paths bent through the keyframes: on the first segment every

@@ -6,8 +6,15 @@ every feature point and the room the motion needs, with some padding so that the
 signed distance fields have a margin of positive values around the material.
 
 `fit_grid` builds that grid from a resolution (cells along the longest side of the
-box); with ``max_bytes`` it refuses a request that would not fit BEFORE any work
-starts, naming the largest resolution that would (`memory`).
+keyframes' box); with ``max_bytes`` it refuses a request that would not fit BEFORE any
+work starts, naming the largest resolution that would (`memory`).
+
+Every grid sits on a lattice in world space, as OpenVDB's index space does: its spacing
+is a step of a fixed ladder (`lattice_spacing`) and its origin a whole multiple of its
+spacing. A grid changes only when the box it must hold reaches into another lattice cell
+(or the keyframes' size into another step of the ladder): an Empty dragged within a cell,
+or a keyframe nudged by less than one, leaves the grids (and so everything computed on
+them) as they were.
 """
 
 from __future__ import annotations
@@ -26,12 +33,18 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 
-__all__ = ["fit_grid", "auto_motion_resolution", "motion_grid", "one_grid_unless_smaller",
-           "MIN_MOTION_RESOLUTION"]
+__all__ = ["fit_grid", "lattice_spacing", "lattice_grid", "auto_motion_resolution",
+           "motion_grid", "one_grid_unless_smaller", "MIN_MOTION_RESOLUTION", "LATTICE_STEPS"]
+
+#: Steps of the spacing ladder per doubling (`lattice_spacing`): a spacing is 2**(k / 8)
+#: for a whole k, so the cells along the keyframes' longest side are within 4.4 % of the
+#: Resolution asked for.
+LATTICE_STEPS = 8
 
 
 def _points(vertex_arrays: np.ndarray | Iterable[ArrayLike],
-            extra_points: ArrayLike | None) -> np.ndarray:
+            extra_points: ArrayLike | None) -> tuple[np.ndarray, np.ndarray]:
+    """(the keyframes' vertices, those and the extra points), checked, one array each."""
     if isinstance(vertex_arrays, np.ndarray) and vertex_arrays.dtype != object and vertex_arrays.ndim == 2:
         vertex_arrays = [vertex_arrays]
     arrays = []
@@ -46,38 +59,58 @@ def _points(vertex_arrays: np.ndarray | Iterable[ArrayLike],
     if len(dims) > 1:
         raise ValueError(f"keyframes mix 2D and 3D vertices (dimensions {sorted(dims)}); use one.")
     d = dims.pop()
-    if extra_points is not None:
-        e = np.asarray(extra_points, dtype=float).reshape(-1, d) if np.size(extra_points) else None
-        if e is not None:
-            arrays.append(e)
+    keyframes = np.concatenate(arrays)
+    if extra_points is not None and np.size(extra_points):
+        arrays.append(np.asarray(extra_points, dtype=float).reshape(-1, d))
     pts = np.concatenate(arrays)
     if not np.all(np.isfinite(pts)):
         raise ValueError("keyframe vertices or feature points contain NaN or infinity; fix them first.")
-    return pts
+    return keyframes, pts
 
 
-def _grid_for(lo: np.ndarray, hi: np.ndarray, resolution: int, padding_cells: int) -> Grid:
-    extent = hi - lo
-    h = float(extent.max()) / resolution
-    cells = np.ceil(extent / h - 1e-9).astype(int)
-    cells = np.maximum(cells, 1) + 2 * padding_cells
-    center = (lo + hi) / 2
-    origin = center - h * cells / 2
-    return Grid(origin, h, tuple(int(c) + 1 for c in cells))
+def lattice_spacing(extent: float, resolution: int) -> float:
+    """The spacing of a grid with ``resolution`` cells along ``extent`` (world units): the
+    step of the ladder 2**(k / `LATTICE_STEPS`) nearest to ``extent / resolution`` (in
+    ratio). A fixed ladder, not the ratio itself, so that a small change of ``extent``
+    (a keyframe nudged, a rounding) leaves the spacing, and the lattice, as it was."""
+    k = round(np.log2(float(extent) / resolution) * LATTICE_STEPS)
+    return float(2.0 ** (k / LATTICE_STEPS))
+
+
+def lattice_grid(lo: ArrayLike, hi: ArrayLike, spacing: float, padding_cells: int) -> Grid:
+    """The grid on the lattice of ``spacing`` (nodes at whole multiples of it in world space)
+    holding the box ``lo``..``hi`` with ``padding_cells`` more cells on every side: the
+    lattice nodes at or below ``lo`` and at or above ``hi``, at least one cell apart."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    first = np.floor(lo / spacing)
+    first -= first * spacing > lo  # where the division rounded up onto the next node
+    last = np.ceil(hi / spacing)
+    last += last * spacing < hi
+    last = np.maximum(last, first + 1)
+    first, last = first - padding_cells, last + padding_cells
+    return Grid(first * spacing, spacing, tuple(int(n) + 1 for n in last - first))
+
+
+def _grid_for(lo: np.ndarray, hi: np.ndarray, extent: float, resolution: int,
+              padding_cells: int) -> Grid:
+    return lattice_grid(lo, hi, lattice_spacing(extent, resolution), padding_cells)
 
 
 def fit_grid(vertex_arrays: np.ndarray | Iterable[ArrayLike], resolution: int, *,
              padding_cells: int = BakeOptions.padding_cells,
              extra_points: ArrayLike | None = None, max_bytes: int | None = None,
              **memory_options: Any) -> Grid:
-    """Grid holding all keyframes (and extra points), with cubic cells and padding.
+    """Grid holding all keyframes (and extra points), with cubic cells and padding, on the
+    lattice of its spacing (`lattice_grid`).
 
     Parameters
     ----------
     vertex_arrays : sequence of (N_i, d) array_like, or one (N, d) array
         Vertices of every keyframe (d = 2 or 3 decides the grid's dimension).
     resolution : int
-        Cells along the longest side of the bounding box (before padding), >= 2.
+        Cells along the longest side of the keyframes' bounding box (before padding), >= 2,
+        to the nearest step of the spacing ladder (`lattice_spacing`). The extra points
+        widen the box but not the cells: moving one leaves the spacing as it was.
     padding_cells : int
         Empty cells added on every side (the SDF needs positive values around the
         material; the motion may need room).
@@ -93,25 +126,26 @@ def fit_grid(vertex_arrays: np.ndarray | Iterable[ArrayLike], resolution: int, *
     Returns
     -------
     Grid
-        Box centred on the points' bounding box; its longest side spans
-        ``resolution + 2 * padding_cells`` cells.
+        The lattice nodes around the points' bounding box, ``padding_cells`` more on every
+        side; the origin a whole multiple of the spacing.
     """
     if isinstance(resolution, bool) or not float(resolution).is_integer() or resolution < 2:
         raise ValueError(f"resolution must be a whole number of cells >= 2, got {resolution!r}.")
     if isinstance(padding_cells, bool) or not float(padding_cells).is_integer() or padding_cells < 0:
         raise ValueError(f"padding_cells must be a whole number >= 0, got {padding_cells!r}.")
     resolution, padding_cells = int(resolution), int(padding_cells)
-    pts = _points(vertex_arrays, extra_points)
+    keyframes, pts = _points(vertex_arrays, extra_points)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    if not (hi - lo).max() > 0:
+    extent = float(np.ptp(keyframes, axis=0).max())
+    if not extent > 0:
         raise ValueError("all keyframe vertices coincide; the bounding box has no size.")
-    grid = _grid_for(lo, hi, resolution, padding_cells)
+    grid = _grid_for(lo, hi, extent, resolution, padding_cells)
     if max_bytes is not None and memory_options.get("material_fraction") is None:
         memory_options["material_fraction"] = _box_fraction(lo, hi, grid)
     if max_bytes is not None:
         need = estimate_memory(grid, **memory_options)["peak"]
         if need > max_bytes:
-            fits = largest_fitting(lambda r: _grid_for(lo, hi, r, padding_cells), 2,
+            fits = largest_fitting(lambda r: _grid_for(lo, hi, extent, r, padding_cells), 2,
                                    resolution - 1, max_bytes, **memory_options)
             raise MemoryLimitError(_refusal(grid, resolution, need, max_bytes, fits),
                                    need, max_bytes, fits)
@@ -175,14 +209,12 @@ def one_grid_unless_smaller(grid: Grid, resolution: int, motion_resolution: int)
 
 def motion_grid(grid: Grid, resolution: int, motion_resolution: int,
                 padding_cells: int = 2) -> Grid | None:
-
     """The motion grid of a bake on ``grid`` (``resolution`` cells along the longest side
-    of the keyframes' box): cells ``resolution / motion_resolution`` times as large, centred
-    on ``grid``'s box and covering it with ``padding_cells`` more cells on every side. None
-    when the two resolutions are equal: the maps then live on ``grid`` itself."""
+    of the keyframes' box): cells ``resolution / motion_resolution`` times as large, on the
+    lattice of that spacing (`lattice_grid`), covering ``grid``'s box with ``padding_cells``
+    more cells on every side. None when the two resolutions are equal: the maps then live
+    on ``grid`` itself."""
     if int(motion_resolution) >= int(resolution):
         return None
     spacing = grid.spacing * resolution / motion_resolution
-    cells = np.ceil((grid.upper - grid.origin) / spacing - 1e-9).astype(int) + 2 * padding_cells
-    centre = (grid.origin + grid.upper) / 2
-    return Grid(centre - spacing * cells / 2, spacing, tuple(int(c) + 1 for c in cells))
+    return lattice_grid(grid.origin, grid.upper, spacing, padding_cells)

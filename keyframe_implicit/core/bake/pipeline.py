@@ -23,6 +23,7 @@ from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
 from ..surface.quality import OWN_SURFACES, choose_output, keyframe_distance
 from .animation import Animation
+from .cache import WorkCache, content_key, grid_key
 from .chain import HELPER_PRELOAD, Chain, tracked_frames
 from .checks import (check_feature_reach, check_feature_spacing, check_inputs,
                      check_motion_resolution, check_result,
@@ -47,22 +48,31 @@ if TYPE_CHECKING:
 
 __all__ = ["animate", "bake", "BakePlan", "plan_bake", "bake_grids", "bake_steps",
            "memory_limit", "MemoryNeed", "memory_need",
-           "distance_fields", "distance_grid", "finish_bake"]
+           "distance_fields", "distance_grid", "distance_key", "finish_bake"]
 
 
 
-def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
+def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None, cache=None):
     """The keyframes' signed distance grids and `sdf.mesh_to_sdf`'s figures of each.
 
-    With a ``helper`` process the two share them (`parallel.share`): this process takes
-    the keyframes from the first on, the helper the last one left once it has started.
-    A process takes 0.5-1 s to start, more than a small grid's distance grids take, so
-    the helper only joins in where that pays.
+    Those the ``cache`` (`cache.WorkCache`) holds for the same mesh on the same grid
+    (`distance_key`) are taken from it, the others made and kept there. With a ``helper``
+    process the ones to make are shared (`parallel.share`): this process takes the keyframes
+    from the first on, the helper the last one left once it has started. A process takes
+    0.5-1 s to start, more than a small grid's distance grids take, so the helper only joins
+    in where that pays.
     """
     n = len(keyframes)
-    if helper is None or n < 2:
-        done = dict(enumerate(distance_grid(keyframes, meshes, grid, k, rep, cancel)
-                              for k in range(n)))
+    keys = [distance_key(grid, m) for m in meshes] if cache is not None else None
+    done = {}
+    for k in range(n) if cache is not None else ():
+        kept = cache.get(keys[k])
+        if kept is not None:
+            done[k] = kept
+            rep.elsewhere(DISTANCE_FIELDS)
+    todo = [k for k in range(n) if k not in done]
+    if helper is None or len(todo) < 2:
+        done.update((k, distance_grid(keyframes, meshes, grid, k, rep, cancel)) for k in todo)
     else:
         def here(k, stop):
             return distance_grid(keyframes, meshes, grid, k, rep, stop)
@@ -70,10 +80,20 @@ def _distance_grids(keyframes, meshes, grid, rep, cancel=None, helper=None):
         def there(k):
             return distance_grid, (keyframes, meshes, grid, k), {}
 
-        done, _, _ = share(range(n), here, there, helper, check=rep.check, cancel=cancel,
+        made, _, _ = share(todo, here, there, helper, check=rep.check, cancel=cancel,
                            last_first=True, when_started=True,
                            on_theirs=lambda _k: rep.elsewhere(DISTANCE_FIELDS))
+        done.update(made)
+    for k in todo if cache is not None else ():
+        cache.put(keys[k], done[k])
     return [done[k][0] for k in range(n)], [done[k][1] for k in range(n)]
+
+
+def distance_key(grid: Grid, mesh: tuple) -> str:
+    """What a keyframe's distance grid depends on (`cache.content_key`): the grid and the
+    checked mesh's vertices in world space and triangles."""
+    return content_key("distance", grid_key(grid), np.asarray(mesh[0], dtype=np.float64),
+                       np.asarray(mesh[1], dtype=np.int64))
 
 
 def distance_grid(keyframes: Sequence[Keyframe], meshes: Sequence[tuple], grid: Grid, k: int,
@@ -129,7 +149,7 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
             feature_names: FeatureNames | None = None,
             progress: Callable[[float, str], object] | None = None,
             cancel: Callable[[], bool] | None = None, helper: Helper | None = None,
-            **stage_options: Any) -> Animation:
+            cache: WorkCache | None = None, **stage_options: Any) -> Animation:
     """Bake a sequence of keyframes into one tracked mesh per timeline frame.
 
     Stages: `gridfit.fit_grid` (one grid holding every keyframe and feature point,
@@ -179,6 +199,10 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
         A helper process already started (and left running): it takes the place of the
         one ``processes=2`` starts here, whose interpreter then loads while this one
         checks the keyframes (the worker process starts it before reading its inputs).
+    cache : `cache.WorkCache`, optional
+        Distance grids and maps kept by content: those of the same inputs are taken from
+        it instead of computed, the others kept there (a re-bake after one Empty moved
+        solves only its pair's maps); how many of each were taken: ``stats["kept"]``.
     **stage_options
         The stages' own settings, each the field of the same name, checked before any
         work (an unknown one is refused with a ValueError that lists the known ones):
@@ -208,13 +232,14 @@ def animate(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, A
         key_interpolation=key_interpolation, template=template, padding_cells=padding_cells,
         max_bytes=max_bytes, processes=processes, **stage_options)
     return bake(keyframes, features, options, feature_names=feature_names, progress=progress,
-                cancel=cancel, helper=helper)
+                cancel=cancel, helper=helper, cache=cache)
 
 
 def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
          options: BakeOptions, *, feature_names: FeatureNames | None = None,
          progress: Callable[[float, str], object] | None = None,
-         cancel: Callable[[], bool] | None = None, helper: Helper | None = None) -> Animation:
+         cancel: Callable[[], bool] | None = None, helper: Helper | None = None,
+         cache: WorkCache | None = None) -> Animation:
     """`animate` with its options as one `BakeOptions`: what the Blender side's worker and
     every other caller that built its options once run. The other parameters, the result
     and the errors are `animate`'s."""
@@ -223,16 +248,19 @@ def bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, Arra
     rep = Tally(progress, bake_steps(plan)).reporter(cancel)
     rep.check()
     blas, given = one_blas_thread(), helper
+    before = {} if cache is None else cache.hits()
     try:
         if helper is None and options.processes > 1:
             helper = Helper(HELPER_PRELOAD)
-        phis = distance_fields(plan, rep, cancel, helper)
+        phis = distance_fields(plan, rep, cancel, helper, cache)
         plan.stats["sdf_seconds"] = time.perf_counter() - t0
-        chain = plan.chain(phis, cancel).run(helper, rep)
+        chain = plan.chain(phis, cancel, cache).run(helper, rep)
     finally:
         blas.restore_original_limits()
         if helper is not None and helper is not given:
             helper.close()
+    if cache is not None:
+        plan.stats["kept"] = {kind: n - before.get(kind, 0) for kind, n in cache.hits().items()}
     return finish_bake(plan, chain, t0, rep)
 
 
@@ -279,14 +307,16 @@ class BakePlan:
         """The keyframes' timeline frames."""
         return [kf.frame for kf in self.keyframes]
 
-    def chain(self, phis: Sequence[np.ndarray], cancel: Callable[[], bool] | None = None) -> Chain:
+    def chain(self, phis: Sequence[np.ndarray], cancel: Callable[[], bool] | None = None,
+              cache: WorkCache | None = None) -> Chain:
         """The `chain.Chain` of this plan's keyframes, given their distance grids ``phis``
-        on ``grid``: the artist's mesh as the template when there is one."""
+        on ``grid``: the artist's mesh as the template when there is one; its maps taken
+        from and kept in ``cache`` when given."""
         artist = self.artist
         return Chain(phis, self.grid, self.features, self.frames, self.options,
                      template=None if artist is None else artist[:2],
                      keyframe_meshes=None if artist is None else [m[:2] for m in self.checked_meshes],
-                     motion_grid=self.motion_grid, cancel=cancel)
+                     motion_grid=self.motion_grid, cancel=cancel, cache=cache)
 
 
 def plan_bake(keyframes: Sequence[Keyframe], features: Sequence[tuple[ArrayLike, ArrayLike]],
@@ -404,11 +434,13 @@ def memory_need(boxes: Sequence[ArrayLike], volumes: Sequence[float], resolution
 
 
 def distance_fields(plan: BakePlan, rep: Reporter, cancel: Callable[[], bool] | None = None,
-                    helper: Helper | None = None) -> list[np.ndarray]:
+                    helper: Helper | None = None,
+                    cache: WorkCache | None = None) -> list[np.ndarray]:
     """The keyframes' signed distance grids on ``plan.grid`` (`sdf.mesh_to_sdf`, shared with
-    a ``helper`` process when given); their figures go to ``plan.stats["sdf"]``."""
+    a ``helper`` process when given; those ``cache`` holds taken from it); their figures go
+    to ``plan.stats["sdf"]``."""
     phis, plan.stats["sdf"] = _distance_grids(plan.keyframes, plan.checked_meshes, plan.grid, rep,
-                                              cancel, helper)
+                                              cancel, helper, cache)
     return phis
 
 

@@ -8,17 +8,17 @@ makes it (the frame's level set, eq. 3.4, its marching cubes, or the keyframe's 
 on a keyframe's frame): the same functions on the same inputs, so a bake at the preview's
 resolutions has the same mesh on that frame (docs/method.md, sections 10 and 11).
 
-Kept between solves: the keyframes' distance grids, while the grid and the keyframe's mesh
-are unchanged. The grid holds the feature points and their rigid sweeps (`gridfit`), so a
-feature point moved often moves the grid too, and the grids are made again then. The maps
-are solved afresh each time: the solver starts from its own initial map (the RBF of the
-feature points, eq. 2.14-2.20) and takes no other, and starting it elsewhere would change
-its answer, which must stay the bake's.
+Kept between solves, by content (`cache.WorkCache`): the keyframes' distance grids and the
+pairs' maps, each under a key of exactly its inputs, so a solve computes only what an edit
+changed. The grids sit on a lattice in world space (`gridfit.lattice_grid`): a feature point
+moved within a cell leaves them as they were, so the distance grids are kept and only that
+pair's maps are solved again; an Interpolation changed solves no map. A map is never started
+from another: the solver starts from its own initial map (the RBF of the feature points,
+eq. 2.14-2.20), so a kept map is the one a fresh solve gives, which must stay the bake's.
 """
 
 from __future__ import annotations
 
-import hashlib
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -27,10 +27,11 @@ import numpy as np
 from ..base.parallel import one_blas_thread
 from ..base.progress import Reporter
 from ..surface.extract import extract_surface
+from .cache import WorkCache
 from .chain import frame_mesh
 from .gridfit import one_grid_unless_smaller
 from .options import BakeOptions
-from .pipeline import distance_grid, plan_bake
+from .pipeline import distance_fields, plan_bake
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -58,12 +59,15 @@ class Preview:
     ----------
     figures : dict
         Of the last solve: ``resolution``, ``motion_resolution``, ``grid_shape``,
-        ``motion_grid_shape`` (None: the maps are on the surface grid), ``seconds``, and
-        ``distance_grids_kept`` (how many keyframes' distance grids were not recomputed).
+        ``motion_grid_shape`` (None: the maps are on the surface grid), ``seconds``,
+        ``distance_grids_kept`` (how many keyframes' distance grids were not recomputed) and
+        ``maps_kept`` (how many pairs' maps were not solved again).
+    cache : `cache.WorkCache`
+        What is kept between solves (given, or one in memory only).
     """
 
-    def __init__(self) -> None:
-        self._phis = {}  # (grid, mesh) key -> distance grid
+    def __init__(self, cache: WorkCache | None = None) -> None:
+        self.cache = WorkCache() if cache is None else cache
         self._solved = None
         self.figures = {}
 
@@ -86,8 +90,10 @@ class Preview:
         plan = plan_bake(keyframes, features, options or BakeOptions(),
                          feature_names=feature_names, grid_rule=preview_grids)
         rep(0.05, "Distance grids")
-        phis, kept = self._distance_grids(plan, rep.sub(0.05, 0.2), cancel)
-        chain = plan.chain(phis, cancel)
+        before = self.cache.counts.get("distance", {}).get("hits", 0)
+        phis = distance_fields(plan, rep.sub(0.05, 0.2), cancel, cache=self.cache)
+        kept = self.cache.counts.get("distance", {}).get("hits", 0) - before
+        chain = plan.chain(phis, cancel, self.cache)
         nseg = len(phis) - 1
         with one_blas_thread():  # as in the bake: BLAS's threads round differently
             inbetweens = [chain.inbetweens.make(k, None, None,
@@ -99,24 +105,9 @@ class Preview:
                             motion_resolution=plan.stats["motion_resolution"],
                             grid_shape=plan.stats["grid_shape"],
                             motion_grid_shape=plan.stats.get("motion_grid_shape"),
-                            seconds=time.perf_counter() - t0, distance_grids_kept=kept)
+                            seconds=time.perf_counter() - t0, distance_grids_kept=kept,
+                            maps_kept=chain.inbetweens.reused)
         return self.figures
-
-    def _distance_grids(self, plan, rep, cancel):
-        """Every keyframe's distance grid on the plan's grid (`pipeline.distance_grid`),
-        those of an unchanged mesh on an unchanged grid kept from before; and how many were
-        kept."""
-        keys = [_field_key(plan.grid, m) for m in plan.checked_meshes]
-        phis, kept = [], 0
-        for k, key in enumerate(keys):
-            if key in self._phis:
-                kept += 1
-            else:
-                self._phis[key] = distance_grid(plan.keyframes, plan.checked_meshes, plan.grid, k,
-                                                rep, cancel)[0]
-            phis.append(self._phis[key])
-        self._phis = {key: self._phis[key] for key in keys}  # only the current ones stay
-        return phis, kept
 
     @property
     def solved(self) -> bool:
@@ -167,12 +158,3 @@ def preview_grids(fit: GridFit, options: BakeOptions) -> tuple[int, tuple[Grid, 
                 return res, (grid, res, None)
             return res, (grid, m, mgrid)
         res = min(top, int(np.ceil(1.25 * res)))
-
-
-def _field_key(grid, mesh):
-    """What a keyframe's distance grid depends on: the grid and the mesh's triangles."""
-    v, tris = mesh[:2]
-    digest = hashlib.blake2b(np.ascontiguousarray(v, dtype=np.float64).tobytes())
-    digest.update(np.ascontiguousarray(tris, dtype=np.int64).tobytes())
-    return (tuple(np.asarray(grid.origin, float)), float(grid.spacing), tuple(grid.shape),
-            digest.hexdigest())
