@@ -19,7 +19,8 @@ Throughout, a `bpy.app.timers` callback asking for a call every `TICK` seconds r
 main loop's turns: the longest gap is Blender's whole (its drawing included); the preview
 records into a `Diagnostics` set as the add-on's ``diagnostics.current`` when each solve and
 frame went out and came back, and ``longest``, the longest call of its own code. OUTDIR receives
-``preview_<scene>_{on,dragged,scrubbed}.png`` (the display grabbed with ``xwd``). Blender
+``preview_<scene>_{on,stale,dragged,scrubbed}.png`` (stale: just after the first
+release, before its solve is back) (the display grabbed with ``xwd``). Blender
 quits when done, exit code 1 on any error.
 """
 
@@ -105,8 +106,10 @@ def on_screen(diag, rec, after):
     return shown, rec.drawn_after(shown)
 
 
-def drag(pv, diag, rec, empty, direction):
-    """Steps: one G-move of ``empty`` with real input events; returns the figures."""
+def drag(pv, diag, rec, empty, direction, shot=None):
+    """Steps: one G-move of ``empty`` with real input events; returns the figures. ``shot``
+    (name, shots): the screen grabbed once the solve after the release is sent, while the
+    overlay still shows the frame before the move (grey: stale)."""
     x, y = screen_point(empty)
     xdotool("mousemove", x, y).wait()
     yield 0.2
@@ -121,6 +124,8 @@ def drag(pv, diag, rec, empty, direction):
     xdotool("click", "1")
     yield from wait_for(lambda: len(diag.solves) > before, "solve after the release")
     sent = diag.solves[before]
+    if shot is not None:
+        grab(*shot)
     shown, drawn = yield from on_screen(diag, rec, sent)
     return dict(latency=drawn - release, sent=sent - release, answered=shown - sent,
                 drawn=drawn - shown, figures=dict(pv.state.figures))
@@ -167,7 +172,8 @@ def scene_steps(path, shots):
     yield 1.0
     drags = []
     for i in range(DRAGS):
-        drags.append((yield from drag(pv, diag, rec, empty, 1 if i % 2 == 0 else -1)))
+        drags.append((yield from drag(pv, diag, rec, empty, 1 if i % 2 == 0 else -1,
+                                      (f"preview_{name}_stale", shots) if i == 0 else None)))
         yield 0.5
     grab(f"preview_{name}_dragged", shots)
     yield 1.0
