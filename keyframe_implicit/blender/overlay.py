@@ -25,7 +25,7 @@ __all__ = ["available", "batch", "draw", "COLOR", "STALE_COLOR"]
 COLOR = (1.0, 0.45, 0.1, 0.55)
 #: The colour of a preview whose inputs were edited since it was solved: a fainter grey,
 #: until the new solve's frame replaces it.
-STALE_COLOR = (0.55, 0.55, 0.55, 0.3)
+STALE_COLOR = (0.6, 0.6, 0.6, 0.4)
 #: Direction the light comes from (world space, normalised below).
 _LIGHT = np.array([0.3, -0.5, 0.8])
 

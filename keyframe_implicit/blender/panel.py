@@ -239,8 +239,7 @@ def _live_preview(layout: bpy.types.UILayout, context: bpy.types.Context) -> Non
     if state.message:
         _wrapped(layout, context, state.message, "ERROR")
     elif state.stale:
-        layout.label(text="Preview: updating to your edit\u2026 (grey until then)",
-                     icon="SORTTIME")
+        layout.label(text="Preview: updating (grey until then)", icon="SORTTIME")
     elif state.figures:
         f = state.figures
         _wrapped(layout, context, f"Preview grid {f['resolution']} cells, motion "
