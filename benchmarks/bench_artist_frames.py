@@ -20,7 +20,10 @@ then the same distance and volume of the tracked template (the shape keys).
 Contact cases (`contact_cases.py`, baked as `bench_contact.py` bakes them): the frames
 before contact (`contact_metrics.contact_frame` on the frames' own surfaces), and how many
 of them ship the artist's mesh (its vertex count, and its UVs: keyframe A is given a UV
-map here, its vertices' x and y).
+map here, its vertices' x and y); then the same before parts come within two cells
+(``stats["topology"]``, where the bake's tracked frames end), the template pieces' largest
+volume drift since frame 1 on those frames (``stats["volumes"]``), and frame 2 against
+frame 1, the keyframe: two-way distance max (h) and volume step.
 """
 
 from __future__ import annotations
@@ -177,9 +180,20 @@ def contact_figures(name: str, resolution: int = 48) -> dict:
     contact = cm.contact_frame(own, parts, h)
     meshes = shipped(anim)
     before = len(meshes) if contact is None else contact
+    topology, volumes = anim.stats["topology"], anim.stats["volumes"]
+    near = next((i for i, t in enumerate(topology) if tuple(t) != tuple(topology[0])),
+                len(topology))
+    first, second = meshes[0], meshes[1]
+    step = keyframe_distance(second["vertices"], second["triangles"], first["vertices"],
+                             first["triangles"], h)
     return dict(case=name, output=anim.stats.get("output"), frames=len(meshes), contact=contact,
                 before=before, artist=sum(m["artist"] for m in meshes[:before]),
-                artist_all=sum(m["artist"] for m in meshes))
+                artist_all=sum(m["artist"] for m in meshes), near=near,
+                artist_near=sum(m["artist"] for m in meshes[:near]),
+                drift=max(np.abs(v / volumes[0] - 1.0).max() for v in volumes[:near]),
+                step_max=step["keyframe_max"],
+                step_volume=abs(mesh_volume(second["vertices"], second["triangles"])
+                                / mesh_volume(first["vertices"], first["triangles"]) - 1.0))
 
 
 def main() -> None:
@@ -191,11 +205,14 @@ def main() -> None:
     for t in args.rods:
         print_rod(rod_figures(t, args.resolution))
     if args.cases:
-        print("case           ships          frames  contact  before  artist before  artist all")
+        print("case           ships          frames  contact  before  artist before  artist all"
+              "  within 2 h  artist before  drift %  frame 2: max h  volume %")
     for name in args.cases:
         c = contact_figures(name, args.resolution)
         print(f"{c['case']:14s} {c['output']:14s} {c['frames']:6d}  {str(c['contact']):7s} "
-              f"{c['before']:6d}  {c['artist']:13d}  {c['artist_all']:10d}")
+              f"{c['before']:6d}  {c['artist']:13d}  {c['artist_all']:10d}  {c['near']:10d}  "
+              f"{c['artist_near']:13d}  {100 * c['drift']:7.2f}  {c['step_max']:14.2f}  "
+              f"{100 * c['step_volume']:8.2f}")
 
 
 if __name__ == "__main__":

@@ -46,17 +46,20 @@ def merge_bake():
     return kfs, animate(kfs, [(fa, fb)], resolution=24)
 
 
-def test_a_merge_ships_the_artists_mesh_only_while_its_pieces_hold_their_volume(merge_bake):
+def test_a_merge_ships_the_artists_mesh_on_every_frame_before_contact(merge_bake):
+    """Every frame before the balls come within two cells is the artist's mesh, each ball
+    within 1 % of its volume (the offsets the tracking carries from the keyframes once
+    swelled them by 2-3 % from the first in-between on)."""
     kfs, an = merge_bake
     attrs = kfs[0].attributes
     topo = an.stats["topology"]
-    contact = next(i for i, t in enumerate(topo) if t[0] < topo[0][0])
+    contact = next(i for i, t in enumerate(topo) if tuple(t) != tuple(topo[0]))
     assert an.stats["output"] == "mesh_sequence" and contact >= 4
     volumes = an.stats["volumes"]
-    drift = [np.abs(v / volumes[0] - 1.0).max() for v in volumes]
-    strays = next((i for i, d in enumerate(drift) if d > 0.01), len(drift))
+    drift = [np.abs(v / volumes[0] - 1.0).max() for v in volumes[:contact]]
+    assert max(drift) <= 0.01
     tracked = an.stats["tracked_frames"]
-    assert 1 <= tracked <= min(strays, contact)
+    assert tracked == contact
     frames = frame_meshes(an.output_mesh(MESH_SEQUENCE), len(an.frames))
     for count, loops, uv in frames[:tracked]:  # the artist's polygons and UVs
         assert count == len(kfs[0].vertices)

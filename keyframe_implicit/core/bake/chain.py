@@ -620,7 +620,7 @@ def _detail(inb, segment):
     meshes = segment.keyframe_meshes
     if meshes is None:
         return None
-    return DetailTrack(inb, segment.template[0], meshes[segment.k + 1])
+    return DetailTrack(inb, *segment.template, meshes[segment.k + 1])
 
 
 def _template(inb, segment, detail, s):

@@ -24,8 +24,8 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "piece_volumes", "mesh_area",
-           "loop_area", "material_topology"]
+__all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "piece_volumes", "mesh_pieces",
+           "closed_pieces", "mesh_area", "loop_area", "material_topology"]
 
 
 def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
@@ -38,16 +38,37 @@ def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def piece_volumes(vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
-    """The volume of each connected piece of a mesh, about the piece's own centroid (so an
-    open piece's moves with it), in the order of its lowest vertex."""
+def mesh_pieces(faces: ArrayLike, vertices: int) -> tuple[int, np.ndarray]:
+    """(count, label): the connected pieces of a mesh of ``vertices`` vertices, joined by its
+    faces' edges; pieces numbered in the order of their lowest vertex."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
+    f = np.asarray(faces, dtype=np.int64)
     edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
-    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(v),) * 2)
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(vertices,) * 2)
     count, label = connected_components(graph, directed=False)
+    return int(count), label
+
+
+def closed_pieces(faces: ArrayLike, label: np.ndarray, count: int) -> np.ndarray:
+    """(count,) bool: whether each piece (`mesh_pieces`) is closed, every edge of it shared
+    by exactly two triangles, so that its volume is its own and not where it is measured
+    from."""
+    f = np.asarray(faces, dtype=np.int64)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, which, shared = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    open_edges = shared[which.reshape(-1)] != 2
+    return np.bincount(label[edges[open_edges, 0]], minlength=count) == 0
+
+
+def piece_volumes(vertices: ArrayLike, faces: ArrayLike,
+                  pieces: tuple[int, np.ndarray] | None = None) -> np.ndarray:
+    """The volume of each connected piece of a mesh, about the piece's own centroid (so an
+    open piece's moves with it), in the order of its lowest vertex. ``pieces``: the mesh's
+    `mesh_pieces`, when known."""
+    v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
+    count, label = mesh_pieces(f, len(v)) if pieces is None else pieces
     centre = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
               / np.bincount(label, minlength=count)[:, None])
     a, b, c = (v[f[:, i]] - centre[label[f[:, 0]]] for i in range(3))

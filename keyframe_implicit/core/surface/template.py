@@ -29,7 +29,8 @@ import numpy as np
 
 from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient
-from .extract import extract_surface, mesh_area
+from .extract import (closed_pieces, extract_surface, material_topology, mesh_area, mesh_pieces,
+                      piece_volumes)
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -374,6 +375,18 @@ class DetailTrack:
     deforms, the zero set steers as it always did. ``guides`` keeps, per time s,
     the largest g.
 
+    The offsets c_A and c_B are shape, not volume: each closed piece of the mesh is then
+    moved along its normals by the one distance that gives it the volume
+    (1 - s) V_A + s V_B, V_A its own on A and V_B its share of the pieces of keyframe B
+    it lands on (`_volume_ends`), where the mesh's pieces are the material's parts (as
+    many) and as long as the in-between's material keeps the topology it has at s = 0
+    (`extract.material_topology`: no parts within two cells of meeting); once parts meet,
+    the pieces' volumes are no longer their own. Without it
+    the offsets add volume the in-betweens already hold: c_A is measured from keyframe
+    A's grid surface, which holds the grid's volume where the in-betweens hold the
+    mesh's, and c_B, ramped in from s = 0, holds what the smooth pull leaves short of B's
+    zero set, over a cell where parts merge (two balls grew 5 % before they touched).
+
     When keyframe B is the same mesh as the template, posed (the artist
     duplicated A and moved its vertices: same vertex count, and the closest
     points above lie near B's own vertices, `same_vertices`), x(1) is B's
@@ -385,12 +398,13 @@ class DetailTrack:
     ----------
     inb : Inbetween of the segment.
     vertices : (V, 3) the template on keyframe A's mesh (world units).
+    faces : (F, 3) the template's triangles.
     end_mesh : (vertices (V_B, 3), triangles (T_B, 3)) of keyframe B.
     projection_steps : int, steps of `project_to_zero_set`.
     filter_cells : float, the filter's radius in cells.
     """
 
-    def __init__(self, inb: Inbetweens, vertices: ArrayLike,
+    def __init__(self, inb: Inbetweens, vertices: ArrayLike, faces: ArrayLike,
                  end_mesh: tuple[ArrayLike, ArrayLike], projection_steps: int = 4,
                  filter_cells: float = 1.0) -> None:
         from .attributes import closest_points
@@ -398,19 +412,66 @@ class DetailTrack:
         self.inb = inb
         self.guides = {}
         self.start = np.asarray(vertices)
+        self.faces = np.asarray(faces, dtype=np.int64)
+        self.pieces = mesh_pieces(self.faces, len(self.start))
         self.steps = projection_steps
         v0 = self.start.astype(float)
         self.smooth = surface_filter(v0, filter_cells * inb.grid.spacing)
         self.offset_a = self._pull(v0, 0.0)[1]
         p1 = inb.trajectory(v0, 1.0)
         pulled = self._pull(p1, 1.0)[0]
-        self.end = closest_points(pulled, *end_mesh)[0]
+        self.end, landed = closest_points(pulled, *end_mesh)[:2]
+        self.volumes, self.held = self._volume_ends(v0, landed, end_mesh)
+        topology = material_topology(inb.levelset(0.0))
+        self.topology = topology if topology[0] == self.pieces[0] else None
         self.end_by_index = same_vertices(self.end, end_mesh[0], inb.grid.spacing)
         if self.end_by_index:
             self.end = np.asarray(end_mesh[0], dtype=float).copy()
         rot_b = local_rotations(inb, v0, 1.0)
         self.offset_b = np.einsum("pji,pj->pi", rot_b, self.end - pulled)
         self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
+
+    def _volume_ends(self, v0: np.ndarray, landed: np.ndarray,
+                     end_mesh: tuple[ArrayLike, ArrayLike]) -> tuple[tuple, np.ndarray]:
+        """((V_A, V_B), held): per piece of the template its volume on A and on B, and
+        whether it holds them (closed, and landing on closed pieces of B only). On B a
+        piece has, of each piece of B its points land on (``landed``, their triangles of
+        B), its share by A's volume and the fraction of its points there: all of one
+        piece, or of the two it splits into; half of one, for each of two equal balls
+        that merge."""
+        count, label = self.pieces
+        end_v = np.asarray(end_mesh[0], dtype=float).reshape(-1, 3)
+        end_tris = np.asarray(end_mesh[1], dtype=np.int64).reshape(-1, 3)
+        count_b, label_b = pieces_b = mesh_pieces(end_tris, len(end_v))
+        lands = np.zeros((count, count_b))
+        np.add.at(lands, (label, label_b[end_tris[landed, 0]]), 1.0)
+        lands /= np.maximum(lands.sum(axis=1, keepdims=True), 1.0)
+        on_a = piece_volumes(v0, self.faces, self.pieces)
+        weight = lands * on_a[:, None]
+        shares = np.divide(weight, weight.sum(axis=0), out=np.zeros_like(weight),
+                           where=weight.sum(axis=0) != 0)
+        on_b = shares @ piece_volumes(end_v, end_tris, pieces_b)
+        held = (closed_pieces(self.faces, label, count)
+                & (lands @ ~closed_pieces(end_tris, label_b, count_b) == 0))
+        return (on_a, on_b), held
+
+    def _hold_volumes(self, x: np.ndarray, s: float, rounds: int = 2) -> np.ndarray:
+        """``x`` with each held piece moved along its vertex normals by the one distance
+        that gives it the volume (1 - s) V_A + s V_B (a few Newton rounds: a piece's
+        volume grows by its area times the distance)."""
+        count, label = self.pieces
+        target = (1.0 - s) * self.volumes[0] + s * self.volumes[1]
+        a, b, c = (self.faces[:, i] for i in range(3))
+        for _ in range(rounds):
+            twice = np.cross(x[b] - x[a], x[c] - x[a])  # along each triangle's normal
+            normals = np.stack([sum(np.bincount(corner, twice[:, d], len(x))
+                                    for corner in (a, b, c)) for d in range(3)], axis=1)
+            normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-12)[:, None]
+            area = np.bincount(label[a], 0.5 * np.linalg.norm(twice, axis=1), count)
+            gap = target - piece_volumes(x, self.faces, self.pieces)
+            shift = np.divide(gap, area, out=np.zeros(count), where=self.held & (area > 0))
+            x = x + shift[label][:, None] * normals
+        return x
 
     def _pull(self, p: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """p + L[P_s(p) - p], L[P_s(p) - p] and |phi| at P_s(p)."""
@@ -435,4 +496,8 @@ class DetailTrack:
         guide = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
         landing = np.einsum("pij,pj->pi", rot, s * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
-        return p + guide[:, None] * (pull - expected) + landing, err
+        x = p + guide[:, None] * (pull - expected) + landing
+        if (self.topology is not None
+                and material_topology(self.inb.levelset(s)) == self.topology):
+            x = self._hold_volumes(x, s)
+        return x, err
