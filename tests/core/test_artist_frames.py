@@ -9,6 +9,7 @@ from keyframe_implicit.core.bake.chain import tracked_frames
 from keyframe_implicit.core.surface.attributes import MeshAttributes
 from keyframe_implicit.core.surface.extract import material_topology
 from keyframe_implicit.core.surface.meshdata import FRAME_ATTRIBUTE, MESH_SEQUENCE
+from keyframe_implicit.core.surface.quality import flipped_fraction
 
 from test_artist_template import uv_sphere
 
@@ -107,6 +108,17 @@ def test_the_switch_is_at_the_topology_change_or_the_first_fold():
     volumes = [np.array([1.0, 2.0])] * 6
     volumes[3] = np.array([1.0, 2.05])  # a piece swells by 2.5 %
     assert tracked_frames(frames, [dict(clean) for _ in frames], topo, volumes=volumes).sum() == 3
+    turned = [0.0, 0.0, 0.001, 0.0, 0.0, 0.0]  # one small face turned over on frame 3
+    assert tracked_frames(frames, [dict(clean) for _ in frames], topo, flipped=turned).sum() == 2
+
+
+def test_flipped_fraction_is_the_area_turned_over_since_the_first_frame():
+    start = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    assert flipped_fraction(start, start + 0.3, faces) == 0.0  # moved, not turned
+    folded = start.copy()
+    folded[3] = [-1.0, -1.0, 0.0]  # the second triangle turned over, three times its area
+    assert flipped_fraction(start, folded, faces) == pytest.approx(0.75)
 
 
 def test_material_topology_counts_pieces_and_holes():

@@ -37,7 +37,7 @@ from ..base.grid import Grid
 from ..base.parallel import Helper, one_blas_thread, release_memory
 from ..base.progress import Reporter
 from ..fields.measure import read_mesh
-from ..surface.quality import LIMITS, failures, frame_quality
+from ..surface.quality import LIMITS, failures, flipped_fraction, frame_quality
 from ..surface.extract import extract_surface, material_topology, piece_volumes
 from ..surface.options import SurfaceOptions
 from .animation import Animation
@@ -481,7 +481,7 @@ class Kept:
                       "uncovered_fraction": []}
         if outputs.surfaces:
             self.stats["quality"] = {name: [] for name in outputs.measured}
-            self.stats["topology"], self.stats["volumes"] = [], []
+            self.stats["topology"], self.stats["volumes"], self.stats["flipped"] = [], [], []
         self.meshes, self.velocities, self.fields = [], [], []
 
     def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
@@ -501,6 +501,7 @@ class Kept:
                     st["quality"][name].append(rec[name])
                 st["topology"].append(rec["topology"])
                 st["volumes"].append(rec["volumes"])
+                st["flipped"].append(rec["flipped"])
             if outputs.keeps_meshes:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
@@ -641,7 +642,7 @@ def _frame_outputs(inb, s, segment, p, rep):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
     are ``p``: its level set, uncovered area, the quality figures of the outputs measured,
     its material's topology (`extract.material_topology`), the volumes of the template's
-    pieces (`tracked_frames`), own mesh and velocity. The
+    pieces and its area turned over (`tracked_frames`), own mesh and velocity. The
     frame's own surface is made whenever a figure needs it; its mesh and velocities
     only for the mesh sequence."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
@@ -664,6 +665,7 @@ def _frame_outputs(inb, s, segment, p, rep):
         out[name] = frame_quality(ls, grid, *meshes[name], surf)
     out["topology"] = material_topology(ls)
     out["volumes"] = piece_volumes(p, faces)
+    out["flipped"] = flipped_fraction(segment.template[0], p, faces)
     rep.check()
     if outputs.keeps_meshes:
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
@@ -703,7 +705,8 @@ TRACKED_VOLUME = 0.01
 def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
                    topology: Sequence[tuple[int, ...]],
                    steered: Sequence[float] | None = None,
-                   volumes: Sequence[np.ndarray] | None = None) -> np.ndarray:
+                   volumes: Sequence[np.ndarray] | None = None,
+                   flipped: Sequence[float] | None = None) -> np.ndarray:
     """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
     (n,) bool over ``frames``.
 
@@ -721,7 +724,10 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     surface is, and it passes. A frame on which a piece of the template swells or shrinks
     by more than `TRACKED_VOLUME` since the first frame (``volumes``, per frame its
     pieces' volumes, `extract.piece_volumes`) ends them too: its volume would step back
-    where the frames switch to their own surfaces, which hold it.
+    where the frames switch to their own surfaces, which hold it. So does a frame on which
+    any face of the template has turned over since the first (``flipped``, per frame its
+    area share, `quality.flipped_fraction`): a fold of the artist's mesh shows as specks
+    of its inside, however small.
 
     ``shape_keys`` is updated in place to those relative figures on the tracked frames.
     """
@@ -730,12 +736,13 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     steered = np.ones(n) if steered is None else np.asarray(steered, dtype=float)
     drift = (np.zeros(n) if volumes is None else
              np.array([np.max(np.abs(v / volumes[0] - 1.0), initial=0.0) for v in volumes]))
+    folded = np.zeros(n) if flipped is None else np.asarray(flipped, dtype=float)
     end = n
     for i, (q, t) in enumerate(zip(shape_keys, topology)):
         rel = dict(q, area_ratio=q["area_ratio"] / first["area_ratio"],
                    inverted_fraction=max(q["inverted_fraction"] - first["inverted_fraction"], 0.0))
         rigid = steered[i] <= RIGID_STEER
-        if (tuple(t) != start or drift[i] > TRACKED_VOLUME
+        if (tuple(t) != start or drift[i] > TRACKED_VOLUME or folded[i] > 0.0
                 or (not rigid and failures(rel, TRACKED_LIMITS))):
             end = i
             break

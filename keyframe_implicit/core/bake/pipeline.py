@@ -582,7 +582,7 @@ def _sequence_tracked(stats, frames, measured, keyframes, auto):
     set in the settings) becomes the shape keys."""
     quality = stats["quality"]
     tracked = tracked_frames(frames, measured, stats["topology"], stats["steered"],
-                             stats["volumes"])
+                             stats["volumes"], stats["flipped"])
     reach = int(np.count_nonzero(tracked))
     if auto and reach == len(frames) and stats["output"] == "mesh_sequence":
         stats["output"], stats["output_reason"] = "shape_keys", (
