@@ -17,7 +17,7 @@ repeating its arithmetic (and benchmarks/bench_inbetween.py uses the rigid case 
   (grid, phi_a, phi_b, features_a, features_b); `nudged_spheres` and
   `capsule_and_balls` give a pair of fields on a given grid;
 * meshes for `animate`: `uv_sphere`, `sphere_features` and the keyframes of
-  `turning_sphere`.
+  `turning_sphere` and `moving_growing_sphere`.
 
 A case's arrays are the tests' contract: changing one changes what every test using it
 asserts, so a new variant is a new function (or argument), never an edit of an old one.
@@ -293,6 +293,19 @@ def sphere_features(center, radius, rot=np.eye(3), offset=np.zeros(3)):
     a = center + 0.7 * radius * dirs
     b = (a - center) @ rot.T + center + offset
     return a, b
+
+
+def moving_growing_sphere(shift=0.0, moved=(0, 1)):
+    """Three keyframes on frames 0, 4 and 9: a sphere moves, then moves and grows; six
+    feature pairs a segment. ``shift`` moves one feature point along x: point 0 of the
+    segment and side (0: A, 1: B) ``moved`` names, as an artist drags one Empty."""
+    v0, f0 = uv_sphere(np.zeros(3), 0.25, n=16)
+    o1, o2 = np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.3, 0.0])
+    feats = [sphere_features(np.zeros(3), 0.25, offset=o1),
+             sphere_features(o1, 0.25, offset=o2 - o1)]
+    feats[moved[0]][moved[1]][0] += (shift, 0.0, 0.0)
+    keyframes = [Keyframe(v0, f0, 0), Keyframe(v0 + o1, f0, 4), Keyframe(v0 * 1.3 + o2, f0, 9)]
+    return keyframes, feats
 
 
 def turning_sphere(n=24, last=13):

@@ -6,21 +6,10 @@ and the other pairs' maps kept while one pair's feature points move.
 import numpy as np
 import pytest
 
-from inbetween_cases import sphere_features, uv_sphere
-from keyframe_implicit.core import Cancelled, Keyframe, animate
+from inbetween_cases import moving_growing_sphere
+from keyframe_implicit.core import Cancelled, animate
 from keyframe_implicit.core.bake.options import BakeOptions
 from keyframe_implicit.core.bake.preview import PREVIEW_RESOLUTION, Preview
-
-
-def _chain(shift=0.0):
-    """Three keyframes (a sphere moving, then growing); ``shift`` moves one feature point."""
-    v0, f0 = uv_sphere(np.zeros(3), 0.25, n=16)
-    o1, o2 = np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.3, 0.0])
-    feats = [sphere_features(np.zeros(3), 0.25, offset=o1),
-             sphere_features(o1, 0.25, offset=o2 - o1)]
-    feats[0][1][0] += (shift, 0.0, 0.0)
-    keyframes = [Keyframe(v0, f0, 0), Keyframe(v0 + o1, f0, 4), Keyframe(v0 * 1.3 + o2, f0, 9)]
-    return keyframes, feats
 
 
 def _same_mesh(got, want, h, tolerance=1e-6):
@@ -30,7 +19,7 @@ def _same_mesh(got, want, h, tolerance=1e-6):
 
 @pytest.mark.parametrize("interpolation", [None, ["linear", "ease", "linear"]])
 def test_every_frame_is_the_bake_at_the_preview_resolution(interpolation):
-    keyframes, feats = _chain()
+    keyframes, feats = moving_growing_sphere()
     preview = Preview()
     figures = preview.solve(keyframes, feats,
                             BakeOptions(resolution=48, key_interpolation=interpolation))
@@ -52,11 +41,11 @@ def test_every_frame_is_the_bake_at_the_preview_resolution(interpolation):
 
 def test_moved_feature_keeps_the_distance_grids_and_matches_a_new_bake():
     preview = Preview()
-    keyframes, feats = _chain()
+    keyframes, feats = moving_growing_sphere()
     first = preview.solve(keyframes, feats)
     assert first["distance_grids_kept"] == 0
     before = preview.frame(2)
-    keyframes, feats = _chain(shift=0.03)
+    keyframes, feats = moving_growing_sphere(shift=0.03)
     again = preview.solve(keyframes, feats)
     assert again["distance_grids_kept"] == 3 and again["grid_shape"] == first["grid_shape"]
     assert first["maps_kept"] == 0 and again["maps_kept"] == 1  # the other pair's maps
@@ -69,7 +58,7 @@ def test_moved_feature_keeps_the_distance_grids_and_matches_a_new_bake():
 
 def test_cancelled_solve_leaves_nothing_solved_and_bad_input_is_refused():
     preview = Preview()
-    keyframes, feats = _chain()
+    keyframes, feats = moving_growing_sphere()
     with pytest.raises(Cancelled):
         preview.solve(keyframes, feats, cancel=lambda: True)
     assert not preview.solved
@@ -80,7 +69,7 @@ def test_cancelled_solve_leaves_nothing_solved_and_bad_input_is_refused():
 
 
 def test_feature_points_closer_than_a_cell_raise_the_preview_resolution():
-    keyframes, feats = _chain()
+    keyframes, feats = moving_growing_sphere()
     feats[0][0][1] = feats[0][0][0] + (0.0, 0.025, 0.0)  # under one cell of the 32-cell grid
     with pytest.raises(ValueError, match="less than one grid cell"):
         animate(keyframes, feats, resolution=PREVIEW_RESOLUTION)

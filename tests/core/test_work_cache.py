@@ -6,26 +6,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from inbetween_cases import sphere_features, uv_sphere
-from keyframe_implicit.core import Keyframe, animate
+from inbetween_cases import moving_growing_sphere
+from keyframe_implicit.core import animate
 from keyframe_implicit.core.bake import pipeline
 from keyframe_implicit.core.bake.cache import WorkCache, content_key
 from keyframe_implicit.core.bake.options import BakeOptions
 from keyframe_implicit.core.map import solver
 
 RESOLUTION = 24
-
-
-def _chain(shift=0.0):
-    """Three keyframes (a sphere moving, then growing); ``shift`` moves the first feature
-    point of the second pair (an Empty on keyframe 2) along x."""
-    v0, f0 = uv_sphere(np.zeros(3), 0.25, n=16)
-    o1, o2 = np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.3, 0.0])
-    feats = [sphere_features(np.zeros(3), 0.25, offset=o1),
-             sphere_features(o1, 0.25, offset=o2 - o1)]
-    feats[1][0][0] += (shift, 0.0, 0.0)
-    keyframes = [Keyframe(v0, f0, 0), Keyframe(v0 + o1, f0, 4), Keyframe(v0 * 1.3 + o2, f0, 9)]
-    return keyframes, feats
 
 
 @pytest.fixture
@@ -43,15 +31,15 @@ def solves(monkeypatch):
 
 
 def _bake(shift=0.0, cache=None, interpolation=None):
-    keyframes, feats = _chain(shift)
+    keyframes, feats = moving_growing_sphere(shift, moved=(1, 0))
     return animate(keyframes, feats, resolution=RESOLUTION, key_interpolation=interpolation,
                    surfaces=False, coverage=False, cache=cache)
 
 
 def test_one_empty_moved_solves_exactly_its_pairs_maps_and_bakes_as_from_scratch(solves):
-    keyframes, feats = _chain()
+    keyframes, feats = moving_growing_sphere()
     moved = 0.2 * pipeline.plan_bake(keyframes, feats, BakeOptions(resolution=RESOLUTION)).grid.spacing
-    plans = [pipeline.plan_bake(*_chain(s), BakeOptions(resolution=RESOLUTION)) for s in (0, moved)]
+    plans = [pipeline.plan_bake(*moving_growing_sphere(s, moved=(1, 0)), BakeOptions(resolution=RESOLUTION)) for s in (0, moved)]
     assert plans[0].grid == plans[1].grid  # within a cell: the lattice keeps the grid
     cache = WorkCache()
     _bake(cache=cache)
