@@ -24,20 +24,23 @@ then redoes the frame on the whole region).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from ..base.grid import Grid
+from .tension import CELLS_PER_TENSION
 
 __all__ = ["Band", "band_depth", "inside", "touches_surface"]
 
 #: Cells of slack on a cell's bounds: how far a cubic read between its corners may stray
 #: from the corners' range.
 SLACK_CELLS = 0.5
-#: A deep node this far under the final zero set, in cells, is clear of every cell it
-#: crosses whatever the field's slope; closer ones have their neighbours checked.
+#: A deep node this far under the final zero set, in cells, lies on no cell the zero set
+#: crosses while the field climbs less than this over a cell's diagonal (a distance
+#: field's climbs sqrt(3) cells at most); closer ones have their neighbours checked.
 _CLEAR_CELLS = 3.0
 
 
@@ -100,7 +103,7 @@ def inside(carried: np.ndarray, grid: Grid) -> np.ndarray:
     pocket around them), the pockets of unreached nodes that do not touch the box's
     faces are inside where the reached nodes on their rim are mostly negative.
     """
-    flat = carried.reshape(carried.shape[0] if carried.ndim == 1 else -1)
+    flat = carried.reshape(-1)
     reached = np.flatnonzero(~np.isnan(flat))
     out = np.zeros(flat.size, bool)
     if reached.size == 0:
@@ -135,17 +138,16 @@ def band_depth(cells: float, grid: Grid, tension: float, parts: bool) -> float:
     """The band's depth (world units) for ``cells`` asked: deeper where the surface
     tension's Gaussian (`tension.fill_creases`, sigma = ``tension`` x its cells, read to
     4 sigma) may reach deep values, i.e. where a keyframe has several ``parts``."""
-    from .tension import CELLS_PER_TENSION
-
     if parts and tension > 0:
         cells = max(cells, 4.0 * tension * CELLS_PER_TENSION + 1.0)
     return float(cells) * grid.spacing
 
 
 def touches_surface(field: np.ndarray, deep: np.ndarray, grid: Grid) -> bool:
-    """Whether a node that took the band's deep value (``deep``, bool over the grid, `inside`) is not under
-    the zero set of ``field`` or lies on a cell the zero set crosses: then the band's
-    bound may have moved the surface or the volume, and the frame needs the whole region.
+    """Whether a node that took the band's deep value (``deep``, bool over the grid,
+    `inside`) is not under the zero set of ``field`` or lies on a cell the zero set
+    crosses: then the band's bound may have moved the surface or the volume, and the frame
+    needs the whole region.
     """
     flat = field.reshape(-1)
     nodes = np.flatnonzero(deep.reshape(-1))
@@ -157,7 +159,7 @@ def touches_surface(field: np.ndarray, deep: np.ndarray, grid: Grid) -> bool:
         return False
     index = np.stack(np.unravel_index(near, grid.shape), axis=-1)
     shape = np.asarray(grid.shape)
-    steps = np.stack(np.meshgrid(*[(-1, 0, 1)] * grid.dim, indexing="ij"), -1).reshape(-1, grid.dim)
+    steps = np.array(list(itertools.product((-1, 0, 1), repeat=grid.dim)))  # the 3^d around
     around = np.clip(index[:, None, :] + steps[None], 0, shape - 1)
     return bool(np.any(flat[np.ravel_multi_index(tuple(np.moveaxis(around, -1, 0)),
                                                  grid.shape)] >= 0))

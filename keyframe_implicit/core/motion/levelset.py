@@ -337,18 +337,13 @@ class Inbetween:
         self.stats.setdefault("deep_nodes", {})[s] = int(np.count_nonzero(deep))
         if deep.any() and touches_surface(field, deep, self.grid):
             self.stats.setdefault("band_widened", []).append(s)
-            depths = self.forward.band_depth, self.backward.band_depth
-            self.forward.band_depth = self.backward.band_depth = np.inf
-            try:
-                field, _ = self._two_sided_frame(s)
-            finally:
-                self.forward.band_depth, self.backward.band_depth = depths
+            field, _ = self._two_sided_frame(s, whole=True)
         return field
 
-    def _two_sided_frame(self, s):
+    def _two_sided_frame(self, s, whole=False):
         """The blend (`_two_sided`) with its creases filled and its volume kept, and the
         nodes that took a band's deep value (bool, grid.shape)."""
-        field, meeting, deep = self._two_sided(s)
+        field, meeting, deep = self._two_sided(s, whole)
         field = fill_creases(field.reshape(self.grid.shape), meeting, self.grid,
                              self.options.surface_tension,
                              min(1.0, min(s, 1.0 - s) / _TENSION_EASE))
@@ -356,16 +351,17 @@ class Inbetween:
             field = self._keep_volume(field, s)
         return field, deep.reshape(self.grid.shape)
 
-    def _two_sided(self, s):
+    def _two_sided(self, s, whole=False):
         """(1 - s) Phi_s + s Psi_s, each transport at its truncation where it does not reach;
         where a keyframe's parts meet (None: nowhere, or no surface tension); and where
-        either transport took its band's deep value."""
+        either transport took its band's deep value (``whole``: neither, both carried their
+        whole regions)."""
         w = self.outside_value
         tension = self.options.surface_tension  # where parts meet, for `tension.fill_creases`
         reach = meeting_reach(self.grid, tension) if tension > 0 else None
 
         def carried(transport, t, other):
-            return transport.carry_meeting(t, other, reach)
+            return transport.carry_meeting(t, other, reach, whole)
         if self.threads > 1:
             with ThreadPoolExecutor(max_workers=1) as pool:  # independent: B's on a second core
                 back = pool.submit(carried, self.backward, 1.0 - s, self.forward)
@@ -621,12 +617,13 @@ def back_map(phi_a: np.ndarray, phi_b: np.ndarray, grid: Grid, mapped: ArrayLike
 
 def path_start_velocity(field: np.ndarray, grid: Grid, mapped: ArrayLike, *,
                         material: np.ndarray | None = None, components: np.ndarray | None = None,
-                        parts: np.ndarray | None = None, motion_grid: Grid | None = None, options: MotionOptions | None = None,
+                        parts: np.ndarray | None = None, motion_grid: Grid | None = None,
+                        options: MotionOptions | None = None,
                         cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """The velocity (per unit s) as they leave their keyframe of the paths a segment's
     transport of ``field`` follows along ``mapped`` (``material``, ``components``, ``parts``
-    on the maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them, on the
-    maps' grid: (size, d), for `spline.chain_bends`."""
+    on the maps' grid: A's, or None for B's), built as `Inbetween.from_map` builds them,
+    on the maps' grid: (size, d), for `spline.chain_bends`."""
     paths = _Paths(grid, motion_grid, options or MotionOptions(), cancel)
     if material is None:
         material = paths.on_motion(field) < 0

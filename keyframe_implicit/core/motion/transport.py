@@ -436,8 +436,8 @@ class Transport:
         a merge seen backwards, or a split), that material fades out on the
         way, while the other keyframe never adds depth to this one's empty
         space. The lift max(0, g(y) - f) is taken at the region's nodes once and
-        read multilinearly between them (`_lifted`). The fade's weight w is t, as fast as straight-timed paths open
-        the tear from its start. Paths bent through a chain's keyframes leave
+        read multilinearly between them (`_lifted`). The fade's weight w is t, as
+        fast as straight-timed paths open the tear from its start. Paths bent through a chain's keyframes leave
         a keyframe without spreading its material (their velocity there has no
         divergence, `spline.incompressible`), so their tear opens from rest and
         w = t^2 (3 - 2 t) fades it from rest too, at both ends, and as far as t
@@ -453,16 +453,17 @@ class Transport:
         """
         return self._carried(t, other, values)[0]
 
-    def carry_meeting(self, t: float, other: Transport | None,
-                      reach: float | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    def carry_meeting(self, t: float, other: Transport | None, reach: float | None,
+                      whole: bool = False) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """`carry`, where this keyframe's parts meet at time t, and the nodes that took
-        the band's deep value (bool, grid.size).
+        the band's deep value (bool, grid.size); ``whole``: the whole region moved and read,
+        whatever `band_depth` (a frame the band could not make).
 
         Parts meet at the nodes that moved cells of two different parts (`ndimage.label`
         of its material, each region cell taking the part nearest it) reach with values
         under ``reach`` (world units), i.e. within ``reach`` of both parts' carried
         surfaces. None for a keyframe of one part, or when ``reach`` is None (not asked)."""
-        out, target, cell, vals, band, deep = self._carried(t, other, None, reach)
+        out, target, cell, vals, band, deep = self._carried(t, other, None, reach, whole)
         parts = None if reach is None else self._cell_part
         if parts is None:
             return out, None, deep
@@ -485,12 +486,12 @@ class Transport:
         """Whether the keyframe has several parts (`carry_meeting` can find them meeting)."""
         return self._cell_part is not None
 
-    def _carried(self, t, other, values, reach=None):
+    def _carried(self, t, other, values, reach=None, whole=False):
         """`carry`'s field, with the inverse lookup's target nodes, their source cells (in
         the band), the values they carry, the `band.Band` moved, and the nodes that took
         its deep value (bool, grid.size; `band.inside`)."""
         faded = other is not None and t > 0 and values is None
-        band = (Band.whole(self._cnodes_local) if values is not None
+        band = (Band.whole(self._cnodes_local) if values is not None or whole
                 else self._band_for(other if faded else None, reach))
         target, cell, local = self._sources_in_cells(t, band)
         source = _index_coordinates(self.grid, self._cells[band.cells], cell, local)
@@ -516,9 +517,13 @@ class Transport:
         other keyframe's field g at the map's image lies above this one's f."""
         if self._lift is None:
             y = self.trajectories.node_positions(1.0, self._corner_nodes)
-            own = self.field.reshape(-1)[self._corner_nodes]
-            self._lift = np.maximum(other.value_at(y) - own, 0.0)
+            self._lift = np.maximum(other.value_at(y) - self._corner_values, 0.0)
         return self._lift
+
+    @functools.cached_property
+    def _corner_values(self) -> np.ndarray:
+        """The keyframe's field at the region's corner nodes (``_corner_nodes``)."""
+        return self.field.reshape(-1)[self._corner_nodes]
 
     def _band_for(self, other: Transport | None, reach: float | None) -> Band:
         """The `band.Band` a frame moves: its cells' values lie between f and f plus the
@@ -527,7 +532,7 @@ class Transport:
         beyond = self.truncation if reach is None or reach <= self.truncation else np.inf
         key = (other is not None, beyond, self.band_depth)
         if self._band is None or self._band[0] != key:
-            own = self.field.reshape(-1)[self._corner_nodes]
+            own = self._corner_values
             upper = own if other is None else own + self._lifted(other)
             self._band = (key, Band.of(self._cnodes_local, own, upper, beyond,
                                        self.band_depth, self.grid.spacing))
@@ -542,7 +547,7 @@ class Transport:
         three times where t is within ``dt`` of an end. With ``dt`` one frame, the
         times are the neighbouring frames' (which the trajectories keep).
         """
-        nodes = self._corner_nodes[np.abs(self.field.reshape(-1)[self._corner_nodes]) <= near]
+        nodes = self._corner_nodes[np.abs(self._corner_values) <= near]
         paths = self.trajectories
         pos = paths.node_positions(t, nodes)
         dt = min(float(dt), 0.25)  # so that one of the one-sided triples fits in [0, 1]
