@@ -14,7 +14,9 @@ Protocol (parent -> stdin: the sender's package name, then requests; worker -> s
 answers, each carrying the id of the request it answers):
 
 - ``("solve", id, arguments, frame)``: `Preview.solve`'s keyword arguments; answered by
-  ``("solved", id, figures)`` then ``("frame", id, frame, vertices, triangles)``;
+  ``("solved", id, figures)`` (`Preview.figures`, and ``received``, ``started`` and
+  ``ended``: when it arrived, started and ended, on ``time.perf_counter``, which all
+  processes share), then ``("frame", id, frame, vertices, triangles)``;
 - ``("frame", id, frame)``: answered by ``("frame", id, frame, vertices, triangles)``;
 - ``("stop", id)``: the work in flight ends, nothing more is answered for earlier ids;
 - ``("clear", id)``: the work kept between solves (`Preview.cache`) is dropped at once, not
@@ -35,6 +37,7 @@ from __future__ import annotations
 import pickle
 import queue
 import threading
+import time
 import traceback
 from typing import Any
 
@@ -146,6 +149,7 @@ class _Requests:
         follow_parent(parent, self._take, rename=(sender, ROOT), code=0)
 
     def _take(self, message):
+        message += (time.perf_counter(),)  # when it arrived
         if message[0] == "clear":  # at once, beside any work: the cache has its own lock
             self._cache.clear()
             return
@@ -191,8 +195,10 @@ def main() -> None:
         kind, rid = message[:2]
         try:
             if kind == "solve":
+                started = time.perf_counter()
                 figures = preview.solve(**message[2], cancel=cancelled.is_set)
-                send(parent, ("solved", rid, figures))
+                send(parent, ("solved", rid, dict(figures, received=message[-1], started=started,
+                                                  ended=time.perf_counter())))
                 message = ("frame", rid, message[3])
             if cancelled.is_set():
                 continue

@@ -36,6 +36,12 @@ from blender_window import addon_module, decode_xwd, open_scene, run, save_png, 
 
 ARGS = sys.argv[sys.argv.index("--") + 1:]
 OUT, SCENES = ARGS[0], ARGS[1:]
+#: Viewport anti-aliasing samples (Preferences > Viewport), or None: as the preferences have
+#: it (8). Software GL draws each sample on the processor, 8 redraws after every edit that
+#: take both cores for about a second; with a graphics card they take none of them, as with 0.
+VIEWPORT_AA = None
+if SCENES and SCENES[0].startswith("--viewport-aa="):
+    VIEWPORT_AA, SCENES = SCENES[0].split("=", 1)[1], SCENES[1:]
 TICK = 0.01  # seconds the recording timer asks for between its calls
 DRAGS, SCRUBS = 10, 10
 STEPS = 6  # pointer moves per drag
@@ -127,8 +133,10 @@ def drag(pv, diag, rec, empty, direction, shot=None):
     if shot is not None:
         grab(*shot)
     shown, drawn = yield from on_screen(diag, rec, sent)
+    f = dict(pv.state.figures)
     return dict(latency=drawn - release, sent=sent - release, answered=shown - sent,
-                drawn=drawn - shown, figures=dict(pv.state.figures))
+                drawn=drawn - shown, figures=f, arrived=f["received"] - sent,
+                waited=f["started"] - f["received"], framed=shown - f["ended"])
 
 
 def scrub(diag, rec, scene):
@@ -203,6 +211,10 @@ def scene_steps(path, shots):
           f"{np.median([d['answered'] for d in drags]):.3f} s, answered -> drawn "
           f"{np.median([d['drawn'] for d in drags]):.3f} s; worker solve "
           f"{np.median([d['figures']['seconds'] for d in drags]):.2f} s")
+    print("    the answer's way (medians): sent -> in the worker "
+          f"{np.median([d['arrived'] for d in drags]):.3f} s, waiting there "
+          f"{np.median([d['waited'] for d in drags]):.3f} s, solve's end -> frame taken "
+          f"{np.median([d['framed'] for d in drags]):.3f} s")
     lat = np.array([d["latency"] for d in scrubs])
     print(f"  scrub, key -> frame on screen ({SCRUBS} frames): median {np.median(lat):.3f} s, "
           f"max {lat.max():.3f}; per frame: " + ", ".join(f"{x:.2f}" for x in lat))
@@ -227,6 +239,9 @@ def save_shots(shots):
 
 
 def steps():
+    if VIEWPORT_AA is not None:
+        bpy.context.preferences.system.viewport_aa = VIEWPORT_AA
+    print(f"[window_preview] viewport anti-aliasing: {bpy.context.preferences.system.viewport_aa}")
     shots = []
     for path in SCENES:
         yield from scene_steps(path, shots)

@@ -5,7 +5,7 @@
 # (scripts/window_preview.py says how each is measured). Screenshots go to OUTDIR (default:
 # a temporary folder, printed). Needs root (chroot).
 #
-#   scripts/window_preview.sh [-o OUTDIR] [SCENE ...]      # SCENE: merge, bend, splash, ...
+#   scripts/window_preview.sh [-o OUTDIR] [--viewport-aa=OFF] [SCENE ...]   # SCENE: merge, ...
 #
 # The window is scripts/window_stall.sh's: Debian trixie's blender (4.3) in the chroot of
 # scripts/trixie_chroot.sh under Xvfb with Mesa's software GL, the extension zip built from
@@ -16,6 +16,8 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 OUT=""
 if [ "${1:-}" = -o ]; then OUT="$2"; shift 2; fi
+AA=()
+case "${1:-}" in --viewport-aa=*) AA=("$1"); shift ;; esac
 OUT="$(mkdir -p "${OUT:=$(mktemp -d /tmp/window_preview.XXXXXX)}" && cd "$OUT" && pwd)"
 [ $# -gt 0 ] || set -- merge bend splash
 [ "$(id -u)" = 0 ] || { echo "[window_preview] needs root (chroot)" >&2; exit 2; }
@@ -30,6 +32,6 @@ for name in "$@"; do
   cp "$ROOT/assets/$name.blend" "$run/"
   scenes+=("$inside/$name.blend")
 done
-windowed_blender "$ROOT" window_preview.py "$inside/out" "${scenes[@]}"
+windowed_blender "$ROOT" window_preview.py "$inside/out" "${AA[@]}" "${scenes[@]}"
 cp "$run"/out/*.png "$OUT/"
 echo "[window_preview] screenshots in $OUT" >&2

@@ -17,9 +17,12 @@ When it updates:
 - a keyframe object or a feature Empty changes (depsgraph_update_post), or a setting the
   bake reads (a keyframe's frame, Interpolation or Surface Tension, the resolutions, the
   weights, the keyframe list: `edited`): `schedule` sets a solve `COALESCE` seconds after
-  the last such change, so a drag asks for one solve, after it; the worker cancels a solve
-  in flight when a new one comes. Until a frame of that solve comes back, the overlay shown
-  is drawn in `overlay.STALE_COLOR`: never a frame of old inputs passed off as current;
+  the last such change. While a transform runs (a G, R or S drag: `transforming`), that
+  solve goes out only when no solve is in flight, so a drag never keeps the worker
+  starting solves it must drop; when the transform ends, the solve of its last move goes
+  out at once, and the worker cancels a solve in flight when a new one comes. Until a
+  frame of that solve comes back, the overlay shown is drawn in `overlay.STALE_COLOR`:
+  never a frame of old inputs passed off as current;
 - the frame changes (frame_change_post): the new frame is asked for at once; the worker
   keeps the last request of each kind, so scrubbing never queues.
 
@@ -46,8 +49,8 @@ if TYPE_CHECKING:
     from .props import KFI_Session
 
 __all__ = ["State", "state", "start", "stop", "toggled", "turn_off", "schedule", "edited", "tick",
-           "active", "on_depsgraph_update", "on_frame_change", "on_load_pre", "on_load_post",
-           "HANDLERS"]
+           "active", "transforming", "on_depsgraph_update", "on_frame_change", "on_load_pre",
+           "on_load_post", "HANDLERS"]
 
 #: Seconds after the last edit before its solve is asked for: a drag's moves coalesce.
 COALESCE = 0.15
@@ -69,6 +72,11 @@ class State:
         `clock` time at which the scheduled solve is sent.
     solve_id : int
         Id of the last solve sent (0: none yet): answers to earlier ones are stale.
+    answered : int
+        Id of the last request answered (a frame or a failure): the solve ``solve_id`` is
+        in flight while ``answered < solve_id``.
+    transforming : bool
+        Whether a transform was running at the last turn of the timer (`transforming`).
     mesh : (frame, vertices, triangles) or None
         The preview shown: the last frame the worker answered.
     drawn : (shader, batch) or None
@@ -83,7 +91,8 @@ class State:
 
     def __init__(self) -> None:
         self.worker = self.handle = self.due = None
-        self.solve_id = 0
+        self.solve_id = self.answered = 0
+        self.transforming = False
         self.mesh = self.drawn = None
         self.stale = False
         self.figures = {}
@@ -190,6 +199,15 @@ def _show(mesh):
     _redraw()
 
 
+def transforming() -> bool:
+    """Whether a transform (``TRANSFORM_OT_*``: a G, R or S drag) is running in a window:
+    the moves of a drag come before its end, which is when the artist wants to see the
+    result."""
+    wm = bpy.context.window_manager
+    return any(op.bl_idname.startswith("TRANSFORM_OT_")
+               for window in (wm.windows if wm is not None else ()) for op in window.modal_operators)
+
+
 def _watched(scene):
     """The objects whose change needs a new solve: the keyframe objects and feature Empties
     (the originals' pointers)."""
@@ -274,9 +292,12 @@ def _take(answer):
         state.worker.close()
         state.worker = state.mesh = state.drawn = None
         _redraw()
-    elif rid < state.solve_id:
+        return
+    if rid < state.solve_id:
         return  # an answer to a setup edited since
-    elif kind == "solved":
+    if kind in ("frame", "failed"):
+        state.answered = rid
+    if kind == "solved":
         state.figures = answer[2]
     elif kind == "frame":
         state.stale = state.due is not None  # edits since this solve went out
@@ -288,13 +309,27 @@ def _take(answer):
         _redraw()
 
 
+def _solve_now(now, dragging):
+    """Whether the scheduled solve goes out on this turn (module docstring): its edits have
+    settled, or the transform that made them has just ended; during a transform only when
+    no solve is in flight."""
+    if state.due is None:
+        return False
+    ended = state.transforming and not dragging
+    if not ended and now < state.due:
+        return False
+    return not dragging or state.answered >= state.solve_id
+
+
 @_guarded
 def _turn(now):
     if state.worker is None:
         return
-    if state.due is not None and now >= state.due:
+    dragging = transforming()
+    if _solve_now(now, dragging):
         state.due = None
         _send_solve(bpy.context.scene)
+    state.transforming = dragging
     for answer in state.worker.answers():
         _take(answer)
         if state.worker is None:

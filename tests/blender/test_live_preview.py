@@ -152,6 +152,32 @@ def test_ten_moves_within_100_ms_coalesce_into_one_solve(live, clock):
     assert _solves() == 2
 
 
+def test_a_drag_sends_a_solve_only_when_none_is_in_flight_and_its_end_sends_one_at_once(
+        live, clock, monkeypatch):
+    state = preview.state
+    dragging = [True]
+    monkeypatch.setattr(preview, "transforming", lambda: dragging[0])
+    empty = _feature_empty()
+    first = state.solve_id  # sent by the toggle, not answered yet: no tick took answers
+    _move(empty, 0.02)
+    clock.now = state.due + 0.5  # the move has settled, but the first solve is in flight
+    preview.tick()
+    assert _solves() == 1, "a solve went out during a drag while another was in flight"
+    _until(lambda: _solves() == 2)  # the first one answered: the drag's solve goes out
+    assert state.answered >= first and state.solve_id > first
+
+    _move(empty, 0.02)  # the drag goes on while that one is in flight
+    clock.now = state.due + 0.5
+    preview.tick()
+    assert _solves() == 2
+    dragging[0] = False  # the release: its solve goes out at once, before COALESCE
+    clock.now = state.due - preview.COALESCE
+    preview.tick()
+    assert _solves() == 3, "the end of the transform did not send its solve at once"
+    _until(lambda: state.answered >= state.solve_id)
+    assert not state.stale and state.message == ""
+
+
 def test_frame_change_asks_for_that_frame(live):
     state = preview.state
     _until(lambda: state.mesh is not None)
