@@ -89,7 +89,7 @@ class BlockMultigrid:
         Called between levels of the setup (cancellation).
     """
 
-    def __init__(self, A: sp.spmatrix | sp.sparray, coords: ArrayLike, *, coarse_size: int = 800,
+    def __init__(self, A: sp.spmatrix | sp.sparray, coords: ArrayLike, *, coarse_size: int = 200,
                  sweeps: int = 2, coarse_sweeps: int = 1,
                  check: Callable[[], None] | None = None) -> None:
         check = check or _no_check
