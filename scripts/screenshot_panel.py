@@ -6,9 +6,9 @@ With the extension installed and enabled: open SCENE with its own UI, open the
 3D view's sidebar on the "Keyframe Implicit" tab at its default width, and write
 ``panel_<step>.png`` (the sidebar cut out of the X display's pixels, once it has stopped
 changing) for the steps before, baking (mid-bake), after, figures (the report's figures
-unfolded), compare (the middle frame with
-Show Keyframes on) and problems (an open plane added as a middle keyframe, which leaves the
-feature pairs of the first segment on the last keyframe); ``window_<step>.png`` keeps the
+unfolded), compare (the middle frame with Show Keyframes on), inserted (a ball added as the
+middle keyframe: its feature points proposed and selected), off_surface (one of them moved
+off the ball's surface) and problems (an open plane added as another keyframe); ``window_<step>.png`` keeps the
 whole window as the scene opens and after the bake. The bake is started as a user starts it (the modal operator); the script quits
 Blender when done, with exit code 1 on any error.
 """
@@ -21,7 +21,7 @@ import numpy as np
 from blender_window import addon_module, decode_xwd, open_scene, run, save_png, view3d, xwd
 
 SCENE, OUT = sys.argv[sys.argv.index("--") + 1:][:2]
-WINDOWS = ("before", "after", "compare")  # the steps whose whole window is kept too
+WINDOWS = ("before", "after", "compare", "inserted")  # the steps whose whole window is kept too
 STABLE_GRABS = 3  # identical sidebar grabs in a row (half a second apart) count as settled
 MAX_GRABS = 40
 
@@ -95,11 +95,30 @@ def steps():
     scene.frame_set((scene.frame_start + scene.frame_end) // 2)
     settings.show_keyframes = True
     yield from settled("compare")
-    # what a new user hit: an open plane added as a middle keyframe
+    settings.show_keyframes = False
+    # a keyframe inserted: a ball between the two at the middle frame; its pairs proposed
+    a, b = (kf.object for kf in settings.keyframes)
+    middle = (scene.frame_start + scene.frame_end) // 2
+    with bpy.context.temp_override(window=win, area=area, region=main):
+        bpy.ops.mesh.primitive_uv_sphere_add(
+            radius=0.6 * max(a.dimensions), location=(a.matrix_world.translation
+                                                       + b.matrix_world.translation) / 2)
+        bpy.context.active_object.name = "Middle"
+        bpy.ops.keyframe_implicit.add_keyframe(frame=middle)
+    yield from settled("inserted")
+    # a feature Empty dragged off its keyframe's surface: the warning names it
+    ball = scene.objects["Middle"]
+    empty = next(o for o in scene.objects if o.select_get() and o.parent == ball)
+    centre, point = ball.matrix_world.translation, empty.matrix_world.translation
+    empty.matrix_world.translation = centre + 1.3 * (point - centre)
+    bpy.context.view_layer.update()
+    view3d()[2].tag_redraw()  # a move by script redraws nothing; a drag redraws the sidebar
+    yield from settled("off_surface")
+    # what a new user hit: an open plane added as a keyframe
     with bpy.context.temp_override(window=win, area=area, region=main):
         bpy.ops.mesh.primitive_plane_add(location=(0, 3, 0))
         bpy.context.active_object.name = "Plane"
-        bpy.ops.keyframe_implicit.add_keyframe(frame=(scene.frame_start + scene.frame_end) // 2)
+        bpy.ops.keyframe_implicit.add_keyframe(frame=middle + 4)
     yield from settled("problems")
 
 

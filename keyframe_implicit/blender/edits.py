@@ -5,8 +5,8 @@ Feature pairs belong to segments by index (`features`: pair "<segment>.<n>" join
 changes what every later pair means. These functions keep the setup:
 
 - `keyframe_inserted`: later pairs move up one segment; each pair spanning the new keyframe
-  becomes two, A -> new and new -> B, whose two new Empties sit where that material is on
-  the new keyframe (`proposed_points`). The operator selects them for review.
+  becomes two, A -> new and new -> B, whose two new Empties sit on the new keyframe's
+  surface where that material is (`proposed_points`). The operator selects them for review.
 - `keyframe_removed`: later pairs move down one segment; the pairs A -> M and M -> B through
   the removed keyframe M whose Empties on M meet (`JOIN_REACH`) are joined into A -> B, their
   Empties on M removed; the rest of M's pairs are deleted.
@@ -158,8 +158,11 @@ def proposed_points(scene: bpy.types.Scene, spanning: Sequence[features.Pair],
     The pair's Empty A moves as the baked output's nearest `PATH_VERTICES` vertices move from
     the earlier keyframe's frame to the new one's (`_baked_motion`); without a shape-key
     output covering both frames, it moves along the straight path to its Empty B, to where
-    it is at the new keyframe's frame. A point inside the new keyframe's material stays; one
-    outside goes to the nearest point of its surface (`scene_io.Surface.nearest`).
+    it is at the new keyframe's frame. The Empty then goes to the nearest point of the new
+    keyframe's surface (`scene_io.Surface.nearest`), inside or outside: feature points mark
+    the surface, and a keyframe unlike the in-between there (a ball larger than the two it
+    joins) holds the moved point deep in its material, where the artist neither sees nor
+    picks it.
     """
     fa, fm, fb = frames
     a = np.array([tuple(p.a.matrix_world.translation) for p in spanning])
@@ -172,8 +175,7 @@ def proposed_points(scene: bpy.types.Scene, spanning: Sequence[features.Pair],
         points = a + moved
     if scene_io.cached_reading(keyframe, depsgraph).triangles == 0:  # nothing to put them on
         return points, moved is not None
-    closest, outside = scene_io.cached_surface(keyframe, depsgraph).nearest(points)
-    return np.where((outside > 0)[:, None], closest, points), moved is not None
+    return scene_io.cached_surface(keyframe, depsgraph).nearest(points)[0], moved is not None
 
 
 def _baked_motion(scene: bpy.types.Scene, points: np.ndarray, start: int,
