@@ -3,7 +3,11 @@ merge, bend, splash), the setup read as the preview reads it (`scene_io.read`), 
 process `core.bake.preview.Preview`: the first solve (distance grids included), a second one
 after a feature point moved by a tenth of a grid cell (distance grids kept), and frames:
 the middle of the first segment, then the next `FRAMES` one after another (a scrub).
-Printed: the grids, seconds per step (median of the frames, and the longest).
+Printed: the grids, seconds per step (median of the frames, and the longest). Then whether the
+preview tells the truth: the scene baked as Bake bakes it (the panel's settings), and every
+timeline frame's preview measured against the mesh that bake ships on that frame
+(`quality.keyframe_distance`, both ways), in the bake's cells: the mean and the largest
+distance, over every frame, keyframe frames included.
 
 Usage: ``python benchmarks/bench_preview.py [SCENE ...]`` from the repository root.
 """
@@ -17,7 +21,9 @@ import numpy as np
 
 import keyframe_implicit
 from keyframe_implicit.blender import scene_io
+from keyframe_implicit.core.bake.pipeline import bake
 from keyframe_implicit.core.bake.preview import Preview
+from keyframe_implicit.core.surface.quality import keyframe_distance
 
 FRAMES = 10
 
@@ -25,11 +31,7 @@ FRAMES = 10
 def arguments(name):
     bpy.ops.wm.open_mainfile(filepath=os.path.join("assets", f"{name}.blend"), load_ui=False)
     scene = bpy.context.scene
-    inputs = scene_io.read(scene, scene.view_layers[0].depsgraph)
-    return dict(keyframes=inputs.keyframes, features=inputs.features,
-                resolution=inputs.resolution, weights=inputs.weights,
-                feature_names=inputs.feature_names or None,
-                key_interpolation=inputs.key_interpolation or None)
+    return scene_io.read(scene, scene.view_layers[0].depsgraph).core_arguments()
 
 
 def measure(name):
@@ -62,10 +64,37 @@ def measure(name):
           f"(load average {os.getloadavg()[0]:.1f}, {os.cpu_count()} CPUs)", flush=True)
 
 
+def shipped(animation, i):
+    """The mesh the bake ships on its frame i (the output it chose)."""
+    if animation.stats["output"] == "shape_keys":
+        return animation.vertices[i], animation.faces
+    return animation.sequence_frame(i)
+
+
+def agreement(name):
+    """The preview's frames against the bake's, every frame, in the bake's cells."""
+    args = arguments(name)
+    options = args.pop("options")
+    baked = bake(options=options, **args)
+    preview = Preview()
+    preview.solve(options=options, **args)
+    rows = []
+    for i, f in enumerate(baked.frames):
+        d = keyframe_distance(*preview.frame(int(f)), *shipped(baked, i), baked.grid.spacing)
+        rows.append((int(f), d["keyframe_mean"], d["keyframe_max"]))
+    f, mean, top = np.array(rows).T
+    print(f"{name}: preview against the bake ({baked.stats['output']}, grid {baked.grid.shape}, "
+          f"motion grid {baked.stats.get('motion_grid_shape')}), {len(f)} frames, bake cells: "
+          f"mean {mean.mean():.2f} (worst frame {mean.max():.2f}, frame {int(f[mean.argmax()])}), "
+          f"max {top.max():.2f} (frame {int(f[top.argmax()])})", flush=True)
+
+
 def main(names):
     keyframe_implicit.register()
     for name in names or ["merge", "bend", "splash"]:
         measure(name)
+    for name in names or ["merge", "bend", "splash"]:
+        agreement(name)
 
 
 if __name__ == "__main__":
