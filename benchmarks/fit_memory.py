@@ -4,10 +4,10 @@
     python benchmarks/bench_scale.py --sizes 64 128 --json auto.json
     python benchmarks/fit_memory.py full.json auto.json
 
-The model: peak = processes * (c_process + c_node N + c_motion M + c_region R), N the
-surface grid's nodes, M the motion grid's active nodes and R the surface grid's, as the
-model itself predicts them from the material fraction (`memory.active_nodes`: what it
-can know before any work; rows baked on one grid have M = R). The four constants
+The model: peak = processes * (c_process + c_node N + c_motion M + c_band B), N the
+surface grid's nodes, M the motion grid's active nodes and B the surface grid's band
+nodes, as the model itself predicts them from the material fraction
+(`memory.active_nodes`: what it can know before any work). The four constants
 (non-negative) minimise the largest relative error over the rows, a linear programme:
 the model is held to a bound on every case (15 % is the target), which a least-squares
 fit trades against the rows' mean. Prints them, then every row's measured peak, the
@@ -29,7 +29,7 @@ MIB = 2 ** 20
 
 
 def counts(row):
-    """(N, M, R) of a row: its grid rebuilt from its shape (the counts do not depend on the
+    """(N, M, B) of a row: its grid rebuilt from its shape (the counts do not depend on the
     spacing), its motion grid from its Motion Resolution."""
     from keyframe_implicit.core import Grid
     from keyframe_implicit.core.bake.gridfit import motion_grid
@@ -37,12 +37,12 @@ def counts(row):
 
     grid = Grid((0.0,) * len(row["shape"]), 1.0, tuple(row["shape"]))
     motion = motion_grid(grid, row["n"], row.get("motion", row["n"]))
-    M, R = active_nodes(grid, row["material_fraction"], motion_grid=motion)
-    return grid.size, M, R
+    M, B = active_nodes(grid, row["material_fraction"], motion_grid=motion)
+    return grid.size, M, B
 
 
 def fit(rows, processes=2):
-    """(c_process, c_node, c_motion, c_region) in bytes, fitted to the rows' measured peaks:
+    """(c_process, c_node, c_motion, c_band) in bytes, fitted to the rows' measured peaks:
     the smallest t with |model / peak - 1| <= t on every row. Returns them and the
     model's peaks."""
     A = processes * np.array([[1.0, *counts(r)] for r in rows])
@@ -66,7 +66,7 @@ def main(paths):
         raise SystemExit("need at least four measured rows")
     coef, model = fit(rows)
     print(f"c_process = {coef[0] / MIB:.1f} MiB, c_node = {coef[1]:.1f} B, "
-          f"c_motion = {coef[2]:.1f} B, c_region = {coef[3]:.1f} B")
+          f"c_motion = {coef[2]:.1f} B, c_band = {coef[3]:.1f} B")
     print(f"{'case':>9} {'n':>4} {'motion':>6} {'nodes':>10} {'RSS MiB':>8} {'fit MiB':>8} "
           f"{'was MiB':>8} {'fit err':>8}")
     worst = 0.0

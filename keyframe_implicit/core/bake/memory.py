@@ -14,6 +14,7 @@ import numpy as np
 
 from ..base.grid import Grid
 from ..map.options import MapOptions
+from ..motion.options import MotionOptions
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -50,17 +51,20 @@ class MemoryLimitError(ValueError):
 # scikit-image; per surface grid node the keyframes' distance grids, their spline
 # coefficients, the in-between fields and the level-set transients; per active motion
 # node the Gauss-Newton Hessian blocks (27 of 3 x 3) with their index tables and the
-# trajectories' multigrid; per surface region node the transports' corners and lookups.
-# Fitted to the largest relative error (benchmarks/fit_memory.py) on the peaks
-# benchmarks/bench_scale.py measured on its seven cases at 64 cells on one grid and on
-# the automatic motion grid, and at 128 cells on the automatic motion grid; table in
-# benchmarks/README.md. 2D: not measured; per active node scaled by the stencil (9 blocks
-# of 2 x 2 against 27 of 3 x 3).
+# trajectories' multigrid; per band node of the surface grid the transports' corners and
+# lookups (the frame loop moves and reads only the band: `motion.band`). Fitted to the
+# largest relative error (benchmarks/fit_memory.py) on the peaks benchmarks/bench_scale.py
+# measured on its nine cases at 64 and 128 cells, on one grid and on the automatic motion
+# grid; table in benchmarks/README.md. 2D: not measured; per active node scaled by the
+# stencil (9 blocks of 2 x 2 against 27 of 3 x 3).
 _COPIES = 2
-_PROCESS_BYTES = 131.4 * 2 ** 20
-_NODE_BYTES = {2: 127.8, 3: 127.8}
-_MOTION_BYTES = {2: 1892.8 * 36 / 243, 3: 1892.8}
-_REGION_BYTES = {2: 751.8 * 36 / 243, 3: 751.8}
+_PROCESS_BYTES = 130.0 * 2 ** 20
+_NODE_BYTES = {2: 144.7, 3: 144.7}
+_MOTION_BYTES = {2: 1022.0 * 36 / 243, 3: 1022.0}
+_BAND_BYTES = {2: 2213.1 * 36 / 243, 3: 2213.1}
+#: Layers of the band the model counts around the surface: `MotionOptions.band_cells` on
+#: each side and the surface's own.
+_BAND_LAYERS = 2 * MotionOptions.band_cells + 1
 
 
 def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_keyframes: int = 2,
@@ -68,13 +72,14 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
                     motion_grid: Grid | None = None) -> dict[str, int]:
     """Estimated peak resident bytes of a bake on ``grid``, before any work.
 
-    Model (N surface grid nodes; M the motion grid's active nodes, R the surface grid's):
-    ``peak = 2 (c_process + c_node N + c_motion M + c_region R)``. M and R each count the
-    material (``material_fraction`` of the box) and a margin of ``margin_cells`` cells
-    around it (a compact blob's surface ~ N^((d-1)/d)), on their own grid: the maps'
-    Gauss-Newton systems and the trajectories' multigrid live on the motion grid, the
-    transports' regions and lookups on the surface grid. Without a ``motion_grid`` both
-    are ``grid``. Two of everything: the Blender bake runs in a worker and its helper
+    Model (N surface grid nodes; M the motion grid's active nodes, B the surface grid's
+    band nodes): ``peak = 2 (c_process + c_node N + c_motion M + c_band B)``. M counts
+    the material (``material_fraction`` of the box) and a margin of ``margin_cells`` cells
+    around it, on the motion grid (``grid`` without a ``motion_grid``): the maps'
+    Gauss-Newton systems and the trajectories' multigrid. B counts the band the frame loop
+    moves and reads (`_BAND_LAYERS` layers of a compact blob's surface, ~ N^((d-1)/d)
+    nodes each) on the surface grid: the transports' corners and lookups. Two of
+    everything: the Blender bake runs in a worker and its helper
     process, each solving one of a segment's two maps and holding a copy of its
     in-betweens (`chain.animate_chain` with ``processes=2``). The constants (module source)
     are fitted to measured peaks (`benchmarks/fit_memory.py`); benchmarks/bench_scale.py
@@ -97,8 +102,8 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
     Returns
     -------
     dict
-        ``nodes``, ``active_nodes`` (M), ``region_nodes`` (R), ``process`` (the fixed
-        part), ``grid_nodes``, ``motion`` and ``region`` (the parts per node, both copies
+        ``nodes``, ``active_nodes`` (M), ``band_nodes`` (B), ``process`` (the fixed
+        part), ``grid_nodes``, ``motion`` and ``band`` (the parts per node, both copies
         together), ``solves`` (those two) and ``peak``, in bytes (ints).
     """
     if not isinstance(grid, Grid):
@@ -108,17 +113,17 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
         raise ValueError(f"material_fraction must lie in [0, 1], got {material_fraction}.")
     N, d = grid.size, grid.dim
     P = _COPIES
-    M, R = active_nodes(grid, f, margin_cells, motion_grid)
+    M, B = active_nodes(grid, f, margin_cells, motion_grid)
     out = {
         "nodes": int(N),
         "active_nodes": int(M),
-        "region_nodes": int(R),
+        "band_nodes": int(B),
         "process": int(P * _PROCESS_BYTES),
         "grid_nodes": int(P * N * (_NODE_BYTES[d] + 8 * max(int(n_keyframes) - 2, 0))),
         "motion": int(P * M * _MOTION_BYTES[d]),
-        "region": int(P * R * _REGION_BYTES[d]),
+        "band": int(P * B * _BAND_BYTES[d]),
     }
-    out["solves"] = out["motion"] + out["region"]
+    out["solves"] = out["motion"] + out["band"]
     out["peak"] = out["process"] + out["grid_nodes"] + out["solves"]
     return out
 
@@ -126,15 +131,15 @@ def estimate_memory(grid: Grid, *, material_fraction: float | None = None, n_key
 def active_nodes(grid: Grid, material_fraction: float,
                  margin_cells: float = MapOptions.margin_cells,
                  motion_grid: Grid | None = None) -> tuple[float, float]:
-    """(M, R): the nodes the model counts on the motion grid (the maps' and trajectories'
-    active nodes) and on the surface grid (the transports' regions): a compact blob
-    filling ``material_fraction`` of ``grid``'s box, and a margin of ``margin_cells``
-    cells around it, on each grid (its surface ~ (f N)^((d-1)/d) nodes a layer)."""
-    R = _blob_nodes(grid, material_fraction, margin_cells)
+    """(M, B): the nodes the model counts on the motion grid (the maps' and trajectories'
+    active nodes: a compact blob filling ``material_fraction`` of ``grid``'s box and a
+    margin of ``margin_cells`` cells around it) and on the surface grid (the frame loop's
+    band: `_BAND_LAYERS` layers of that blob's surface, ~ (f N)^((d-1)/d) nodes each)."""
+    B = _BAND_LAYERS * _surface_nodes(grid, material_fraction)
     if motion_grid is None:
-        return R, R
+        return _blob_nodes(grid, material_fraction, margin_cells), B
     share = material_fraction * _box(grid) / _box(motion_grid)
-    return _blob_nodes(motion_grid, share, margin_cells), R
+    return _blob_nodes(motion_grid, share, margin_cells), B
 
 
 def _box(grid: Grid) -> float:
@@ -142,10 +147,15 @@ def _box(grid: Grid) -> float:
     return float(np.prod(grid.upper - grid.origin))
 
 
-def _blob_nodes(grid: Grid, fraction: float, margin_cells: float) -> float:
+def _surface_nodes(grid: Grid, fraction: float) -> float:
+    """Nodes of one layer around a compact blob filling ``fraction`` of the grid: a ball's
+    (disc's) surface in cells."""
     N, d = grid.size, grid.dim
-    surface = (fraction * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)  # sphere / disc
-    return min(N, fraction * N + 2 * margin_cells * surface)
+    return (fraction * N) ** ((d - 1) / d) * (4.84 if d == 3 else 3.55)
+
+
+def _blob_nodes(grid: Grid, fraction: float, margin_cells: float) -> float:
+    return min(grid.size, fraction * grid.size + 2 * margin_cells * _surface_nodes(grid, fraction))
 
 
 def check_memory(grid: Grid, max_bytes: int, **memory_options: Any) -> dict[str, int]:
