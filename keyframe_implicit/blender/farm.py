@@ -30,8 +30,10 @@ def _inputs_of(inputs):
 
 def prepare_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, job_dir: str,
                   scene_path: str, resolution: int = 0, segments: int | None = None,
-                  progress: Callable[[float, str], None] | None = None) -> dict[str, Any]:
-    """Write ``scene``'s bake into ``job_dir`` (`farm.stages.prepare`); the scene is only read.
+                  progress: Callable[[float, str], None] | None = None,
+                  cache_dir: str | None = None) -> dict[str, Any]:
+    """Write ``scene``'s bake into ``job_dir`` (`farm.stages.prepare`, the distance grids
+    kept in ``cache_dir`` taken from it); the scene is only read.
 
     ``segments``: the number of segments the job was written for (its job template's task
     ranges); ValueError when the scene has another.
@@ -44,7 +46,8 @@ def prepare_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None,
                          f"Farm Job in the panel).")
     kept = _inputs_of(inputs)
     source = {"scene": os.path.abspath(scene_path), "scene_name": scene.name}
-    return stages.prepare(kept["arguments"], kept["output_mode"], job_dir, source, progress)
+    return stages.prepare(kept["arguments"], kept["output_mode"], job_dir, source, progress,
+                          cache_dir)
 
 
 def assemble_scene(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, job_dir: str,
@@ -72,13 +75,15 @@ def job_dir_of(blend_path: str) -> str:
 
 
 def export_job(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None, blend_path: str,
-               blender_path: str = "", job_dir: str | None = None, resolution: int = 0) -> str:
+               blender_path: str = "", job_dir: str | None = None, resolution: int = 0,
+               cache: str = "") -> str:
     """Check ``scene``'s bake (`bake.collect`) and write its job template into ``job_dir``
     (default: `job_dir_of` ``blend_path``), Prepare and Assemble run by ``blender_path``
-    ("": a Python with the bpy module); returns the job directory. ValueError when the
-    bake could not start."""
+    ("": a Python with the bpy module), Prepare and Maps taking what the bakes kept in
+    ``cache`` (the panel's: this session's, `work_cache.directory`); returns the job
+    directory. ValueError when the bake could not start."""
     inputs = bake.collect(scene, depsgraph, resolution)
     job_dir = job_dir or job_dir_of(blend_path)
     write_job_template(job_dir, blend_path, len(inputs.keyframes) - 1, inputs.resolution,
-                   blender=blender_path)
+                       blender=blender_path, cache=cache)
     return job_dir

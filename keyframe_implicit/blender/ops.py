@@ -576,7 +576,8 @@ class KFI_OT_export_farm_job(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
             job_dir = farm.export_job(context.scene, context.evaluated_depsgraph_get(),
-                                      bpy.data.filepath, bpy.app.binary_path)
+                                      bpy.data.filepath, bpy.app.binary_path,
+                                      cache=work_cache.directory())
         except (ValueError, OSError) as exc:
             self.report({"ERROR"}, _failed("Export Farm Job failed", str(exc)))
             return {"CANCELLED"}

@@ -8,7 +8,9 @@
     template DIR [--scene S.blend]             DIR/template.yaml, an Open Job Description job
 
 ``--blender PATH`` runs prepare or assemble inside that Blender (``blender -b``) instead
-of importing the bpy module. Exit status 0 on success, 1 when the stage fails (the
+of importing the bpy module. ``--cache DIR`` (prepare, maps): the folder where the exporting
+session's bakes kept their work (`farm.stages.work_cache`); what it holds for exactly the
+job's inputs is taken, not computed again. Exit status 0 on success, 1 when the stage fails (the
 message says why and what to do), 2 on bad arguments.
 
 The stages themselves are in `farm` (bpy-free) and, for prepare and assemble, in
@@ -42,11 +44,13 @@ def _parser():
     s.add_argument("--segments", type=int, default=None,
                    help="refuse a scene with another number of segments")
     s.add_argument("--blender", default="", help="run inside this Blender executable")
+    _cache_argument(s)
     s = sub.add_parser("maps", help="solve keyframe pairs' maps")
     s.add_argument("dir")
     s.add_argument("--pair", type=_pairs, required=True,
                    help="pair I (keyframes I -> I+1), or pairs I-J or I,J,... sharing the "
                         "task's two processes")
+    _cache_argument(s)
     s = sub.add_parser("paths", help="every segment's bends and starting template")
     s.add_argument("dir")
     s = sub.add_parser("segment", help="one segment's frames")
@@ -64,6 +68,11 @@ def _parser():
     s.add_argument("--resolution", type=int, default=0,
                    help="with --scene: grid resolution (default: the scene's setting)")
     return p
+
+
+def _cache_argument(parser):
+    parser.add_argument("--cache", default="",
+                        help="the folder of a session's kept work (empty, or absent here: none)")
 
 
 def _pairs(text):
@@ -99,7 +108,7 @@ def _prepare(args):
 
     for scene, depsgraph in open_file(args.scene):
         manifest = prepare_scene(scene, depsgraph, args.dir, args.scene, args.resolution,
-                                 args.segments, _log("prepare"))
+                                 args.segments, _log("prepare"), args.cache)
         print(f"prepared '{manifest['scene_name']}': {manifest['keyframes']} keyframes, "
               f"frames {manifest['frames'][0]}-{manifest['frames'][-1]}, in {args.dir}")
         return
@@ -142,7 +151,8 @@ def _run(args):
     if args.stage == "prepare":
         _prepare(args)
     elif args.stage == "maps":
-        stages.solve_pair(args.dir, args.pair, _log(f"maps {','.join(map(str, args.pair))}"))
+        stages.solve_pair(args.dir, args.pair, _log(f"maps {','.join(map(str, args.pair))}"),
+                          args.cache)
     elif args.stage == "paths":
         stages.bend_paths(args.dir, _log("paths"))
     elif args.stage == "segment":

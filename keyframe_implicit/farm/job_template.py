@@ -13,9 +13,11 @@ longer map ends (benchmarks/README.md, "Render farm").
 Paths is one short task between the two parallel steps: a segment's paths bend with its
 neighbours' maps (docs/method.md, section 12), and a segment starts from the tracked mesh
 where the one before it ended. Job parameters: the .blend, the job directory, the output
-.blend, the resolution, the Python that runs the stages and its PYTHONPATH, and optionally
+.blend, the resolution, the Python that runs the stages and its PYTHONPATH, optionally
 a Blender executable for the two stages that read and write the .blend (empty: the Python
-imports the bpy module). ``openjd run DIR/template.yaml`` runs the whole job with the
+imports the bpy module), and the folder where the exporting session's bakes kept their work
+(``WorkCache``: Prepare and Maps take what it holds for the job's inputs where that folder
+exists, as when ``openjd run`` runs beside the Blender that wrote the job). ``openjd run DIR/template.yaml`` runs the whole job with the
 defaults written here; ``deadline bundle submit DIR`` sends it to AWS Deadline Cloud. The
 job directory is self-contained: it holds a copy of the .blend (Open Job Description
 resolves a path's default inside the job template's folder).
@@ -57,7 +59,7 @@ def _tasks(name, count, chunk=None):
 
 def job_template(job_dir: str, blend_path: str, segments: int, resolution: int,
                  python: str | None = None, python_path: str | None = None,
-                 blender: str = "") -> dict[str, Any]:
+                 blender: str = "", cache: str = "") -> dict[str, Any]:
     """The job template as a dict (see the module docstring)."""
     job_dir = os.path.abspath(job_dir)
     params = [
@@ -83,16 +85,20 @@ def job_template(job_dir: str, blend_path: str, segments: int, resolution: int,
         dict(name="Blender", type="STRING", default=blender or "", minLength=0,
              description="A Blender executable for Prepare and Assemble (empty: Python "
                          "imports bpy)."),
+        dict(name="WorkCache", type="STRING", default=cache or "", minLength=0,
+             description="The folder of the work the exporting session kept, which Prepare "
+                         "and Maps take from where it exists (empty: none)."),
     ]
     pair, segment = "{{Task.Param.Pair}}", "{{Task.Param.Segment}}"
     steps = [
         dict(name="Prepare", script=_stage(
             "prepare", "{{Param.BlendFile}}", "{{Param.JobDir}}", "--resolution",
             "{{Param.Resolution}}", "--segments", str(int(segments)),
-            "--blender={{Param.Blender}}")),
+            "--blender={{Param.Blender}}", "--cache={{Param.WorkCache}}")),
         dict(name="Maps", dependencies=[{"dependsOn": "Prepare"}],
              parameterSpace=_tasks("Pair", segments, chunk="PairsPerTask"),
-             script=_stage("maps", "{{Param.JobDir}}", "--pair", pair)),
+             script=_stage("maps", "{{Param.JobDir}}", "--pair", pair,
+                           "--cache={{Param.WorkCache}}")),
         dict(name="Paths", dependencies=[{"dependsOn": "Maps"}],
              script=_stage("paths", "{{Param.JobDir}}")),
         dict(name="Segments", dependencies=[{"dependsOn": "Paths"}],

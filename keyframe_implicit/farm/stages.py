@@ -9,7 +9,10 @@ output mesh the worker makes (assemble). Pairs and segments are numbered from 1,
 panel's "keyframes 1 → 2" counts them.
 
 Each stage reads the files of the stages before it and writes its own (`store`); rerun,
-it writes the same file again.
+it writes the same file again. Prepare and Maps, given the folder where the exporting
+session's bakes kept their work (`core.bake.cache.WorkCache`, `work_cache`), take the
+distance grids and maps it holds for exactly their inputs instead of computing them: the
+same results, so the job's output is the same.
 
 The core's bake is imported in the stages' functions: the command line imports this module
 for every stage (and for ``--help``), and a task starts its helper process first, which
@@ -32,8 +35,10 @@ from . import store
 
 if TYPE_CHECKING:  # read by type checkers only (module docstring)
     from ..core.bake.animation import Animation
+    from ..core.bake.cache import WorkCache
 
-__all__ = ["prepare", "solve_pair", "bend_paths", "make_segment", "assemble", "JobFiles"]
+__all__ = ["prepare", "solve_pair", "bend_paths", "make_segment", "assemble", "JobFiles",
+           "work_cache"]
 
 
 class JobFiles:
@@ -63,9 +68,18 @@ class JobFiles:
         return self.path("segments", f"segment_{i}.npz")
 
 
+def work_cache(directory: str | None) -> WorkCache | None:
+    """The work a session's bakes kept in ``directory`` (a `WorkCache` on it), or None when
+    no such folder is here (none given, or a farm machine without it): then every result is
+    computed."""
+    from ..core.bake.cache import WorkCache
+
+    return WorkCache(directory) if directory and os.path.isdir(directory) else None
+
+
 def prepare(arguments: dict[str, Any], output_mode: str | None, job_dir: str,
-            source: dict[str, str], progress: Callable[[float, str], None] | None = None
-            ) -> dict[str, Any]:
+            source: dict[str, str], progress: Callable[[float, str], None] | None = None,
+            cache_dir: str | None = None) -> dict[str, Any]:
     """Write the job directory's inputs, plan and the keyframes' distance grids.
 
     Parameters
@@ -79,6 +93,9 @@ def prepare(arguments: dict[str, Any], output_mode: str | None, job_dir: str,
     source : dict
         Where the inputs were read (``scene``: the .blend's path, ``scene_name``), kept in
         the manifest.
+    progress : callable, optional
+    cache_dir : str, optional
+        The folder of the work kept by content (`work_cache`).
 
     Returns
     -------
@@ -91,7 +108,8 @@ def prepare(arguments: dict[str, Any], output_mode: str | None, job_dir: str,
     plan = plan_bake(**arguments)  # refuses bad input before any file is written
     t0 = time.perf_counter()
     with _task_helper() as helper, one_blas_thread():
-        phis = distance_fields(plan, rep.sub(0.0, 0.95), helper=helper)
+        phis = distance_fields(plan, rep.sub(0.0, 0.95), helper=helper,
+                               cache=work_cache(cache_dir))
     plan.stats["sdf_seconds"] = time.perf_counter() - t0
     job = store.fingerprint(inputs)
     store.save(files.inputs, {"job": job, "inputs": inputs})
@@ -106,12 +124,14 @@ def prepare(arguments: dict[str, Any], output_mode: str | None, job_dir: str,
 
 
 def solve_pair(job_dir: str, pair: int | Sequence[int],
-               progress: Callable[[float, str], None] | None = None) -> None:
+               progress: Callable[[float, str], None] | None = None,
+               cache_dir: str | None = None) -> None:
     """Solve the maps of pair ``pair`` (keyframes ``pair`` -> ``pair + 1``), both ways, or of
     every pair in ``pair`` (a sequence): their maps shared between this process and a
-    helper, each taking the next map when it is free, as the local bake shares them."""
+    helper, each taking the next map when it is free, as the local bake shares them; those
+    the work kept in ``cache_dir`` holds (`work_cache`) are taken from it."""
     with _task_helper() as helper:
-        files, job, plan, chain = _open(job_dir)
+        files, job, plan, chain = _open(job_dir, work_cache(cache_dir))
         pairs = [pair] if np.ndim(pair) == 0 else list(pair)
         ks = [_index(p, len(plan.keyframes) - 1, "pair") for p in pairs]
         with one_blas_thread():  # one map here, one there
@@ -197,13 +217,14 @@ def inputs(job_dir: str) -> dict[str, Any]:
     return _read(files.inputs, manifest["fingerprint"], _PREPARE)["inputs"]
 
 
-def _open(job_dir):
-    """(files, the inputs' fingerprint, `BakePlan`, `chain.Chain`) of a prepared job."""
+def _open(job_dir, cache=None):
+    """(files, the inputs' fingerprint, `BakePlan`, `chain.Chain`) of a prepared job, its
+    maps looked for in ``cache`` when given."""
     files = JobFiles(job_dir)
     job = store.read_manifest(job_dir)["fingerprint"]
     data = _read(files.plan, job, _PREPARE)
     plan = data["plan"]
-    return files, job, plan, plan.chain(data["phis"])
+    return files, job, plan, plan.chain(data["phis"], cache=cache)
 
 
 #: How a missing or stale file of ``prepare`` is made again.

@@ -1,10 +1,12 @@
 """Export Farm Job in the panel: the job template written beside the saved .blend, with a
-copy of it; refused, with the reason on the button, before the file is saved; the scene
-untouched."""
+copy of it, Prepare and Maps pointed at the work this session kept; refused, with the
+reason on the button, before the file is saved; the scene untouched."""
+
+import json
 
 import bpy
 
-from keyframe_implicit.blender import farm
+from keyframe_implicit.blender import farm, work_cache
 
 
 def _setup(kfi):
@@ -25,6 +27,9 @@ def test_export_writes_the_job_beside_the_saved_file(scene, kfi, tmp_path):
     assert text.count('range: "1-2"') == 2  # a task per pair and per segment
     assert 'default: "shot.blend"' in text and (job / "shot.blend").read_bytes() == path.read_bytes()
     assert f'default: {bpy.app.binary_path!r}'.replace("'", '"') in text  # the Blender stages
+    # Prepare and Maps take what this session's bakes kept
+    assert f"default: {json.dumps(work_cache.directory())}" in text
+    assert text.count("--cache={{Param.WorkCache}}") == 2
     assert kfi.snapshot() == before
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from benchmark_modules import load
 from keyframe_implicit.core import Grid
+from keyframe_implicit.core.bake.cache import WorkCache
 from keyframe_implicit.core.bake.options import BakeOptions
 from keyframe_implicit.core.bake.pipeline import bake
 from keyframe_implicit.core.map.tear import Tear
@@ -121,6 +122,25 @@ def test_pairs_solved_in_one_task_are_the_pairs_solved_one_by_one(job_copy):
         shared, shared_back, _ = store.load(files.pair(i))["maps"]
         np.testing.assert_array_equal(shared.mapped, res.mapped)
         np.testing.assert_array_equal(shared_back.mapped, back.mapped)
+
+
+def test_prepare_and_maps_take_the_work_the_session_kept(job, tmp_path, monkeypatch):
+    kept = str(tmp_path / "kept")
+    os.mkdir(kept)
+    bake(**_arguments(processes=2), cache=WorkCache(kept))  # the session's Bake keeps its work
+    caches = []
+    real = stages.work_cache
+    monkeypatch.setattr(stages, "work_cache", lambda d: caches.append(real(d)) or caches[-1])
+    job_dir = str(tmp_path / "job")
+    stages.prepare(_arguments(), "AUTO", job_dir, SOURCE, cache_dir=kept)
+    stages.solve_pair(job_dir, [1, 2], cache_dir=kept)
+    assert caches[0].counts["distance"] == {"hits": 3, "misses": 0}  # three keyframes' grids
+    assert caches[1].counts["maps"] == {"hits": 2, "misses": 0}  # both pairs: nothing solved
+    taken, solved = stages.JobFiles(job_dir), stages.JobFiles(job)
+    for i in (1, 2):  # what the job would have solved itself
+        for a, b in zip(store.load(taken.pair(i))["maps"][:2], store.load(solved.pair(i))["maps"][:2]):
+            np.testing.assert_array_equal(a.mapped, b.mapped)
+    assert real(str(tmp_path / "not here")) is None and real("") is None
 
 
 @pytest.mark.parametrize("text,pairs", [("2", [2]), ("1-3", [1, 2, 3]), ("1,3", [1, 3]),
