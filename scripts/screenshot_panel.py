@@ -8,9 +8,10 @@ With the extension installed and enabled: open SCENE with its own UI, open the
 changing) for the steps before, baking (mid-bake), after, figures (the report's figures
 unfolded), compare (the middle frame with Show Keyframes on), inserted (a ball added as the
 middle keyframe: its feature points proposed and selected), off_surface (one of them moved
-off the ball's surface) and problems (an open plane added as another keyframe); ``window_<step>.png`` keeps the
-whole window as the scene opens and after the bake. The bake is started as a user starts it (the modal operator); the script quits
-Blender when done, with exit code 1 on any error.
+off the ball's surface) and problems (an open plane added as another keyframe);
+``window_<step>.png`` keeps the whole window of the steps in `WINDOWS`. The bake is started
+as a user starts it (the modal operator); the script quits Blender when done, with exit
+code 1 on any error.
 """
 
 import os

@@ -204,8 +204,9 @@ def transforming() -> bool:
     the moves of a drag come before its end, which is when the artist wants to see the
     result."""
     wm = bpy.context.window_manager
+    windows = wm.windows if wm is not None else ()
     return any(op.bl_idname.startswith("TRANSFORM_OT_")
-               for window in (wm.windows if wm is not None else ()) for op in window.modal_operators)
+               for window in windows for op in window.modal_operators)
 
 
 def _watched(scene):

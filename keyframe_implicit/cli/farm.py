@@ -10,8 +10,8 @@
 ``--blender PATH`` runs prepare or assemble inside that Blender (``blender -b``) instead
 of importing the bpy module. ``--cache DIR`` (prepare, maps): the folder where the exporting
 session's bakes kept their work (`farm.stages.work_cache`); what it holds for exactly the
-job's inputs is taken, not computed again. Exit status 0 on success, 1 when the stage fails (the
-message says why and what to do), 2 on bad arguments.
+job's inputs is taken, not computed again. Exit status 0 on success, 1 when the stage fails
+(the message says why and what to do), 2 on bad arguments.
 
 The stages themselves are in `farm` (bpy-free) and, for prepare and assemble, in
 `blender.farm`, which imports bpy: it is imported in the functions of the stages that read

@@ -17,10 +17,11 @@ where the one before it ended. Job parameters: the .blend, the job directory, th
 a Blender executable for the two stages that read and write the .blend (empty: the Python
 imports the bpy module), and the folder where the exporting session's bakes kept their work
 (``WorkCache``: Prepare and Maps take what it holds for the job's inputs where that folder
-exists, as when ``openjd run`` runs beside the Blender that wrote the job). ``openjd run DIR/template.yaml`` runs the whole job with the
-defaults written here; ``deadline bundle submit DIR`` sends it to AWS Deadline Cloud. The
-job directory is self-contained: it holds a copy of the .blend (Open Job Description
-resolves a path's default inside the job template's folder).
+exists, as when ``openjd run`` runs beside the Blender that wrote the job).
+``openjd run DIR/template.yaml`` runs the whole job with the defaults written here;
+``deadline bundle submit DIR`` sends it to AWS Deadline Cloud. The job directory is
+self-contained: it holds a copy of the .blend (Open Job Description resolves a path's
+default inside the job template's folder).
 """
 
 from __future__ import annotations

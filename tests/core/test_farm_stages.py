@@ -138,7 +138,8 @@ def test_prepare_and_maps_take_the_work_the_session_kept(job, tmp_path, monkeypa
     assert caches[1].counts["maps"] == {"hits": 2, "misses": 0}  # both pairs: nothing solved
     taken, solved = stages.JobFiles(job_dir), stages.JobFiles(job)
     for i in (1, 2):  # what the job would have solved itself
-        for a, b in zip(store.load(taken.pair(i))["maps"][:2], store.load(solved.pair(i))["maps"][:2]):
+        kept_maps, own = (store.load(f.pair(i))["maps"][:2] for f in (taken, solved))
+        for a, b in zip(kept_maps, own):
             np.testing.assert_array_equal(a.mapped, b.mapped)
     assert real(str(tmp_path / "not here")) is None and real("") is None
 
