@@ -45,7 +45,12 @@ from .core.base.progress import Cancelled
 from .core.base.wire import follow_parent, receive, send
 from .worker import ROOT, WORKER_ROOT, connect_parent, lower_priority, no_sigpipe, start_process
 
-__all__ = ["PreviewWorker"]
+__all__ = ["PreviewWorker", "CACHE_BYTES"]
+
+#: The memory the worker keeps results in (`core.bake.cache.WorkCache`): an edit re-solves
+#: one pair, so the latest results are the ones taken again; a bound four times this took
+#: no more of them over an hour of edits (benchmarks/README.md, "Live preview").
+CACHE_BYTES = 64 * 2**20
 
 
 class PreviewWorker:
@@ -185,7 +190,7 @@ def main() -> None:
     parent, sender = connect_parent()
     from .core.bake.cache import WorkCache
 
-    cache = WorkCache()
+    cache = WorkCache(memory_bytes=CACHE_BYTES)
     requests = _Requests(parent, sender, cache)
     from .core.bake.preview import Preview  # only now (module docstring)
 
