@@ -139,6 +139,12 @@ class Grid:
         """Continuous (fractional) node index of world ``points`` (..., d)."""
         return (np.asarray(points, dtype=float) - self.origin) / self.spacing
 
+    def nearest_node(self, points: ArrayLike) -> np.ndarray:
+        """Integer index (..., d) of the node nearest each world point (..., d), clamped
+        to the grid: a point outside takes the nearest node on its border."""
+        index = np.rint(self.to_index(points)).astype(np.int64)
+        return np.clip(index, 0, np.asarray(self.shape) - 1)
+
     def to_world(self, index: ArrayLike) -> np.ndarray:
         """World position of (fractional) node ``index`` (..., d)."""
         return self.origin + self.spacing * np.asarray(index, dtype=float)

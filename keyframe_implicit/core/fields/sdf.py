@@ -134,8 +134,7 @@ def _shell_candidates(grid, samples, radius_cells):
     The nodes nearest to the samples are marked and dilated by a cube of half-width
     ceil(radius_cells) (separable maximum filter, cheap on the whole grid).
     """
-    shape = np.asarray(grid.shape)
-    idx = np.clip(np.rint(grid.to_index(samples)).astype(np.int64), 0, shape - 1)
+    idx = grid.nearest_node(samples)
     mask = np.zeros(grid.shape, dtype=np.uint8)
     mask[tuple(idx.T)] = 1
     R = int(np.ceil(radius_cells))

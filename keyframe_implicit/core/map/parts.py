@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
     from ..base.grid import Grid
 
-__all__ = ["part_labels", "parts_on", "part_crack", "cut_components"]
+__all__ = ["part_labels", "parts_on", "part_crack", "cut_components", "nearest_label"]
 
 
 def part_labels(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: ArrayLike,
@@ -43,8 +43,8 @@ def part_labels(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: Arra
     labels_b, count_b = ndimage.label(np.asarray(phi_b) < 0)
     if count_a < 2 or count_b < 2:
         return None
-    near_a = _nearest_label(labels_a)
-    near_b = _nearest_label(labels_b)
+    near_a = nearest_label(labels_a)
+    near_b = nearest_label(labels_b)
     xa, yb = (np.asarray(f, dtype=float).reshape(-1, grid.dim) for f in (features_a, features_b))
     own = near_a[_node_of(xa, grid)] if len(xa) else np.zeros(0, np.int64)
     goes = np.zeros(count_a + 1, np.int64)
@@ -60,9 +60,7 @@ def part_labels(phi_a: ArrayLike, phi_b: ArrayLike, grid: Grid, features_a: Arra
 def parts_on(parts: np.ndarray, grid: Grid, other: Grid) -> np.ndarray:
     """``parts`` (on ``grid``'s nodes) read at the nodes of ``other`` (a coarser level or a
     motion grid over the same box): each takes the part of the nearest node of ``grid``."""
-    idx = np.rint(grid.to_index(other.points().reshape(-1, grid.dim))).astype(np.int64)
-    idx = np.clip(idx, 0, np.asarray(grid.shape) - 1)
-    return parts[tuple(idx.T)].reshape(other.shape)
+    return parts[_node_of(other.points().reshape(-1, grid.dim), grid)].reshape(other.shape)
 
 
 def part_crack(parts: np.ndarray) -> np.ndarray:
@@ -84,13 +82,12 @@ def cut_components(components: np.ndarray, parts: np.ndarray) -> tuple[np.ndarra
     return np.where(components > 0, np.searchsorted(keys, pairs) + 1, 0), len(keys)
 
 
-def _nearest_label(labels: np.ndarray) -> np.ndarray:
-    """The label of the nearest labelled node, at every node."""
+def nearest_label(labels: np.ndarray) -> np.ndarray:
+    """The label of the nearest labelled node, at every node (``labels`` must have one)."""
     _, idx = ndimage.distance_transform_edt(labels == 0, return_indices=True)
     return labels[tuple(idx)]
 
 
 def _node_of(points: np.ndarray, grid: Grid) -> tuple[np.ndarray, ...]:
-    """The index tuple of the node nearest each point (clamped to the grid)."""
-    idx = np.clip(np.rint(grid.to_index(points)).astype(np.int64), 0, np.asarray(grid.shape) - 1)
-    return tuple(idx.T)
+    """The index tuple of the node nearest each point (`Grid.nearest_node`)."""
+    return tuple(grid.nearest_node(points).T)

@@ -47,7 +47,7 @@ from ..base import elements
 from ..base.grid import Grid
 from ..base.rotations import rigid_fit
 from ..base.sampling import sample
-from .parts import cut_components
+from .parts import cut_components, nearest_label
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -84,11 +84,7 @@ def _nearest_label(labels: np.ndarray, grid: Grid, points: np.ndarray) -> np.nda
     """Label of the material node nearest to each world point (0 if no material)."""
     if labels.max() == 0:
         return np.zeros(len(points), dtype=np.int64)
-    _, idx = ndimage.distance_transform_edt(labels == 0, return_indices=True)
-    u = np.rint(grid.to_index(points)).astype(np.int64)
-    u = np.clip(u, 0, np.asarray(grid.shape) - 1)
-    near = tuple(idx[a][tuple(u.T)] for a in range(grid.dim))
-    return labels[near]
+    return nearest_label(labels)[tuple(grid.nearest_node(points).T)]
 
 
 def _affinely_independent(points: np.ndarray, d: int) -> bool:

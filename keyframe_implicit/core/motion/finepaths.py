@@ -26,6 +26,7 @@ from scipy import ndimage
 
 from ..base.grid import Grid
 from ..base.sampling import cell_weights, sample
+from ..map.parts import nearest_label
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -70,14 +71,12 @@ def _surface_parts(grid: Grid, material: np.ndarray, coarse: Trajectories) -> np
     """The part of every surface node (flat): that of its nearest material component, each
     component taking the part most of its nodes' motion cells' nearest corners hold."""
     labels, count = ndimage.label(material)
-    idx = np.rint(coarse.grid.to_index(grid.to_world(np.argwhere(material)))).astype(np.int64)
-    idx = np.clip(idx, 0, np.asarray(coarse.grid.shape) - 1)
+    idx = coarse.grid.nearest_node(grid.to_world(np.argwhere(material)))
     votes = coarse.parts.reshape(coarse.grid.shape)[tuple(idx.T)]
     part = np.zeros(count + 1, np.int64)
     for c in range(1, count + 1):
         part[c] = np.bincount(votes[labels[material] == c]).argmax()
-    _, near = ndimage.distance_transform_edt(labels == 0, return_indices=True)
-    return part[labels[tuple(near)]].reshape(-1)
+    return part[nearest_label(labels)].reshape(-1)
 
 
 class FinePaths:
