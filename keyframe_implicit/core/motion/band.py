@@ -31,7 +31,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..base.grid import Grid
-from .tension import CELLS_PER_TENSION
+from .tension import CELLS_PER_TENSION, GAUSSIAN_TRUNCATE
 
 __all__ = ["Band", "band_depth", "inside", "touches_surface"]
 
@@ -137,9 +137,10 @@ def inside(carried: np.ndarray, grid: Grid) -> np.ndarray:
 def band_depth(cells: float, grid: Grid, tension: float, parts: bool) -> float:
     """The band's depth (world units) for ``cells`` asked: deeper where the surface
     tension's Gaussian (`tension.fill_creases`, sigma = ``tension`` x its cells, read to
-    4 sigma) may reach deep values, i.e. where a keyframe has several ``parts``."""
+    `tension.GAUSSIAN_TRUNCATE` sigmas) may reach deep values, i.e. where a keyframe has
+    several ``parts``."""
     if parts and tension > 0:
-        cells = max(cells, 4.0 * tension * CELLS_PER_TENSION + 1.0)
+        cells = max(cells, GAUSSIAN_TRUNCATE * tension * CELLS_PER_TENSION + 1.0)
     return float(cells) * grid.spacing
 
 

@@ -26,10 +26,13 @@ from scipy import ndimage
 from ..base.grid import Grid
 from .components import component_labels
 
-__all__ = ["fill_creases", "meeting_reach", "CELLS_PER_TENSION"]
+__all__ = ["fill_creases", "meeting_reach", "CELLS_PER_TENSION", "GAUSSIAN_TRUNCATE"]
 
 #: The filling's Gaussian sigma, in cells, at surface tension 1.
 CELLS_PER_TENSION = 2.0
+#: How far the filling's Gaussian reads, in sigmas (`scipy.ndimage.gaussian_filter`'s
+#: ``truncate``): how deep under the surface the filling looks (`band.band_depth`).
+GAUSSIAN_TRUNCATE = 4.0
 
 
 def meeting_reach(grid: Grid, tension: float) -> float:
@@ -70,7 +73,7 @@ def fill_creases(field: np.ndarray, meeting: np.ndarray | None, grid: Grid, tens
     part = field[box]
     where = (ndimage.binary_dilation(meeting[box], iterations=reach)
              & ~_between_parts(part, reach))
-    blurred = ndimage.gaussian_filter(part, sigma, mode="nearest")
+    blurred = ndimage.gaussian_filter(part, sigma, mode="nearest", truncate=GAUSSIAN_TRUNCATE)
     out = field.copy()
     out[box] = part - weight * np.where(where, np.maximum(part - blurred, 0.0), 0.0)
     return out
