@@ -90,9 +90,9 @@ class Preview:
         plan = plan_bake(keyframes, features, options or BakeOptions(),
                          feature_names=feature_names, grid_rule=preview_grids)
         rep(0.05, "Distance grids")
-        before = self.cache.counts.get("distance", {}).get("hits", 0)
+        before = self.cache.hits().get("distance", 0)
         phis = distance_fields(plan, rep.sub(0.05, 0.2), cancel, cache=self.cache)
-        kept = self.cache.counts.get("distance", {}).get("hits", 0) - before
+        kept = self.cache.hits().get("distance", 0) - before
         chain = plan.chain(phis, cancel, self.cache)
         nseg = len(phis) - 1
         with one_blas_thread():  # as in the bake: BLAS's threads round differently
