@@ -71,6 +71,53 @@ def test_a_merge_ships_the_artists_mesh_on_every_frame_before_contact(merge_bake
 
 
 @pytest.fixture(scope="module")
+def marching_cubes_merge():
+    """An unequal merge whose keyframes are marching-cubes meshes (slivers a small fraction
+    of a cell high, as a sculpt's remesh leaves), baked at 32 as a mesh sequence."""
+    from keyframe_implicit.core.base.grid import Grid
+    from keyframe_implicit.core.surface.extract import extract_surface
+    from keyframe_implicit.shapes import sphere_sdf
+
+    grid = Grid(np.full(3, -1.0), 2.0 / 96, (97,) * 3)
+    x = grid.points()
+    big, small = (np.array([-0.35, 0.0, 0.0]), 0.3), (np.array([0.4, 0.0, 0.0]), 0.2)
+    a = extract_surface(np.minimum(sphere_sdf(x, *big), sphere_sdf(x, *small)), grid)
+    b = extract_surface(sphere_sdf(x, (0, 0, 0), (0.3 ** 3 + 0.2 ** 3) ** (1 / 3)), grid)
+    cross = np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]])
+    fa = np.vstack([big[0] + 0.15 * cross, small[0] + 0.1 * cross])
+    fb = np.vstack([(-0.1, 0, 0) + 0.15 * cross, (0.15, 0, 0) + 0.1 * cross])
+    return animate([Keyframe(*a, 1, "balls"), Keyframe(*b, 17, "ball")], [(fa, fb)],
+                   resolution=32, output="mesh_sequence")
+
+
+def test_marching_cubes_keyframes_are_tracked_until_parts_near(marching_cubes_merge):
+    """Each ball's volume is held by scaling it, which turns no face: an offset along the
+    vertex normals turned the slivers from frame 2, and the fold guard then ended the
+    artist's mesh there."""
+    an = marching_cubes_merge
+    topo = an.stats["topology"]
+    near = next(i for i, t in enumerate(topo) if tuple(t) != tuple(topo[0]))
+    assert near >= 5
+    assert an.stats["tracked_frames"] == near
+    for v in an.vertices[:near]:
+        assert flipped_fraction(an.vertices[0], v, an.faces) == 0.0
+
+
+def test_the_frame_after_a_keyframe_moves_from_it_as_its_paths_do(marching_cubes_merge):
+    """The keyframes' offsets trade places from rest, so frame 2 is off keyframe A by
+    about the motion of a frame (here under half a cell), not by that plus a 16th of the
+    way to B's landing points."""
+    from keyframe_implicit.core.surface.quality import keyframe_distance
+
+    an = marching_cubes_merge
+    h = an.grid.spacing
+    step = keyframe_distance(an.vertices[1], an.faces, an.vertices[0], an.faces, h)
+    motion = np.linalg.norm(an.vertices[2] - an.vertices[1], axis=1).max() / h
+    assert motion < 0.5
+    assert step["keyframe_max"] <= motion + 0.05
+
+
+@pytest.fixture(scope="module")
 def rod_sequence():
     """The 2-cell rod of `test_thin_rod_turning_rigidly_stays_the_artists_mesh` baked as a
     mesh sequence: every frame is its tracked template."""

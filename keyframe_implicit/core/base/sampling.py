@@ -23,7 +23,14 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 __all__ = ["cell_weights", "central_differences", "multilinear_in_cells", "sample",
-           "sample_with_gradient"]
+           "sample_with_gradient", "smoothstep"]
+
+
+def smoothstep(t: ArrayLike) -> np.ndarray:
+    """t^2 (3 - 2 t) of t clipped to [0, 1]: a weight that rises from 0 to 1 and leaves
+    both ends at rest (zero slope), for a blend that must not jump at either end."""
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
 
 
 def cell_weights(grid: Grid, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:

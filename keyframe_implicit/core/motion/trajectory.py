@@ -78,7 +78,7 @@ from ..base.grid import Grid
 from ..base.multigrid import BlockMultigrid, block_pcg
 from ..base.progress import Reporter
 from ..base.rotations import polar, rigid_fit, rotation_exp, rotation_log
-from ..base.sampling import cell_weights, sample
+from ..base.sampling import cell_weights, sample, smoothstep
 from ..map.parts import cut_components
 from .options import MotionOptions
 
@@ -92,11 +92,6 @@ __all__ = ["Trajectories"]
 
 _CACHED = 3  # times whose active-node positions `Trajectories` keeps
 _TARGET_CHUNK = 32_768  # cells whose target gradients `Trajectories._rhs` makes at once
-
-
-def _smoothstep(t):
-    t = np.clip(t, 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
 
 
 def _edge_pairs(d):
@@ -474,7 +469,7 @@ class Trajectories:
 
         # blend of the Poisson paths with the body formula over the outer half of the margin
         dl = region_dist[np.searchsorted(np.flatnonzero(self._region), nodes)]
-        self._wblend = 1.0 - _smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
+        self._wblend = 1.0 - smoothstep((dl - 0.5 * self.margin_cells) / (0.5 * self.margin_cells))
         self._blended = np.flatnonzero(self._wblend < 1.0)  # where the body formula counts
 
     def _component_centroids(self, points):

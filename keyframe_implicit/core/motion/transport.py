@@ -34,7 +34,7 @@ from ..base import elements
 from ..base.elements import cofactor
 from ..base.grid import Grid
 from ..base.progress import Reporter
-from ..base.sampling import multilinear_in_cells, sample
+from ..base.sampling import multilinear_in_cells, sample, smoothstep
 from .band import Band, inside
 from .options import MotionOptions
 
@@ -500,7 +500,7 @@ class Transport:
         else:
             vals = self.read(self.field, source, self._coef)
             if faded:
-                fade = t if self.trajectories.bend is None else t * t * (3.0 - 2.0 * t)
+                fade = t if self.trajectories.bend is None else float(smoothstep(t))
                 fade = np.where(self._torn[band.cells[cell]], min(2.0 * t, 1.0), fade)
                 vals += fade * multilinear_in_cells(self._lifted(other)[band.nodes, None],
                                                     band.local, cell, local)[:, 0]
