@@ -30,7 +30,7 @@ import numpy as np
 from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient
 from .extract import (closed_pieces, extract_surface, material_topology, mesh_area, mesh_pieces,
-                      piece_volumes)
+                      piece_centroids, piece_volumes)
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -376,7 +376,7 @@ class DetailTrack:
     the largest g.
 
     The offsets c_A and c_B are shape, not volume: each closed piece of the mesh is then
-    moved along its normals by the one distance that gives it the volume
+    scaled about its centre of volume by the one factor that gives it the volume
     (1 - s) V_A + s V_B, V_A its own on A and V_B its share of the pieces of keyframe B
     it lands on (`_volume_ends`), where the mesh's pieces are the material's parts (as
     many) and as long as the in-between's material keeps the topology it has at s = 0
@@ -455,23 +455,18 @@ class DetailTrack:
                 & (lands @ ~closed_pieces(end_tris, label_b, count_b) == 0))
         return (on_a, on_b), held
 
-    def _hold_volumes(self, x: np.ndarray, s: float, rounds: int = 2) -> np.ndarray:
-        """``x`` with each held piece moved along its vertex normals by the one distance
-        that gives it the volume (1 - s) V_A + s V_B (a few Newton rounds: a piece's
-        volume grows by its area times the distance)."""
+    def _hold_volumes(self, x: np.ndarray, s: float) -> np.ndarray:
+        """``x`` with each held piece scaled about its centre of volume by the one factor
+        that gives it the volume (1 - s) V_A + s V_B. A scaling is affine, so no face turns
+        over, however thin: an offset along vertex normals turns a marching-cubes mesh's
+        slivers, whose corners' normals differ by more than the slivers are high."""
         count, label = self.pieces
         target = (1.0 - s) * self.volumes[0] + s * self.volumes[1]
-        a, b, c = (self.faces[:, i] for i in range(3))
-        for _ in range(rounds):
-            twice = np.cross(x[b] - x[a], x[c] - x[a])  # along each triangle's normal
-            normals = np.stack([sum(np.bincount(corner, twice[:, d], len(x))
-                                    for corner in (a, b, c)) for d in range(3)], axis=1)
-            normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-12)[:, None]
-            area = np.bincount(label[a], 0.5 * np.linalg.norm(twice, axis=1), count)
-            gap = target - piece_volumes(x, self.faces, self.pieces)
-            shift = np.divide(gap, area, out=np.zeros(count), where=self.held & (area > 0))
-            x = x + shift[label][:, None] * normals
-        return x
+        volume = piece_volumes(x, self.faces, self.pieces)
+        centre = piece_centroids(x, self.faces, self.pieces)
+        ok = self.held & (volume > 0) & (target > 0)
+        scale = np.cbrt(np.divide(target, volume, out=np.ones(count), where=ok))
+        return centre[label] + scale[label][:, None] * (x - centre[label])
 
     def _pull(self, p: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """p + L[P_s(p) - p], L[P_s(p) - p] and |phi| at P_s(p)."""
