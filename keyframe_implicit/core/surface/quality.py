@@ -42,8 +42,7 @@ if TYPE_CHECKING:
     from ..base.grid import Grid
 
 __all__ = ["LIMITS", "frame_quality", "keyframe_distance", "mesh_distance", "flipped_fraction",
-           "failures",
-           "worst_frame", "choose_output", "describe_worst"]
+           "turned_faces", "failures", "worst_frame", "choose_output", "describe_worst"]
 
 # per-frame limits of a clean result (area ratio band, largest inverted share, smallest
 # coverage, and on keyframe frames the mean and largest two-way distance in cells)
@@ -157,22 +156,27 @@ def keyframe_distance(vertices: ArrayLike, faces: ArrayLike, key_vertices: Array
 
 
 def flipped_fraction(start: ArrayLike, vertices: ArrayLike, faces: ArrayLike) -> float:
-    """The share of a tracked mesh's area on faces turned over since its first frame:
-    ``faces`` of ``vertices`` whose normals point against their own at ``start`` (a fold,
-    which a render shows as specks of the inside). Faces of no area at either count as
-    not turned."""
+    """The share of a tracked mesh's area on faces turned over since its first frame
+    (`turned_faces`), which a render shows as specks of the inside."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if len(f) == 0:
         return 0.0
-
-    def normals(points):
-        v = np.asarray(points, dtype=float).reshape(-1, 3)
-        return np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    now, then = normals(vertices), normals(start)
-    area = np.linalg.norm(now, axis=1)
-    turned = np.einsum("ij,ij->i", now, then) < 0.0
+    area = np.linalg.norm(_face_normals(vertices, f), axis=1)
     total = float(area.sum())
-    return float(area[turned].sum()) / total if total > 0 else 0.0
+    return float(area[turned_faces(start, vertices, f)].sum()) / total if total > 0 else 0.0
+
+
+def turned_faces(start: ArrayLike, vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
+    """(F,) bool: the ``faces`` of ``vertices`` whose normals point against their own at
+    ``start`` (a fold). Faces of no area at either count as not turned."""
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    return np.einsum("ij,ij->i", _face_normals(vertices, f), _face_normals(start, f)) < 0.0
+
+
+def _face_normals(points: ArrayLike, f: np.ndarray) -> np.ndarray:
+    """(F, 3): each triangle's normal, as long as twice its area."""
+    v = np.asarray(points, dtype=float).reshape(-1, 3)
+    return np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
 
 
 def failures(figures: Mapping[str, float], limits: Mapping[str, Any] = LIMITS) -> list[str]:

@@ -31,6 +31,7 @@ from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient
 from .extract import (closed_pieces, extract_surface, material_topology, mesh_area, mesh_pieces,
                       piece_centroids, piece_volumes)
+from .quality import turned_faces
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -51,7 +52,8 @@ if TYPE_CHECKING:
 
         def trajectory(self, points: ArrayLike, s: float) -> np.ndarray: ...
 
-__all__ = ["track_template", "initial_template", "project_to_zero_set", "TemplateTrack", "uncovered_area"]
+__all__ = ["track_template", "initial_template", "project_to_zero_set", "TemplateTrack",
+           "uncovered_area", "unfold"]
 
 
 class TemplateTrack:
@@ -339,6 +341,25 @@ def same_vertices(landing: np.ndarray, end_vertices: ArrayLike, spacing: float,
     return bool(np.median(d) <= median_cells and d.max() <= max_cells)
 
 
+def unfold(start: np.ndarray, faces: np.ndarray, points: np.ndarray, offset: np.ndarray,
+           rounds: int = 4) -> np.ndarray:
+    """``offset`` from ``points`` (a mesh that turns no face of ``start``, such as its
+    points carried along their paths) with no face of ``points + offset`` turned over
+    since ``start``: each cluster of faces it would turn (joined by their corners) takes
+    its corners' mean offset, so it moves as its points do. Marching cubes leaves slivers a
+    small fraction of a cell high; an offset smooth at the scale of a cell still turns
+    them. A cluster that turns a neighbour takes it in on the next of ``rounds``."""
+    for _ in range(rounds):
+        turned = turned_faces(start, points + offset, faces)
+        if not turned.any():
+            break
+        count, cluster = mesh_pieces(faces[turned], len(points))
+        size = np.bincount(cluster, minlength=count)[:, None]
+        mean = np.stack([np.bincount(cluster, offset[:, a], count) for a in range(3)], 1)
+        offset = np.where((size > 1)[cluster], (mean / size)[cluster], offset)
+    return offset
+
+
 #: Stretch of the trajectories' local motion, |S - I|, from which the zero set steers the
 #: template fully (`DetailTrack`); a part moving more rigidly follows its paths.
 RIGID_STRAIN = 0.02
@@ -364,7 +385,8 @@ class DetailTrack:
     keyframe B's own triangles. The zero set steers the mesh by what its pull adds
     to the keyframes' own offsets carried along; detail under a cell travels with
     the locally rigid motion. With g = 1 this is p(s) + u(s) - (1 - s) R c_A +
-    s R R(1)^T c_B, c_B = x(1) - p(1) - u(1). x(0) is returned exactly as given.
+    s R R(1)^T c_B, c_B = x(1) - p(1) - u(1). x(0) is returned exactly as given. Faces
+    the offsets would turn over move with their paths instead (`unfold`).
 
     The zero set guides, it does not constrain: g, per vertex, is the stretch of
     the trajectories' local motion (|S - I| of F = R S, smoothed by L) over
@@ -491,7 +513,8 @@ class DetailTrack:
         guide = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
         landing = np.einsum("pij,pj->pi", rot, s * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
-        x = p + guide[:, None] * (pull - expected) + landing
+        x = p + unfold(self.start, self.faces, p,
+                       guide[:, None] * (pull - expected) + landing)
         if (self.topology is not None
                 and material_topology(self.inb.levelset(s)) == self.topology):
             x = self._hold_volumes(x, s)
