@@ -22,8 +22,11 @@ before contact (`contact_metrics.contact_frame` on the frames' own surfaces), an
 of them ship the artist's mesh (its vertex count, and its UVs: keyframe A is given a UV
 map here, its vertices' x and y); then the same before parts come within two cells
 (``stats["topology"]``, where the bake's tracked frames end), the template pieces' largest
-volume drift since frame 1 on those frames (``stats["volumes"]``), and frame 2 against
-frame 1, the keyframe: two-way distance max (h) and volume step.
+volume drift since frame 1 on those frames (``stats["volumes"]``), the motion a frame
+(the tracked template's largest vertex move from frame 2 to 3, in h), and the frame after
+each keyframe but the last against the keyframe's frame: two-way distance max (h) and
+volume step. ``--slow K`` puts the keyframes K times as many frames apart, for the issue's
+"slow motion" (under 0.5 h a frame).
 """
 
 from __future__ import annotations
@@ -161,15 +164,17 @@ def print_rod(fig: dict) -> None:
               f"   {r['keys_max']:17.2f}  {r['keys_volume']:.3f}")
 
 
-def contact_figures(name: str, resolution: int = 48) -> dict:
-    """Case ``name`` baked with a UV map on keyframe A: frames before contact, and how many
-    of them ship the artist's mesh."""
+def contact_figures(name: str, resolution: int = 48, slow: int = 1) -> dict:
+    """Case ``name`` baked with a UV map on keyframe A, its keyframes ``slow`` times as many
+    frames apart: frames before contact, how many of them ship the artist's mesh, and the
+    frame after each keyframe but the last against that keyframe's frame."""
     import bench_contact
     import contact_metrics as cm
     from contact_cases import make_contact_case
 
     case = make_contact_case(name, bench_contact.MESH_NODES)
-    kfs = bench_contact.keyframes(case)
+    kfs = [Keyframe(k.vertices, k.faces, 1 + slow * (k.frame - 1), k.name, k.attributes)
+           for k in bench_contact.keyframes(case)]
     first = kfs[0]
     kfs[0] = Keyframe(first.vertices, first.faces, first.frame, first.name,
                       with_uvs(first.vertices, MeshAttributes.from_triangles(first.faces)))
@@ -183,17 +188,21 @@ def contact_figures(name: str, resolution: int = 48) -> dict:
     topology, volumes = anim.stats["topology"], anim.stats["volumes"]
     near = next((i for i, t in enumerate(topology) if tuple(t) != tuple(topology[0])),
                 len(topology))
-    first, second = meshes[0], meshes[1]
-    step = keyframe_distance(second["vertices"], second["triangles"], first["vertices"],
-                             first["triangles"], h)
+    after = []
+    for k in kfs[:-1]:
+        i = int(np.flatnonzero(anim.frames == k.frame)[0])
+        a, b = meshes[i], meshes[i + 1]
+        step = keyframe_distance(b["vertices"], b["triangles"], a["vertices"], a["triangles"], h)
+        after.append((step["keyframe_max"],
+                      abs(mesh_volume(b["vertices"], b["triangles"])
+                          / mesh_volume(a["vertices"], a["triangles"]) - 1.0)))
+    motion = np.linalg.norm(anim.vertices[2] - anim.vertices[1], axis=1).max() / h
     return dict(case=name, output=anim.stats.get("output"), frames=len(meshes), contact=contact,
                 before=before, artist=sum(m["artist"] for m in meshes[:before]),
                 artist_all=sum(m["artist"] for m in meshes), near=near,
                 artist_near=sum(m["artist"] for m in meshes[:near]),
                 drift=max(np.abs(v / volumes[0] - 1.0).max() for v in volumes[:near]),
-                step_max=step["keyframe_max"],
-                step_volume=abs(mesh_volume(second["vertices"], second["triangles"])
-                                / mesh_volume(first["vertices"], first["triangles"]) - 1.0))
+                motion=motion, after=after)
 
 
 def main() -> None:
@@ -201,19 +210,21 @@ def main() -> None:
     ap.add_argument("--rods", type=float, nargs="*", default=[2.5, 2.0, 1.5])
     ap.add_argument("--cases", nargs="*", default=["merge", "unequal-merge", "splash", "drop"])
     ap.add_argument("--resolution", type=int, default=48)
+    ap.add_argument("--slow", type=int, default=1,
+                    help="the contact cases' keyframes this many times as many frames apart")
     args = ap.parse_args()
     for t in args.rods:
         print_rod(rod_figures(t, args.resolution))
     if args.cases:
         print("case           ships          frames  contact  before  artist before  artist all"
-              "  within 2 h  artist before  drift %  frame 2: max h  volume %")
+              "  within 2 h  artist before  drift %  motion h  after each keyframe: max h, "
+              "volume %")
     for name in args.cases:
-        c = contact_figures(name, args.resolution)
+        c = contact_figures(name, args.resolution, args.slow)
+        after = "; ".join(f"{m:.2f}, {100 * v:.2f}" for m, v in c["after"])
         print(f"{c['case']:14s} {c['output']:14s} {c['frames']:6d}  {str(c['contact']):7s} "
               f"{c['before']:6d}  {c['artist']:13d}  {c['artist_all']:10d}  {c['near']:10d}  "
-              f"{c['artist_near']:13d}  {100 * c['drift']:7.2f}  {c['step_max']:14.2f}  "
-              f"{100 * c['step_volume']:8.2f}")
-
+              f"{c['artist_near']:13d}  {100 * c['drift']:7.2f}  {c['motion']:8.2f}  {after}")
 
 if __name__ == "__main__":
     main()

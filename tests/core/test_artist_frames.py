@@ -103,6 +103,20 @@ def test_marching_cubes_keyframes_are_tracked_until_parts_near(marching_cubes_me
         assert flipped_fraction(an.vertices[0], v, an.faces) == 0.0
 
 
+def test_the_frame_after_a_keyframe_moves_from_it_as_its_paths_do(marching_cubes_merge):
+    """The keyframes' offsets trade places from rest, so frame 2 is off keyframe A by
+    about the motion of a frame (here under half a cell), not by that plus a 16th of the
+    way to B's landing points."""
+    from keyframe_implicit.core.surface.quality import keyframe_distance
+
+    an = marching_cubes_merge
+    h = an.grid.spacing
+    step = keyframe_distance(an.vertices[1], an.faces, an.vertices[0], an.faces, h)
+    motion = np.linalg.norm(an.vertices[2] - an.vertices[1], axis=1).max() / h
+    assert motion < 0.5
+    assert step["keyframe_max"] <= motion + 0.05
+
+
 @pytest.fixture(scope="module")
 def rod_sequence():
     """The 2-cell rod of `test_thin_rod_turning_rigidly_stays_the_artists_mesh` baked as a

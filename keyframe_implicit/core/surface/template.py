@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..base.progress import Reporter
-from ..base.sampling import central_differences, sample, sample_with_gradient
+from ..base.sampling import central_differences, sample, sample_with_gradient, smoothstep
 from .extract import (closed_pieces, extract_surface, material_topology, mesh_area, mesh_pieces,
                       piece_centroids, piece_volumes)
 from .quality import turned_faces
@@ -377,15 +377,17 @@ class DetailTrack:
     (`surface_filter`), u(s) = L[P_s(p(s)) - p(s)] that smooth pull and R(s)
     the local rotation of the trajectories (`local_rotations`),
 
-        x(s) = p(s) + g (u(s) - R(s) [(1 - s) c_A + s R(1)^T u(1)])
-               + s R(s) R(1)^T (x(1) - p(1)),
+        x(s) = p(s) + g (u(s) - R(s) [(1 - w) c_A + w R(1)^T u(1)])
+               + w R(s) R(1)^T (x(1) - p(1)),
 
     where c_A = u(0) is the smooth offset between the artist's mesh and its own
     grid surface (so x(0) = V0) and x(1) = C_B(p(1) + u(1)), the closest point on
     keyframe B's own triangles. The zero set steers the mesh by what its pull adds
     to the keyframes' own offsets carried along; detail under a cell travels with
-    the locally rigid motion. With g = 1 this is p(s) + u(s) - (1 - s) R c_A +
-    s R R(1)^T c_B, c_B = x(1) - p(1) - u(1). x(0) is returned exactly as given. Faces
+    the locally rigid motion. With g = 1 this is p(s) + u(s) - (1 - w) R c_A +
+    w R R(1)^T c_B, c_B = x(1) - p(1) - u(1). The offsets trade places with
+    w = `smoothstep`(s), which leaves both keyframes at rest: the frame after a
+    keyframe moves from it as its paths do. x(0) is returned exactly as given. Faces
     the offsets would turn over move with their paths instead (`unfold`).
 
     The zero set guides, it does not constrain: g, per vertex, is the stretch of
@@ -508,10 +510,11 @@ class DetailTrack:
         p = self.inb.trajectory(v0, s)
         _, pull, err = self._pull(p, s)
         rot, stretch = local_motion(self.inb, v0, s)
-        expected = np.einsum("pij,pj->pi", rot, (1.0 - s) * self.offset_a + s * self.pull_b)
+        w = float(smoothstep(s))
+        expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + w * self.pull_b)
         strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
         guide = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
-        landing = np.einsum("pij,pj->pi", rot, s * (self.offset_b + self.pull_b))
+        landing = np.einsum("pij,pj->pi", rot, w * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
         x = p + unfold(self.start, self.faces, p,
                        guide[:, None] * (pull - expected) + landing)
