@@ -117,6 +117,34 @@ def test_the_frame_after_a_keyframe_moves_from_it_as_its_paths_do(marching_cubes
     assert step["keyframe_max"] <= motion + 0.05
 
 
+def test_paths_that_end_deep_inside_b_land_late():
+    """An unequal merge whose big ball's facing side ends some 10 cells inside the merged
+    ball: its closest points on B are that far from where its paths end. The frames before
+    contact keep to the paths (within 1.5 cells at a quarter of the way; closing that gap
+    as the offsets trade places moved them 1.85 cells there)."""
+    from keyframe_implicit.core import inbetween
+    from keyframe_implicit.core.base.grid import Grid
+    from keyframe_implicit.core.surface.extract import extract_surface
+    from keyframe_implicit.core.surface.template import DetailTrack
+    from keyframe_implicit.shapes import sphere_sdf
+
+    grid = Grid(np.full(3, -0.7), 1.4 / 48, (49,) * 3)
+    x = grid.points()
+    big, small = (np.array([-0.3, 0.0, 0.0]), 0.3), (np.array([0.4, 0.0, 0.0]), 0.2)
+    phi_a = np.minimum(sphere_sdf(x, *big), sphere_sdf(x, *small))
+    phi_b = sphere_sdf(x, (0, 0, 0), (0.3 ** 3 + 0.2 ** 3) ** (1 / 3))
+    cross = np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]])
+    fa = np.vstack([big[0] + 0.15 * cross, small[0] + 0.1 * cross])
+    fb = np.vstack([(-0.05, 0, 0) + 0.15 * cross, (0.15, 0, 0) + 0.1 * cross])
+    inb = inbetween(phi_a, phi_b, grid, fa, fb)
+    va, ta = extract_surface(phi_a, grid)
+    track = DetailTrack(inb, va, ta, extract_surface(phi_b, grid))
+    h = grid.spacing
+    assert (np.linalg.norm(track.end - inb.trajectory(va, 1.0), axis=1) / h).max() > 8.0
+    off_path = np.linalg.norm(track(0.25)[0] - inb.trajectory(va, 0.25), axis=1) / h
+    assert off_path.max() < 1.5
+
+
 @pytest.fixture(scope="module")
 def rod_sequence():
     """The 2-cell rod of `test_thin_rod_turning_rigidly_stays_the_artists_mesh` baked as a

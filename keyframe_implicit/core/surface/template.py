@@ -360,6 +360,10 @@ def unfold(start: np.ndarray, faces: np.ndarray, points: np.ndarray, offset: np.
     return offset
 
 
+#: Of the gap from a path's end to keyframe B's surface, the cells that close as the
+#: offsets trade places (`DetailTrack`); the rest closes late, with w^4.
+LANDING_CELLS = 1.0
+
 #: Stretch of the trajectories' local motion, |S - I|, from which the zero set steers the
 #: template fully (`DetailTrack`); a part moving more rigidly follows its paths.
 RIGID_STRAIN = 0.02
@@ -377,17 +381,20 @@ class DetailTrack:
     (`surface_filter`), u(s) = L[P_s(p(s)) - p(s)] that smooth pull and R(s)
     the local rotation of the trajectories (`local_rotations`),
 
-        x(s) = p(s) + g (u(s) - R(s) [(1 - w) c_A + w R(1)^T u(1)])
-               + w R(s) R(1)^T (x(1) - p(1)),
+        x(s) = p(s) + g (u(s) - R(s) [(1 - w) c_A + W R(1)^T u(1)])
+               + W R(s) R(1)^T (x(1) - p(1)),
 
     where c_A = u(0) is the smooth offset between the artist's mesh and its own
     grid surface (so x(0) = V0) and x(1) = C_B(p(1) + u(1)), the closest point on
     keyframe B's own triangles. The zero set steers the mesh by what its pull adds
     to the keyframes' own offsets carried along; detail under a cell travels with
     the locally rigid motion. With g = 1 this is p(s) + u(s) - (1 - w) R c_A +
-    w R R(1)^T c_B, c_B = x(1) - p(1) - u(1). The offsets trade places with
+    W R R(1)^T c_B, c_B = x(1) - p(1) - u(1). The offsets trade places with
     w = `smoothstep`(s), which leaves both keyframes at rest: the frame after a
-    keyframe moves from it as its paths do. x(0) is returned exactly as given. Faces
+    keyframe moves from it as its paths do. W = a w + (1 - a) w^4 lands late what a
+    path misses B by beyond `LANDING_CELLS` (a, per vertex, that share of its gap
+    |x(1) - p(1)|, smoothed by L): material a merge encloses ends cells deep inside B,
+    and keeps to its paths until the parts meet. x(0) is returned exactly as given. Faces
     the offsets would turn over move with their paths instead (`unfold`).
 
     The zero set guides, it does not constrain: g, per vertex, is the stretch of
@@ -454,6 +461,8 @@ class DetailTrack:
         rot_b = local_rotations(inb, v0, 1.0)
         self.offset_b = np.einsum("pji,pj->pi", rot_b, self.end - pulled)
         self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
+        gap = np.linalg.norm(self.end - p1, axis=1) / inb.grid.spacing
+        self.near = self.smooth(np.minimum(1.0, LANDING_CELLS / np.maximum(gap, 1e-12)))  # a
 
     def _volume_ends(self, v0: np.ndarray, landed: np.ndarray,
                      end_mesh: tuple[ArrayLike, ArrayLike]) -> tuple[tuple, np.ndarray]:
@@ -511,10 +520,11 @@ class DetailTrack:
         _, pull, err = self._pull(p, s)
         rot, stretch = local_motion(self.inb, v0, s)
         w = float(smoothstep(s))
-        expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + w * self.pull_b)
+        lands = (self.near * w + (1.0 - self.near) * w ** 4)[:, None]
+        expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + lands * self.pull_b)
         strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
         guide = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
-        landing = np.einsum("pij,pj->pi", rot, w * (self.offset_b + self.pull_b))
+        landing = np.einsum("pij,pj->pi", rot, lands * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
         x = p + unfold(self.start, self.faces, p,
                        guide[:, None] * (pull - expected) + landing)
