@@ -70,24 +70,31 @@ def test_a_merge_ships_the_artists_mesh_on_every_frame_before_contact(merge_bake
         assert count != len(kfs[0].vertices)
 
 
-@pytest.fixture(scope="module")
-def marching_cubes_merge():
-    """An unequal merge whose keyframes are marching-cubes meshes (slivers a small fraction
-    of a cell high, as a sculpt's remesh leaves), baked at 32 as a mesh sequence."""
+def marching_cubes_balls(radii, centres, ends, resolution):
+    """Balls of ``radii`` at x = ``centres`` that merge into one ball of their volume, their
+    centres going to x = ``ends``, feature points on a cross about each; the keyframes are
+    marching-cubes meshes (slivers a small fraction of a cell high, as a sculpt's remesh
+    leaves), baked as a mesh sequence on frames 1 and 17."""
     from keyframe_implicit.core.base.grid import Grid
     from keyframe_implicit.core.surface.extract import extract_surface
     from keyframe_implicit.shapes import sphere_sdf
 
     grid = Grid(np.full(3, -1.0), 2.0 / 96, (97,) * 3)
     x = grid.points()
-    big, small = (np.array([-0.35, 0.0, 0.0]), 0.3), (np.array([0.4, 0.0, 0.0]), 0.2)
-    a = extract_surface(np.minimum(sphere_sdf(x, *big), sphere_sdf(x, *small)), grid)
-    b = extract_surface(sphere_sdf(x, (0, 0, 0), (0.3 ** 3 + 0.2 ** 3) ** (1 / 3)), grid)
+    at = [np.array([c, 0.0, 0.0]) for c in centres]
+    a = extract_surface(np.minimum(*(sphere_sdf(x, c, r) for c, r in zip(at, radii))), grid)
+    b = extract_surface(sphere_sdf(x, (0, 0, 0), np.cbrt(np.sum(np.power(radii, 3)))), grid)
     cross = np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]])
-    fa = np.vstack([big[0] + 0.15 * cross, small[0] + 0.1 * cross])
-    fb = np.vstack([(-0.1, 0, 0) + 0.15 * cross, (0.15, 0, 0) + 0.1 * cross])
+    fa = np.vstack([c + 0.5 * r * cross for c, r in zip(at, radii)])
+    fb = np.vstack([[e, 0, 0] + 0.5 * r * cross for e, r in zip(ends, radii)])
     return animate([Keyframe(*a, 1, "balls"), Keyframe(*b, 17, "ball")], [(fa, fb)],
-                   resolution=32, output="mesh_sequence")
+                   resolution=resolution, output="mesh_sequence")
+
+
+@pytest.fixture(scope="module")
+def marching_cubes_merge():
+    """Two equal balls, at 48."""
+    return marching_cubes_balls((0.3, 0.3), (-0.4, 0.4), (-0.15, 0.15), 48)
 
 
 def test_marching_cubes_keyframes_are_tracked_until_parts_near(marching_cubes_merge):
@@ -103,13 +110,25 @@ def test_marching_cubes_keyframes_are_tracked_until_parts_near(marching_cubes_me
         assert flipped_fraction(an.vertices[0], v, an.faces) == 0.0
 
 
-def test_the_frame_after_a_keyframe_moves_from_it_as_its_paths_do(marching_cubes_merge):
-    """The keyframes' offsets trade places from rest, so frame 2 is off keyframe A by
-    about the motion of a frame (here under half a cell), not by that plus a 16th of the
-    way to B's landing points."""
-    from keyframe_implicit.core.surface.quality import keyframe_distance
+def test_tracked_frames_keep_to_their_own_surfaces_as_parts_approach(marching_cubes_merge):
+    """The zero set steers the whole of a ball that deforms anywhere: steered only where its
+    paths stretch (the side facing the other ball), each ball drew a lip there from frame 4,
+    over a cell off the frame's own surface by frame 6."""
+    from keyframe_implicit.core.surface.quality import mesh_distance
 
     an = marching_cubes_merge
+    h = an.grid.spacing
+    for i in range(an.stats["tracked_frames"]):
+        assert mesh_distance(an.vertices[i], *an.surfaces[i]).max() < 0.5 * h
+
+
+def test_the_frame_after_a_keyframe_moves_from_it_as_its_paths_do():
+    """The keyframes' offsets trade places from rest, so frame 2 of an unequal merge (at
+    32) is off keyframe A by about the motion of a frame (here under half a cell), not by
+    that plus a 16th of the way to B's landing points."""
+    from keyframe_implicit.core.surface.quality import keyframe_distance
+
+    an = marching_cubes_balls((0.3, 0.2), (-0.35, 0.4), (-0.1, 0.15), 32)
     h = an.grid.spacing
     step = keyframe_distance(an.vertices[1], an.faces, an.vertices[0], an.faces, h)
     motion = np.linalg.norm(an.vertices[2] - an.vertices[1], axis=1).max() / h

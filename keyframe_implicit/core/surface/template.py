@@ -397,14 +397,15 @@ class DetailTrack:
     and keeps to its paths until the parts meet. x(0) is returned exactly as given. Faces
     the offsets would turn over move with their paths instead (`unfold`).
 
-    The zero set guides, it does not constrain: g, per vertex, is the stretch of
-    the trajectories' local motion (|S - I| of F = R S, smoothed by L) over
-    `RIGID_STRAIN`, at most 1. Where the material moves rigidly its paths carry
-    the artist's mesh exactly, while the zero set of a part only a few cells
+    The zero set guides, it does not constrain: g, per piece of the mesh, is the
+    largest stretch of the trajectories' local motion over its vertices (|S - I| of
+    F = R S, smoothed by L) over `RIGID_STRAIN`, at most 1. A piece that moves
+    rigidly follows its paths exactly, while the zero set of a part only a few cells
     thick wobbles with the grid as the part turns (a rod 2 cells thick loses a
-    fifth of its volume to it, and a different fifth at every angle); where it
-    deforms, the zero set steers as it always did. ``guides`` keeps, per time s,
-    the largest g.
+    fifth of its volume to it, and a different fifth at every angle); a piece that
+    deforms anywhere is steered everywhere: a g varying across a piece creases it
+    where the pull is large (merging balls drew lips facing each other). ``guides``
+    keeps, per time s, the largest g.
 
     The offsets c_A and c_B are shape, not volume: each closed piece of the mesh is then
     scaled about its centre of volume by the one factor that gives it the volume
@@ -523,7 +524,10 @@ class DetailTrack:
         lands = (self.near * w + (1.0 - self.near) * w ** 4)[:, None]
         expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + lands * self.pull_b)
         strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
-        guide = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
+        count, label = self.pieces
+        most = np.zeros(count)
+        np.maximum.at(most, label, np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0))
+        guide = most[label]
         landing = np.einsum("pij,pj->pi", rot, lands * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
         x = p + unfold(self.start, self.faces, p,
