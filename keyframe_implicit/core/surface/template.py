@@ -360,8 +360,8 @@ def unfold(start: np.ndarray, faces: np.ndarray, points: np.ndarray, offset: np.
     return offset
 
 
-#: Of the gap from a path's end to keyframe B's surface, the cells that close as the
-#: offsets trade places (`DetailTrack`); the rest closes late, with w^4.
+#: The gap from a path's end to keyframe B's surface, in cells, up to which it closes as
+#: the offsets trade places (`DetailTrack`); from twice it, late, with w^4.
 LANDING_CELLS = 1.0
 
 #: Stretch of the trajectories' local motion, |S - I|, from which the zero set steers the
@@ -391,9 +391,9 @@ class DetailTrack:
     the locally rigid motion. With g = 1 this is p(s) + u(s) - (1 - w) R c_A +
     W R R(1)^T c_B, c_B = x(1) - p(1) - u(1). The offsets trade places with
     w = `smoothstep`(s), which leaves both keyframes at rest: the frame after a
-    keyframe moves from it as its paths do. W = a w + (1 - a) w^4 lands late what a
-    path misses B by beyond `LANDING_CELLS` (a, per vertex, that share of its gap
-    |x(1) - p(1)|, smoothed by L): material a merge encloses ends cells deep inside B,
+    keyframe moves from it as its paths do. W = a w + (1 - a) w^4 lands late a path
+    that misses B by more than `LANDING_CELLS` (a, per vertex, from 1 at that gap
+    |x(1) - p(1)| to 0 at twice it): material a merge encloses ends cells deep inside B,
     and keeps to its paths until the parts meet. x(0) is returned exactly as given. Faces
     the offsets would turn over move with their paths instead (`unfold`).
 
@@ -463,7 +463,7 @@ class DetailTrack:
         self.offset_b = np.einsum("pji,pj->pi", rot_b, self.end - pulled)
         self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
         gap = np.linalg.norm(self.end - p1, axis=1) / inb.grid.spacing
-        self.near = self.smooth(np.minimum(1.0, LANDING_CELLS / np.maximum(gap, 1e-12)))  # a
+        self.near = 1.0 - smoothstep(gap / LANDING_CELLS - 1.0)  # a
 
     def _volume_ends(self, v0: np.ndarray, landed: np.ndarray,
                      end_mesh: tuple[ArrayLike, ArrayLike]) -> tuple[tuple, np.ndarray]:
