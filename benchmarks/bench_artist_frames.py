@@ -20,9 +20,9 @@ then the same distance and volume of the tracked template (the shape keys).
 Contact cases (`contact_cases.py`, baked as `bench_contact.py` bakes them): the frames
 before contact (`contact_metrics.contact_frame` on the frames' own surfaces), and how many
 of them ship the artist's mesh (its vertex count, and its UVs: keyframe A is given a UV
-map here, its vertices' x and y); then the same before parts come within two cells
-(``stats["topology"]``, where the bake's tracked frames end), the template pieces' largest
-volume drift since frame 1 on those frames (``stats["volumes"]``), the motion a frame
+map here, its vertices' x and y); the frame the material's topology changes
+(``stats["topology"]``, where the bake's tracked frames end at the latest), the template
+pieces' largest volume drift since frame 1 before it (``stats["volumes"]``), the motion a frame
 (the tracked template's largest vertex move from frame 2 to 3, in h), and the frame after
 each keyframe but the last against the keyframe's frame: two-way distance max (h) and
 volume step. ``--slow K`` puts the keyframes K times as many frames apart, for the issue's
@@ -200,7 +200,6 @@ def contact_figures(name: str, resolution: int = 48, slow: int = 1) -> dict:
     return dict(case=name, output=anim.stats.get("output"), frames=len(meshes), contact=contact,
                 before=before, artist=sum(m["artist"] for m in meshes[:before]),
                 artist_all=sum(m["artist"] for m in meshes), near=near,
-                artist_near=sum(m["artist"] for m in meshes[:near]),
                 drift=max(np.abs(v / volumes[0] - 1.0).max() for v in volumes[:near]),
                 motion=motion, after=after)
 
@@ -217,14 +216,13 @@ def main() -> None:
         print_rod(rod_figures(t, args.resolution))
     if args.cases:
         print("case           ships          frames  contact  before  artist before  artist all"
-              "  within 2 h  artist before  drift %  motion h  after each keyframe: max h, "
-              "volume %")
+              "  topology at  drift %  motion h  after each keyframe: max h, volume %")
     for name in args.cases:
         c = contact_figures(name, args.resolution, args.slow)
         after = "; ".join(f"{m:.2f}, {100 * v:.2f}" for m, v in c["after"])
         print(f"{c['case']:14s} {c['output']:14s} {c['frames']:6d}  {str(c['contact']):7s} "
-              f"{c['before']:6d}  {c['artist']:13d}  {c['artist_all']:10d}  {c['near']:10d}  "
-              f"{c['artist_near']:13d}  {100 * c['drift']:7.2f}  {c['motion']:8.2f}  {after}")
+              f"{c['before']:6d}  {c['artist']:13d}  {c['artist_all']:10d}  {c['near']:11d}  "
+              f"{100 * c['drift']:7.2f}  {c['motion']:8.2f}  {after}")
 
 if __name__ == "__main__":
     main()

@@ -710,10 +710,9 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
     (n,) bool over ``frames``.
 
-    One mesh follows the shape until its topology changes (parts meet or part, a hole
-    opens, or parts come within two cells of meeting, where the frame's own surface starts
-    to bridge the gap: ``topology``, `extract.material_topology`, differs from the first
-    frame's), so those frames keep the artist's vertices, UVs and
+    One mesh follows the shape until its topology changes (parts meet or part, or a hole
+    opens: ``topology``, `extract.material_topology`, differs from the first frame's), so
+    those frames keep the artist's vertices, UVs and
     sharp edges; from the change on, each frame is its own surface, and the switch comes
     where the viewer expects a change. A frame before the change on which the template
     stretches or folds ends the tracked frames there instead: its figures (``shape_keys``,

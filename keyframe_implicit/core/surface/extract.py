@@ -114,24 +114,19 @@ def mesh_area(vertices: ArrayLike, faces: ArrayLike, per_face: bool = False) -> 
     return ar if per_face else float(ar.sum())
 
 
-def material_topology(levelset: ArrayLike) -> tuple[int, int, int]:
-    """(pieces, Euler characteristic, pieces more than two cells apart) of the material
-    ``levelset < 0``, its nodes joined across faces, edges and corners
-    (`skimage.measure.euler_number`): what changes when parts meet or part, or a hole opens
-    or closes, and, a frame or two ahead, when parts come within two cells of each other
-    (the material grown by one node joins them), where a frame's own surface starts to
-    reach across the gap. Read off the nodes rather than off the surface marching cubes
-    makes, whose corners where the field is exactly zero on a node can leave a closed
-    part with an odd V - E + F."""
+def material_topology(levelset: ArrayLike) -> tuple[int, int]:
+    """(pieces, Euler characteristic) of the material ``levelset < 0``, its nodes joined
+    across faces, edges and corners (`skimage.measure.euler_number`): what changes when
+    parts meet or part, or a hole opens or closes. Read off the nodes rather than off the
+    surface marching cubes makes, whose corners where the field is exactly zero on a node
+    can leave a closed part with an odd V - E + F."""
     from scipy import ndimage
     from skimage.measure import euler_number
 
     inside = np.asarray(levelset) < 0
     full = np.ones((3,) * inside.ndim, dtype=bool)
-    grown = ndimage.binary_dilation(inside, structure=full)
     return (int(ndimage.label(inside, structure=full)[1]),
-            int(euler_number(inside, connectivity=3)),
-            int(ndimage.label(grown, structure=full)[1]))
+            int(euler_number(inside, connectivity=3)))
 
 
 def loop_area(loop: ArrayLike) -> float:

@@ -412,8 +412,8 @@ class DetailTrack:
     (1 - s) V_A + s V_B, V_A its own on A and V_B its share of the pieces of keyframe B
     it lands on (`_volume_ends`), where the mesh's pieces are the material's parts (as
     many) and as long as the in-between's material keeps the topology it has at s = 0
-    (`extract.material_topology`: no parts within two cells of meeting); once parts meet,
-    the pieces' volumes are no longer their own. Without it
+    (`extract.material_topology`); once parts meet, the pieces' volumes are no longer
+    their own. Without it
     the offsets add volume the in-betweens already hold: c_A is measured from keyframe
     A's grid surface, which holds the grid's volume where the in-betweens hold the
     mesh's, and c_B, ramped in from s = 0, holds what the smooth pull leaves short of B's
