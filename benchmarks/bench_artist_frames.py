@@ -24,8 +24,8 @@ map here, its vertices' x and y); the frame the material's topology changes
 (``stats["topology"]``, where the bake's tracked frames end at the latest), the template
 pieces' largest volume drift since frame 1 before it (``stats["volumes"]``), the motion a frame
 (the tracked template's largest vertex move from frame 2 to 3, in h), and the frame after
-each keyframe but the last against the keyframe's frame: two-way distance max (h) and
-volume step. ``--slow K`` puts the keyframes K times as many frames apart, for the issue's
+each keyframe but the last, and the frame before each but the first, against the
+keyframe's frame: two-way distance max (h) and volume step. ``--slow K`` puts the keyframes K times as many frames apart, for the issue's
 "slow motion" (under 0.5 h a frame).
 """
 
@@ -167,7 +167,7 @@ def print_rod(fig: dict) -> None:
 def contact_figures(name: str, resolution: int = 48, slow: int = 1) -> dict:
     """Case ``name`` baked with a UV map on keyframe A, its keyframes ``slow`` times as many
     frames apart: frames before contact, how many of them ship the artist's mesh, and the
-    frame after each keyframe but the last against that keyframe's frame."""
+    frames either side of each keyframe against that keyframe's frame."""
     import bench_contact
     import contact_metrics as cm
     from contact_cases import make_contact_case
@@ -188,20 +188,19 @@ def contact_figures(name: str, resolution: int = 48, slow: int = 1) -> dict:
     topology, volumes = anim.stats["topology"], anim.stats["volumes"]
     near = next((i for i, t in enumerate(topology) if tuple(t) != tuple(topology[0])),
                 len(topology))
-    after = []
-    for k in kfs[:-1]:
-        i = int(np.flatnonzero(anim.frames == k.frame)[0])
-        a, b = meshes[i], meshes[i + 1]
-        step = keyframe_distance(b["vertices"], b["triangles"], a["vertices"], a["triangles"], h)
-        after.append((step["keyframe_max"],
-                      abs(mesh_volume(b["vertices"], b["triangles"])
-                          / mesh_volume(a["vertices"], a["triangles"]) - 1.0)))
+    def step(i, j):  # frame j against keyframe frame i: two-way max (h), volume step
+        a, b = meshes[i], meshes[j]
+        d = keyframe_distance(b["vertices"], b["triangles"], a["vertices"], a["triangles"], h)
+        return (d["keyframe_max"], abs(mesh_volume(b["vertices"], b["triangles"])
+                                       / mesh_volume(a["vertices"], a["triangles"]) - 1.0))
+    keys = [int(np.flatnonzero(anim.frames == k.frame)[0]) for k in kfs]
+    after, before_key = [step(i, i + 1) for i in keys[:-1]], [step(i, i - 1) for i in keys[1:]]
     motion = np.linalg.norm(anim.vertices[2] - anim.vertices[1], axis=1).max() / h
     return dict(case=name, output=anim.stats.get("output"), frames=len(meshes), contact=contact,
                 before=before, artist=sum(m["artist"] for m in meshes[:before]),
                 artist_all=sum(m["artist"] for m in meshes), near=near,
                 drift=max(np.abs(v / volumes[0] - 1.0).max() for v in volumes[:near]),
-                motion=motion, after=after)
+                motion=motion, after=after, before_key=before_key)
 
 
 def main() -> None:
@@ -216,10 +215,11 @@ def main() -> None:
         print_rod(rod_figures(t, args.resolution))
     if args.cases:
         print("case           ships          frames  contact  before  artist before  artist all"
-              "  topology at  drift %  motion h  after each keyframe: max h, volume %")
+              "  topology at  drift %  motion h  after each keyframe: max h, volume % | before")
     for name in args.cases:
         c = contact_figures(name, args.resolution, args.slow)
         after = "; ".join(f"{m:.2f}, {100 * v:.2f}" for m, v in c["after"])
+        after += " | before: " + "; ".join(f"{m:.2f}, {100 * v:.2f}" for m, v in c["before_key"])
         print(f"{c['case']:14s} {c['output']:14s} {c['frames']:6d}  {str(c['contact']):7s} "
               f"{c['before']:6d}  {c['artist']:13d}  {c['artist_all']:10d}  {c['near']:11d}  "
               f"{100 * c['drift']:7.2f}  {c['motion']:8.2f}  {after}")
