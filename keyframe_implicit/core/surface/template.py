@@ -463,7 +463,7 @@ class DetailTrack:
         self.offset_b = np.einsum("pji,pj->pi", rot_b, self.end - pulled)
         self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
         gap = np.linalg.norm(self.end - p1, axis=1) / inb.grid.spacing
-        self.near = 1.0 - smoothstep(gap / LANDING_CELLS - 1.0)  # a
+        self.early = 1.0 - smoothstep(gap / LANDING_CELLS - 1.0)  # a: its share landing with w
 
     def _volume_ends(self, v0: np.ndarray, landed: np.ndarray,
                      end_mesh: tuple[ArrayLike, ArrayLike]) -> tuple[tuple, np.ndarray]:
@@ -521,7 +521,7 @@ class DetailTrack:
         _, pull, err = self._pull(p, s)
         rot, stretch = local_motion(self.inb, v0, s)
         w = float(smoothstep(s))
-        lands = (self.near * w + (1.0 - self.near) * w ** 4)[:, None]
+        lands = (self.early * w + (1.0 - self.early) * w ** 4)[:, None]  # W
         expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + lands * self.pull_b)
         strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
         count, label = self.pieces
