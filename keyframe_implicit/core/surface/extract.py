@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 __all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "piece_volumes", "mesh_pieces",
-           "closed_pieces", "piece_centroids", "mesh_area", "loop_area", "material_topology"]
+           "closed_pieces", "mesh_area", "loop_area", "material_topology"]
 
 
 def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
@@ -67,32 +67,12 @@ def piece_volumes(vertices: ArrayLike, faces: ArrayLike,
     """The volume of each connected piece of a mesh, about the piece's own centroid (so an
     open piece's moves with it), in the order of its lowest vertex. ``pieces``: the mesh's
     `mesh_pieces`, when known."""
-    count, piece, volume = _piece_tetrahedra(vertices, faces, pieces)[:3]
-    return np.bincount(piece, volume, count)
-
-
-def piece_centroids(vertices: ArrayLike, faces: ArrayLike,
-                    pieces: tuple[int, np.ndarray] | None = None) -> np.ndarray:
-    """(pieces, 3): the centre of volume of each closed piece of a mesh, in the order of
-    `piece_volumes` (of a piece with no volume, its vertices' mean)."""
-    count, piece, volume, centre, mean = _piece_tetrahedra(vertices, faces, pieces)
-    total = np.bincount(piece, volume, count)
-    moment = np.stack([np.bincount(piece, volume * centre[:, a], count) for a in range(3)], 1)
-    some = total != 0
-    return np.where(some[:, None], moment / np.where(some, total, 1.0)[:, None], mean)
-
-
-def _piece_tetrahedra(vertices, faces, pieces):
-    """(count, piece, volume, centre, mean): each face's piece, the signed volume and
-    centroid of the tetrahedron it spans with its piece's vertex mean, and those means."""
     v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
     count, label = mesh_pieces(f, len(v)) if pieces is None else pieces
-    mean = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
-            / np.maximum(np.bincount(label, minlength=count), 1)[:, None])
-    piece = label[f[:, 0]]
-    a, b, c = (v[f[:, i]] - mean[piece] for i in range(3))
-    volume = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
-    return count, piece, volume, mean[piece] + (a + b + c) / 4.0, mean
+    centre = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
+              / np.bincount(label, minlength=count)[:, None])
+    a, b, c = (v[f[:, i]] - centre[label[f[:, 0]]] for i in range(3))
+    return np.bincount(label[f[:, 0]], np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, count)
 
 
 @overload

@@ -30,7 +30,7 @@ import numpy as np
 from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient, smoothstep
 from .extract import (closed_pieces, extract_surface, material_topology, mesh_area, mesh_pieces,
-                      piece_centroids, piece_volumes)
+                      piece_volumes)
 from .quality import turned_faces
 
 if TYPE_CHECKING:
@@ -364,6 +364,11 @@ def unfold(start: np.ndarray, faces: np.ndarray, points: np.ndarray, offset: np.
 #: the offsets trade places (`DetailTrack`); from twice it, late, with w^4.
 LANDING_CELLS = 1.0
 
+#: The most `DetailTrack._hold_volumes` scales a piece by: the offsets change a piece's
+#: volume by a few per cent, and a larger factor means its volume is not its own (a mesh
+#: wound inward in places, whose signed volume nearly cancels).
+HOLD_SCALE = 0.03
+
 #: Stretch of the trajectories' local motion, |S - I|, from which the zero set steers the
 #: template fully (`DetailTrack`); a part moving more rigidly follows its paths.
 RIGID_STRAIN = 0.02
@@ -408,7 +413,7 @@ class DetailTrack:
     keeps, per time s, the largest g.
 
     The offsets c_A and c_B are shape, not volume: each closed piece of the mesh is then
-    scaled about its centre of volume by the one factor that gives it the volume
+    scaled about its vertices' mean by the one factor that gives it the volume
     (1 - s) V_A + s V_B, V_A its own on A and V_B its share of the pieces of keyframe B
     it lands on (`_volume_ends`), where the mesh's pieces are the material's parts (as
     many) and as long as the in-between's material keeps the topology it has at s = 0
@@ -490,17 +495,20 @@ class DetailTrack:
         return (on_a, on_b), held
 
     def _hold_volumes(self, x: np.ndarray, s: float) -> np.ndarray:
-        """``x`` with each held piece scaled about its centre of volume by the one factor
-        that gives it the volume (1 - s) V_A + s V_B. A scaling is affine, so no face turns
-        over, however thin: an offset along vertex normals turns a marching-cubes mesh's
-        slivers, whose corners' normals differ by more than the slivers are high."""
+        """``x`` with each held piece scaled about its vertices' mean by the one factor
+        that gives it the volume (1 - s) V_A + s V_B, within `HOLD_SCALE`. A scaling is
+        affine, so no face turns over, however thin: an offset along vertex normals turns
+        a marching-cubes mesh's slivers, whose corners' normals differ by more than the
+        slivers are high."""
         count, label = self.pieces
         target = (1.0 - s) * self.volumes[0] + s * self.volumes[1]
         volume = piece_volumes(x, self.faces, self.pieces)
-        centre = piece_centroids(x, self.faces, self.pieces)
         ok = self.held & (volume > 0) & (target > 0)
-        scale = np.cbrt(np.divide(target, volume, out=np.ones(count), where=ok))
-        return centre[label] + scale[label][:, None] * (x - centre[label])
+        scale = np.clip(np.cbrt(np.divide(target, volume, out=np.ones(count), where=ok)),
+                        1.0 - HOLD_SCALE, 1.0 + HOLD_SCALE)
+        centre = (np.stack([np.bincount(label, x[:, a], count) for a in range(3)], axis=1)
+                  / np.bincount(label, minlength=count)[:, None])[label]
+        return centre + scale[label][:, None] * (x - centre)
 
     def _pull(self, p: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """p + L[P_s(p) - p], L[P_s(p) - p] and |phi| at P_s(p)."""
