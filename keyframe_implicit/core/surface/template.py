@@ -402,13 +402,13 @@ class DetailTrack:
     and keeps to its paths until the parts meet. x(0) is returned exactly as given. Faces
     the offsets would turn over move with their paths instead (`unfold`).
 
-    The zero set guides, it does not constrain: g, per piece of the mesh, is the
-    largest stretch of the trajectories' local motion over its vertices (|S - I| of
-    F = R S, smoothed by L) over `RIGID_STRAIN`, at most 1. A piece that moves
+    The zero set guides, it does not constrain: g, per piece of the mesh, is the mean
+    over its vertices of the stretch of the trajectories' local motion (|S - I| of
+    F = R S, smoothed by L) over `RIGID_STRAIN`, each at most 1. A piece that moves
     rigidly follows its paths exactly, while the zero set of a part only a few cells
     thick wobbles with the grid as the part turns (a rod 2 cells thick loses a
     fifth of its volume to it, and a different fifth at every angle); a piece that
-    deforms anywhere is steered everywhere: a g varying across a piece creases it
+    deforms is steered as much everywhere: a g varying across a piece creases it
     where the pull is large (merging balls drew lips facing each other). ``guides``
     keeps, per time s, the largest g.
 
@@ -533,9 +533,8 @@ class DetailTrack:
         expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + lands * self.pull_b)
         strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
         count, label = self.pieces
-        most = np.zeros(count)
-        np.maximum.at(most, label, np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0))
-        guide = most[label]
+        guide = (np.bincount(label, np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0), count)
+                 / np.bincount(label, minlength=count))[label]
         landing = np.einsum("pij,pj->pi", rot, lands * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
         x = p + unfold(self.start, self.faces, p,
