@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
 __all__ = ["extract_surface", "enclosed_volume", "mesh_volume", "piece_volumes", "mesh_pieces",
-           "closed_pieces", "mesh_area", "loop_area", "material_topology"]
+           "closed_pieces", "piece_means", "mesh_area", "loop_area", "material_topology"]
 
 
 def mesh_volume(vertices: ArrayLike, faces: ArrayLike) -> float:
@@ -68,11 +68,22 @@ def piece_volumes(vertices: ArrayLike, faces: ArrayLike,
     open piece's moves with it), in the order of its lowest vertex. ``pieces``: the mesh's
     `mesh_pieces`, when known."""
     v, f = np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
-    count, label = mesh_pieces(f, len(v)) if pieces is None else pieces
-    centre = (np.stack([np.bincount(label, v[:, a], count) for a in range(3)], axis=1)
-              / np.bincount(label, minlength=count)[:, None])
+    count, label = pieces = mesh_pieces(f, len(v)) if pieces is None else pieces
+    centre = piece_means(v, pieces)
     a, b, c = (v[f[:, i]] - centre[label[f[:, 0]]] for i in range(3))
     return np.bincount(label[f[:, 0]], np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0, count)
+
+
+def piece_means(values: ArrayLike, pieces: tuple[int, np.ndarray]) -> np.ndarray:
+    """The mean over each piece's vertices (``pieces``: `mesh_pieces`) of per-vertex
+    ``values`` (V,) or (V, k): (count,) or (count, k)."""
+    count, label = pieces
+    v = np.asarray(values, dtype=float)
+    size = np.bincount(label, minlength=count)
+    if v.ndim == 1:
+        return np.bincount(label, v, count) / size
+    return np.stack([np.bincount(label, v[:, a], count) for a in range(v.shape[1])],
+                    axis=1) / size[:, None]
 
 
 @overload

@@ -30,7 +30,7 @@ import numpy as np
 from ..base.progress import Reporter
 from ..base.sampling import central_differences, sample, sample_with_gradient, smoothstep
 from .extract import (closed_pieces, extract_surface, material_topology, mesh_area, mesh_pieces,
-                      piece_volumes)
+                      piece_means, piece_volumes)
 from .quality import turned_faces
 
 if TYPE_CHECKING:
@@ -506,8 +506,7 @@ class DetailTrack:
         ok = self.held & (volume > 0) & (target > 0)
         scale = np.clip(np.cbrt(np.divide(target, volume, out=np.ones(count), where=ok)),
                         1.0 - HOLD_SCALE, 1.0 + HOLD_SCALE)
-        centre = (np.stack([np.bincount(label, x[:, a], count) for a in range(3)], axis=1)
-                  / np.bincount(label, minlength=count)[:, None])[label]
+        centre = piece_means(x, self.pieces)[label]
         return centre + scale[label][:, None] * (x - centre)
 
     def _pull(self, p: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -532,9 +531,8 @@ class DetailTrack:
         lands = (self.early * w + (1.0 - self.early) * w ** 4)[:, None]  # W
         expected = np.einsum("pij,pj->pi", rot, (1.0 - w) * self.offset_a + lands * self.pull_b)
         strain = np.linalg.norm(stretch - np.eye(3), axis=(1, 2))
-        count, label = self.pieces
-        guide = (np.bincount(label, np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0), count)
-                 / np.bincount(label, minlength=count))[label]
+        stretch_share = np.clip(self.smooth(strain) / RIGID_STRAIN, 0.0, 1.0)
+        guide = piece_means(stretch_share, self.pieces)[self.pieces[1]]
         landing = np.einsum("pij,pj->pi", rot, lands * (self.offset_b + self.pull_b))
         self.guides[s] = float(guide.max(initial=0.0))
         x = p + unfold(self.start, self.faces, p,
