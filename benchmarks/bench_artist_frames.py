@@ -4,8 +4,9 @@
 
 Every figure reads the output a default bake through `core.animate` ships
 (``stats["output"]``), frame by frame, as `meshdata.output_mesh` lays it out for Blender.
-A frame "ships the artist's mesh" when its mesh has the first keyframe's polygons (the
-same vertex count and corners) and its UVs.
+A frame "ships the artist's mesh" when its mesh has a keyframe's polygons (the same
+vertex count and corners) and its UVs: the first keyframe's, or after a topology change
+a later keyframe's, tracked from its frame on.
 
 Rods: a box 30 h long and ``t`` h thick (2.5, 2 and 1.5) with a UV map turns a quarter
 turn rigidly about the z axis through its centre while its centre moves on a straight line
@@ -19,8 +20,8 @@ then the same distance and volume of the tracked template (the shape keys).
 
 Contact cases (`contact_cases.py`, baked as `bench_contact.py` bakes them): the frames
 before contact (`contact_metrics.contact_frame` on the frames' own surfaces), and how many
-of them ship the artist's mesh (its vertex count, and its UVs: keyframe A is given a UV
-map here, its vertices' x and y); the frame the material's topology changes
+of them ship the artist's mesh (its vertex count, and its UVs: every keyframe is given a
+UV map here, its vertices' x and y), and of all frames; the frame the material's topology changes
 (``stats["topology"]``, where the bake's tracked frames end at the latest), the template
 pieces' largest volume drift since frame 1 before it (``stats["volumes"]``), the motion a frame
 (the tracked template's largest vertex move from frame 2 to 3, in h), and the frame after
@@ -92,7 +93,8 @@ def rod_keyframes(thickness: float) -> tuple[list[Keyframe], list[tuple]]:
 
 def shipped(anim) -> list[dict]:
     """Per frame, the mesh the bake ships: ``vertices``, ``triangles``, ``artist`` (its
-    polygons are the first keyframe's and carry its UVs)."""
+    polygons are a keyframe's, with that keyframe's UVs: the first keyframe's on the
+    template, a later one's from that keyframe on)."""
     kind = anim.stats.get("output", SHAPE_KEYS)
     keys = anim.output_mesh(SHAPE_KEYS).polygons
     if kind == SHAPE_KEYS:
@@ -103,6 +105,8 @@ def shipped(anim) -> list[dict]:
     poly, which = data.polygons, data.face_ints[FRAME_ATTRIBUTE]
     tri_loops, tri_poly = poly.triangle_loops()
     uv = next(iter(poly.uv_maps.values()), None)
+    artists = [keys] + [anim.keyframe_attributes[int(f)] for f in anim.frames
+                        if int(f) in anim.keyframe_attributes][1:]
     out, first = [], 0
     for i in range(len(anim.frames)):
         mine = np.flatnonzero(which == i)
@@ -110,13 +114,15 @@ def shipped(anim) -> list[dict]:
                                 for p in mine])
         last = int(poly.loop_vertices[loops].max()) + 1
         corners = poly.loop_vertices[loops] - first
-        same = (last - first == len(anim.vertices[0]) and len(mine) == keys.n_polygons
-                and np.array_equal(corners, keys.loop_vertices))
-        has_uv = (same and uv is not None and bool(keys.uv_maps)
-                  and np.allclose(uv[loops], next(iter(keys.uv_maps.values())), atol=1e-5))
+
+        def is_mesh_of(attrs):  # these polygons, with those UVs
+            return (len(mine) == attrs.n_polygons
+                    and np.array_equal(corners, attrs.loop_vertices) and uv is not None
+                    and bool(attrs.uv_maps)
+                    and np.allclose(uv[loops], next(iter(attrs.uv_maps.values())), atol=1e-5))
         tris = poly.loop_vertices[tri_loops[np.isin(tri_poly, mine)]] - first
         out.append(dict(vertices=np.asarray(data.positions[first:last], float), triangles=tris,
-                        artist=bool(same and has_uv)))
+                        artist=any(is_mesh_of(a) for a in artists)))
         first = last
     return out
 
@@ -175,9 +181,8 @@ def contact_figures(name: str, resolution: int = 48, slow: int = 1) -> dict:
     case = make_contact_case(name, bench_contact.MESH_NODES)
     kfs = [Keyframe(k.vertices, k.faces, 1 + slow * (k.frame - 1), k.name, k.attributes)
            for k in bench_contact.keyframes(case)]
-    first = kfs[0]
-    kfs[0] = Keyframe(first.vertices, first.faces, first.frame, first.name,
-                      with_uvs(first.vertices, MeshAttributes.from_triangles(first.faces)))
+    kfs = [Keyframe(k.vertices, k.faces, k.frame, k.name,
+                    with_uvs(k.vertices, MeshAttributes.from_triangles(k.faces))) for k in kfs]
     anim = animate(kfs, case.features, resolution=resolution, processes=1)
     h = anim.grid.spacing
     own = [(np.asarray(v, float), np.asarray(f, np.int64)) for v, f in anim.surfaces]

@@ -70,6 +70,68 @@ def test_a_merge_ships_the_artists_mesh_on_every_frame_before_contact(merge_bake
         assert count != len(kfs[0].vertices)
 
 
+@pytest.fixture(scope="module")
+def merge_then_move():
+    """The two UV spheres meet in the first segment and end as one UV sphere of their
+    volume on frame 13, which then moves 0.3 along x by frame 19."""
+    v, polys, attrs = uv_sphere(8, 0.3)
+    n = len(v)
+    from keyframe_implicit.core.surface.attributes import concatenate
+    both = Keyframe(np.vstack([v - [0.45, 0, 0], v + [0.45, 0, 0]]),
+                    list(polys) + [np.asarray(p) + n for p in polys], 1, "balls",
+                    concatenate([attrs, attrs], [n, n]))
+    big, big_polys, big_attrs = uv_sphere(10, 0.3 * 2 ** (1 / 3))
+    shift = np.array([0.3, 0.0, 0.0])
+    dirs = np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]]) * 0.15
+    fa = np.vstack([dirs - [0.45, 0, 0], dirs + [0.45, 0, 0]])
+    fb = np.vstack([dirs - [0.16, 0, 0], dirs + [0.16, 0, 0]])
+    kfs = [both, Keyframe(big, big_polys, 13, "ball", big_attrs),
+           Keyframe(big + shift, big_polys, 19, "ball moved", big_attrs)]
+    return kfs, shift, animate(kfs, [(fa, fb), (fb, fb + shift)], resolution=24,
+                               output="mesh_sequence")
+
+
+def test_a_later_segment_that_keeps_its_topology_ships_its_keyframes_mesh(merge_then_move):
+    """After the balls meet, the frames of the next segment are keyframe 2's own mesh,
+    tracked (`animation.Restart`): its polygons and UVs, carried rigidly along x, not
+    each frame's own surface."""
+    kfs, shift, an = merge_then_move
+    big = kfs[1]
+    attrs = big.attributes
+    rows = np.flatnonzero((an.frames > 13) & (an.frames < 19))
+    frames = frame_meshes(an.output_mesh(MESH_SEQUENCE), len(an.frames))
+    assert not an.tracked[rows[0] - 1] and len(rows) == 5
+    assert [r.ships for r in an.restarts] == [5]
+    h = an.grid.spacing
+    travel = [0.0]
+    for i in rows:
+        count, loops, uv = frames[i]
+        assert count == len(big.vertices)
+        np.testing.assert_array_equal(loops, attrs.loop_vertices)
+        np.testing.assert_array_equal(uv, attrs.uv_maps["UVMap"])
+        moved = an.sequence_frame(i)[0] - big.vertices
+        assert np.abs(moved - moved.mean(axis=0)).max() < 0.5 * h
+        assert np.abs(moved.mean(axis=0)[1:]).max() < 0.1 * h
+        travel.append(moved.mean(axis=0)[0])
+        assert np.abs(an.sequence_velocity(i).mean(axis=0)[1:]).max() < 0.1 * h
+    assert np.all(np.diff(travel + [shift[0]]) > 0)
+    assert an.stats["tracked_frames"] == int(an.tracked.sum()) + 5
+    assert "the artist's mesh of frame 13 up to frame 18" in an.stats["output_reason"]
+
+
+def test_a_template_that_follows_on_leaves_the_restarts_unshipped():
+    """A ball moving through three keyframes keeps the first keyframe's mesh throughout:
+    the restart of the second segment, from keyframe 2's mesh, ships on no frame."""
+    v, polys, attrs = uv_sphere(8, 0.3)
+    step = np.array([0.2, 0.0, 0.0])
+    kfs = [Keyframe(v + k * step, polys, 1 + 4 * k, f"ball {k}", attrs) for k in range(3)]
+    pts = np.array([[0, 0, 0], [0, 0.15, 0], [0, 0, 0.15], [0.15, 0, 0]])
+    an = animate(kfs, [(pts, pts + step), (pts + step, pts + 2 * step)], resolution=20,
+                 output="mesh_sequence")
+    assert len(an.restarts) == 1 and an.restarts[0].ships == 0
+    assert an.stats["tracked_frames"] == len(an.frames) - 2  # but for keyframes 2 and 3
+
+
 def marching_cubes_balls(radii, centres, ends, resolution):
     """Balls of ``radii`` at x = ``centres`` that merge into one ball of their volume, their
     centres going to x = ``ends``, feature points on a cross about each; the keyframes are

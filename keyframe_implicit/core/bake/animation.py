@@ -12,7 +12,36 @@ if TYPE_CHECKING:
     from ..surface.attributes import MeshAttributes
     from ..surface.meshdata import MeshData
 
-__all__ = ["Animation"]
+__all__ = ["Animation", "Restart"]
+
+
+@dataclass
+class Restart:
+    """Keyframe k's own mesh (k >= 1) tracked through segment k (`template.DetailTrack`),
+    for the mesh sequence once the first keyframe's mesh has stopped following: after a
+    topology change, a later segment that keeps its topology shows the artist's mesh
+    again, from the keyframe that begins it.
+
+    row : the row of keyframe k's frame in `Animation.frames`.
+    faces : (F, 3) keyframe k's triangles.
+    vertices : (m + 1, V, 3) float32, keyframe k's mesh on its own frame, then the tracked
+        mesh on each frame of the segment (rows ``row`` to ``row + m``).
+    figures : per row as ``vertices``, what `chain.tracked_frames` judges the tracked mesh
+        by (``steered``, ``shape_keys``, ``volumes``, ``flipped``).
+    ships : how many frames after ``row`` the mesh sequence ships it on (`pipeline`
+        decides: a keyframe's own frame shows its mesh, so at most m - 1).
+    """
+
+    row: int
+    faces: np.ndarray
+    vertices: np.ndarray
+    figures: list[dict[str, Any]]
+    ships: int = 0
+
+    def at(self, i: int) -> int | None:
+        """The index into ``vertices`` of row i where it ships, else None."""
+        j = i - self.row
+        return j if 0 < j <= self.ships else None
 
 
 @dataclass
@@ -48,6 +77,8 @@ class Animation:
     tracked : (n,) bool array, optional: the frames the mesh sequence ships as the tracked
         template rather than as their own surface (`chain.tracked_frames`: those before a
         topology change); None or empty, none.
+    restarts : `Restart` per later segment whose keyframe's own mesh was tracked (the mesh
+        sequence with the artist's meshes); it ships where its ``ships`` says.
     """
 
     frames: np.ndarray
@@ -62,37 +93,59 @@ class Animation:
     keyframe_attributes: dict[int, MeshAttributes] = field(default_factory=dict)
     prepared: dict[str, MeshData] = field(default_factory=dict)
     tracked: np.ndarray | None = None
+    restarts: list[Restart] = field(default_factory=list)
 
     def is_tracked(self, i: int) -> bool:
         """Whether the mesh sequence ships frame i as the tracked template (``tracked``)."""
         return self.tracked is not None and i < len(self.tracked) and bool(self.tracked[i])
 
-    def sequence_frame(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices, triangles) the mesh sequence ships on frame i: the tracked template
-        where ``tracked`` says so, else the frame's own surface."""
+    def _artist_track(self, i: int) -> tuple[np.ndarray, int, np.ndarray,
+                                              MeshAttributes | None] | None:
+        """(vertices per row from the keyframe the mesh starts on, frame i's index there,
+        its triangles and attributes) where the mesh sequence ships an artist's mesh
+        tracked on frame i: the template (`is_tracked`) or a `Restart`; else None."""
         if self.is_tracked(i):
-            return self.vertices[i], self.faces
-        return self.surfaces[i]
+            return self.vertices, i, self.faces, self.attributes
+        for r in self.restarts:
+            j = r.at(i)
+            if j is not None:
+                attrs = self.keyframe_attributes.get(int(self.frames[r.row]))
+                return r.vertices, j, r.faces, attrs
+        return None
+
+    def sequence_frame(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, triangles) the mesh sequence ships on frame i: an artist's mesh
+        tracked (the template where ``tracked`` says so, a `Restart` where it ships),
+        else the frame's own surface."""
+        track = self._artist_track(i)
+        if track is None:
+            return self.surfaces[i]
+        vertices, j, faces, _ = track
+        return vertices[j], faces
 
     def sequence_attributes(self, i: int) -> MeshAttributes | None:
         """`attributes.MeshAttributes` of `sequence_frame` (i), or None: on a tracked frame
-        the artist's own (``attributes``), as on the shape keys, its custom normals turned
-        with their polygons (`_turned_normals`); else its surface's (`surface_attributes`)."""
-        if not self.is_tracked(i):
+        the artist's own (``attributes``, or a `Restart`'s keyframe's), as on the shape
+        keys, its custom normals turned with their polygons (`_turned_normals`); else its
+        surface's (`surface_attributes`)."""
+        track = self._artist_track(i)
+        if track is None:
             return self.surface_attributes(i)
-        attrs = self.attributes
-        if attrs is None or attrs.custom_normals is None or i == 0:
+        vertices, j, _, attrs = track
+        if attrs is None or attrs.custom_normals is None or j == 0:
             return attrs
-        return replace(attrs, custom_normals=_turned_normals(attrs, self.vertices[0],
-                                                             self.vertices[i]))
+        return replace(attrs, custom_normals=_turned_normals(attrs, vertices[0], vertices[j]))
 
     def sequence_velocity(self, i: int) -> np.ndarray:
         """Velocity of `sequence_frame` (i)'s vertices, world units per frame: a tracked
-        frame's from its neighbours' template (one-sided at the ends), else ``velocities``."""
-        if not self.is_tracked(i):
+        frame's from its neighbours' on the same mesh (one-sided at the ends), else
+        ``velocities``."""
+        track = self._artist_track(i)
+        if track is None:
             return self.velocities[i]
-        lo, hi = max(i - 1, 0), min(i + 1, len(self.vertices) - 1)
-        step = np.asarray(self.vertices[hi], float) - np.asarray(self.vertices[lo], float)
+        vertices, j = track[:2]
+        lo, hi = max(j - 1, 0), min(j + 1, len(vertices) - 1)
+        step = np.asarray(vertices[hi], float) - np.asarray(vertices[lo], float)
         return (step / max(hi - lo, 1)).astype(np.float32)
 
     def output_mesh(self, kind: str) -> MeshData:

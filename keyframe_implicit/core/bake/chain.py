@@ -14,7 +14,9 @@ kept across the whole animation.
 Where topology changes one template cannot stay clean (docs/method.md, section
 9), so every frame's own surface is also kept, with the velocity of its
 vertices for motion blur, and both outputs are measured against it
-(`quality`): the caller picks the output.
+(`quality`): the caller picks the output. With the artist's meshes, each later
+segment also tracks its first keyframe's own mesh (`_restart`): once the template has
+stopped following, the mesh sequence shows the artist's mesh again from that keyframe.
 
 Each segment alone would move every point on a path of its own, its velocity
 jumping at every inner keyframe (the thesis's limitation, its chapter 5). By
@@ -40,7 +42,7 @@ from ..fields.measure import read_mesh
 from ..surface.quality import LIMITS, failures, flipped_fraction, frame_quality
 from ..surface.extract import extract_surface, material_topology, piece_volumes
 from ..surface.options import SurfaceOptions
-from .animation import Animation
+from .animation import Animation, Restart
 from .options import BakeOptions, refuse_unread
 from .cache import content_key, grid_key
 from .steps import FRAMES, MAPS, PATHS
@@ -471,7 +473,9 @@ class Kept:
     """What `animate_chain` keeps of every frame's record (`_frames`): the template's
     vertices, the per-frame figures in ``stats`` (the quality figures of the outputs
     measured, `SurfaceOptions.measured`), and as ``outputs`` (`SurfaceOptions`) asks the
-    level sets, the frames' own meshes and their velocities."""
+    level sets, the frames' own meshes and their velocities, and the restarts' figures
+    (`_restart_figures`, by row; on a keyframe's row, those of the restart that begins
+    there come with its segment's first frame's record)."""
 
     def __init__(self, frames: np.ndarray, template_shape: tuple[int, ...],
                  outputs: SurfaceOptions) -> None:
@@ -483,6 +487,8 @@ class Kept:
             self.stats["quality"] = {name: [] for name in outputs.measured}
             self.stats["topology"], self.stats["volumes"], self.stats["flipped"] = [], [], []
         self.meshes, self.velocities, self.fields = [], [], []
+        self.restarts: dict[int, dict[str, Any]] = {}
+        self.restart_keys: dict[int, dict[str, Any]] = {}
 
     def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
         """Keep ``records``, those of the frames at ``rows`` of ``frames``, in order."""
@@ -505,13 +511,34 @@ class Kept:
             if outputs.keeps_meshes:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
+            if "restart" in rec:
+                self.restarts[row] = rec["restart"]
+            if "restart_key" in rec:
+                self.restart_keys[row - 1] = rec["restart_key"]
 
     def animation(self, chain: Chain, seconds: float) -> Animation:
         """The `animation.Animation` of the frames kept, ``chain`` (`Chain`) their source."""
         verts, faces = self.vertices[-1], chain.template[1]
         self.stats.update(seconds=seconds, vertices=int(len(verts)), faces=int(len(faces)))
         return Animation(self.frames, self.vertices, faces, chain.inbetweens.grid, self.stats,
-                         self.meshes, self.velocities, self.fields)
+                         self.meshes, self.velocities, self.fields,
+                         restarts=self._restarts(chain))
+
+    def _restarts(self, chain: Chain) -> list[Restart]:
+        """One `animation.Restart` per segment whose frames carry restart figures: rows
+        from its first keyframe's to its last's."""
+        rows = [int(f - self.frames[0]) for f in chain.frames]
+        out = []
+        for k in range(1, len(rows) - 1):
+            span = range(rows[k] + 1, rows[k + 1] + 1)
+            if rows[k] not in self.restart_keys or not all(r in self.restarts for r in span):
+                continue
+            figures = [self.restart_keys[rows[k]]] + [self.restarts[r] for r in span]
+            tris = np.asarray(chain.keyframe_meshes[k][1], dtype=np.int64).reshape(-1, 3)
+            out.append(Restart(rows[k], tris, np.stack([f["vertices"] for f in figures]),
+                               [{n: v for n, v in f.items() if n != "vertices"}
+                                for f in figures]))
+        return out
 
 
 #: Segments whose maps are solved together when there is a helper
@@ -596,14 +623,16 @@ def _frames(inb, frames, segment, rep=None, alongside=0):
     rep = rep or Reporter()
     (f0, f1), k = segment.ends, segment.k
     _hold_volumes(inb, segment.volumes)  # a helper's in-betweens are made from the recipe
-    detail = _detail(inb, segment)
+    detail, restart = _detail(inb, segment), _restart(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
         s = (f - f0) / float(f1 - f0)
         with rep.step(FRAMES, i, len(frames)) as part:
             rec = _template(inb, segment, detail, s)
             part.check()
-            rec.update(_frame_outputs(inb, s, segment, rec["vertices"], part))
+            rec.update(_frame_outputs(inb, s, segment, rec["vertices"], part, restart))
+            if restart is not None and f == f0 + 1:  # the restart's figures on keyframe k
+                rec["restart_key"] = _restart_figures(inb, 0.0, restart, part)
         records.append(rec)
         rep.elsewhere(FRAMES, (i + 1) * alongside // len(frames) - i * alongside // len(frames))
     return records
@@ -624,6 +653,33 @@ def _detail(inb, segment):
     return DetailTrack(inb, *segment.template, meshes[segment.k + 1])
 
 
+def _restart(inb, segment):
+    """The `template.DetailTrack` of keyframe k's own mesh through segment k (k >= 1), where
+    the mesh sequence is made: it ships where the first keyframe's mesh has stopped
+    following (`animation.Restart`); else None."""
+    meshes = segment.keyframe_meshes
+    if meshes is None or segment.k == 0 or not segment.outputs.keeps_meshes:
+        return None
+    v, tris = meshes[segment.k]
+    return DetailTrack(inb, np.asarray(v, dtype=float).reshape(-1, 3),
+                       np.asarray(tris, dtype=np.int64).reshape(-1, 3), meshes[segment.k + 1])
+
+
+def _restart_figures(inb, s, restart, rep, levelset=None, surface=None):
+    """The restart's vertices at time ``s`` (float32) and what `tracked_frames` judges them
+    by: how far the zero set steered them, their quality figures (as the shape keys'),
+    their pieces' volumes and their area turned over. ``levelset`` and ``surface`` are
+    the frame's, made here when not given."""
+    ls = inb.levelset(s) if levelset is None else levelset
+    surf = extract_surface(ls, inb.grid) if surface is None else surface
+    q, _ = restart(s)
+    rep.check()
+    faces = restart.faces
+    return dict(vertices=q.astype(np.float32), steered=restart.guides.get(float(s), 0.0),
+                shape_keys=frame_quality(ls, inb.grid, q, faces, surf),
+                volumes=piece_volumes(q, faces), flipped=flipped_fraction(restart.start, q, faces))
+
+
 def _template(inb, segment, detail, s):
     """The template at time ``s``: its ``vertices``, ``max_abs_phi``, the largest |phi|
     of their projection onto the level set, and ``steered``, how far the zero set steered
@@ -638,13 +694,14 @@ def _template(inb, segment, detail, s):
                 steered=detail.guides.get(float(s), 0.0))
 
 
-def _frame_outputs(inb, s, segment, p, rep):
+def _frame_outputs(inb, s, segment, p, rep, restart=None):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
     are ``p``: its level set, uncovered area, the quality figures of the outputs measured,
     its material's topology (`extract.material_topology`), the volumes of the template's
-    pieces and its area turned over (`tracked_frames`), own mesh and velocity. The
-    frame's own surface is made whenever a figure needs it; its mesh and velocities
-    only for the mesh sequence."""
+    pieces and its area turned over (`tracked_frames`), own mesh and velocity, and the
+    ``restart``'s figures (`_restart_figures`) when there is one. The frame's own surface
+    is made whenever a figure needs it; its mesh and velocities only for the mesh
+    sequence."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
     out = {}
     if outputs.levelsets:
@@ -671,6 +728,8 @@ def _frame_outputs(inb, s, segment, p, rep):
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
         out["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
         out["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
+    if restart is not None:
+        out["restart"] = _restart_figures(inb, s, restart, rep, ls, surf)
     return out
 
 

@@ -463,6 +463,7 @@ def finish_bake(plan: BakePlan, chain: Animation, t0: float, rep: Reporter) -> A
         if artist is not None and "mesh_sequence" in stats["quality"]:
             tracked = _sequence_tracked(stats, chain.frames, measured, keyframes,
                                         plan.options.surface.output == "auto")
+            _restarts_shipped(stats, chain.frames, chain.restarts, tracked)
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return dataclasses.replace(
@@ -596,6 +597,34 @@ def _sequence_tracked(stats, frames, measured, keyframes, auto):
         stats["output_reason"] = (stats["output_reason"].removesuffix(OWN_SURFACES)
                                   + f"; the artist's mesh up to frame {frames[reach - 1]}")
     return tracked
+
+
+def _restarts_shipped(stats, frames, restarts, tracked):
+    """Each `animation.Restart`'s ``ships``: where the template stopped following before
+    its segment, its keyframe's own mesh follows from that keyframe as long as
+    `chain.tracked_frames` allows (judged from the keyframe's frame, where it is the
+    mesh itself), but for the segment's last frame, the next keyframe's. Their
+    mesh-sequence figures become the restart's, ``stats["tracked_frames"]`` counts them
+    and the output's reason names them."""
+    quality = stats["quality"]
+    for r in restarts:
+        if tracked[r.row + 1]:
+            continue
+        figures = r.figures
+        rel = [dict(f["shape_keys"]) for f in figures]
+        topology = stats["topology"][r.row:r.row + len(figures)]
+        follows = tracked_frames(np.arange(len(figures)), rel, topology,
+                                 [f["steered"] for f in figures],
+                                 [f["volumes"] for f in figures],
+                                 [f["flipped"] for f in figures])
+        r.ships = min(int(np.count_nonzero(follows)) - 1, len(figures) - 2)
+        for j in range(1, r.ships + 1):
+            quality["mesh_sequence"][r.row + j] = rel[j]
+        stats["tracked_frames"] += r.ships
+        if r.ships > 0 and stats["output"] == "mesh_sequence":
+            stats["output_reason"] = (stats["output_reason"].removesuffix(OWN_SURFACES)
+                                      + f"; the artist's mesh of frame {frames[r.row]} up to "
+                                      f"frame {frames[r.row + r.ships]}")
 
 
 def _artist_template(keyframe, mesh, tracked_mesh):
