@@ -93,3 +93,44 @@ def test_mesh_sequence_in_betweens_get_uvs_and_materials(scene):
         assert span.max() < 0.5  # no triangle spans a seam (Suzanne's islands lie apart)
         assert set(np.unique(out["material"])) == {0, 1}
     assert tracked[0] and not tracked[-1] and tracked == sorted(tracked, reverse=True)
+
+
+def test_mesh_sequence_after_a_merge_shows_the_next_keyframes_mesh(scene, kfi):
+    """Two balls merge by frame 9 into the ball the artist modelled there (its own
+    material), which then moves to frame 15: the frames after frame 9 play that ball's
+    mesh tracked, its polygons, UVs and material, not each frame's own surface."""
+    kfi.add_sphere("Left", (-0.9, 0, 0), 0.6)
+    kfi.add_sphere("Right", (0.9, 0, 0), 0.6)
+    bpy.context.view_layer.objects.active = bpy.data.objects["Left"]
+    bpy.data.objects["Left"].select_set(True)
+    bpy.data.objects["Right"].select_set(True)
+    assert bpy.ops.object.join() == {"FINISHED"}
+    scene.frame_set(1)
+    assert bpy.ops.keyframe_implicit.add_keyframe() == {"FINISHED"}
+    blue = bpy.data.materials.new("Blue")
+    radius = 0.6 * 2 ** (1 / 3)
+    for name, x, frame in (("Ball", 0.0, 9), ("Ball Moved", 1.2, 15)):
+        ball = kfi.add_sphere(name, (x, 0, 0), radius)
+        ball.data.materials.append(blue)
+        scene.frame_set(frame)
+        assert bpy.ops.keyframe_implicit.add_keyframe() == {"FINISHED"}
+    cross = np.array([[0, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]]) * 0.3
+    pairs = [(c + [sx * 0.9, 0, 0], c + [sx * 0.32, 0, 0], 0) for c in cross for sx in (-1, 1)]
+    pairs += [(a, b, 1) for a, b in zip(kfi.sphere_points((0, 0, 0), radius),
+                                         kfi.sphere_points((1.2, 0, 0), radius))]
+    for a, b, seg in pairs:
+        assert bpy.ops.keyframe_implicit.add_feature_pair(
+            segment=seg, location_a=tuple(a), location_b=tuple(b)) == {"FINISHED"}
+    scene.keyframe_implicit.output_mode = "MESH_SEQUENCE"
+    assert bpy.ops.keyframe_implicit.bake(resolution=20) == {"FINISHED"}
+    obj = scene.keyframe_implicit.output_object
+    ball = sc.evaluated(bpy.data.objects["Ball"], 9)
+    shows_ball = []
+    for f in range(10, 15):
+        out = sc.evaluated(obj, f)
+        shows_ball.append(len(out["co"]) == len(ball["co"])
+                          and np.array_equal(out["lv"], ball["lv"]))
+        if shows_ball[-1]:
+            np.testing.assert_array_equal(out["uv"], ball["uv"])
+            assert {out["names"][i] for i in np.unique(out["material"])} == {"Blue"}
+    assert sum(shows_ball) >= 3 and shows_ball == sorted(shows_ball, reverse=True)
