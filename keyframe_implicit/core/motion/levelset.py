@@ -74,7 +74,7 @@ if TYPE_CHECKING:
 
     from .spline import Bend
 
-__all__ = ["Inbetween", "Recipe", "invert_map", "idw_resample", "map_agreement",
+__all__ = ["Inbetween", "Recipe", "SeenFromB", "invert_map", "idw_resample", "map_agreement",
            "back_map", "path_start_velocity"]
 
 _CACHED_FIELDS = 2  # in-between fields kept (each as large as the grid)
@@ -291,6 +291,11 @@ class Inbetween:
         """The map B -> A on the surface grid (None for the one-sided transport)."""
         return None if self.backward is None else self.backward.trajectories.mapped
 
+    def seen_from_b(self) -> SeenFromB | None:
+        """These in-betweens with time running from keyframe B back to A (`SeenFromB`), or
+        None for the one-sided transport, which has no paths of B's material."""
+        return None if self.backward is None else SeenFromB(self)
+
     def __reduce__(self) -> tuple:
         """Pickled as the inputs of `from_map` (maps, fields, options), which rebuilds it
         in the other process (`parallel.Helper`): trajectories and transports are not sent."""
@@ -312,8 +317,9 @@ class Inbetween:
             return self.phi_a.copy()
         if s == 1.0:
             return self.phi_b.copy()
-        if s in self._cache:
-            return self._cache[s]
+        key = round(s, 12)  # s and 1 - (1 - s) (`SeenFromB`) share a field
+        if key in self._cache:
+            return self._cache[key]
         t0 = time.perf_counter()
         if self.backward is None:
             field = (self._one_sided(s) if self.options.resample == "lookup"
@@ -327,7 +333,7 @@ class Inbetween:
         self.stats["levelset_calls"] += 1
         if len(self._cache) >= _CACHED_FIELDS:  # a frame asks for its field several times
             self._cache.pop(next(iter(self._cache)))
-        self._cache[s] = field
+        self._cache[key] = field
         return field
 
     def _banded(self, s):
@@ -508,6 +514,24 @@ class Inbetween:
         dist, idx = dist.reshape(len(p), k), idx.reshape(len(p), k)
         w = weight[idx] / (dist ** 2 + (0.5 * h) ** 2)
         return _affine_fit_at(p, pos[idx], vel[idx], w, h)
+
+
+class SeenFromB:
+    """An `Inbetween` seen from keyframe B: at time t the level set of s = 1 - t, and the
+    paths of B's material (the backward transport's, eq. 3.1 run from B). A template
+    tracked from B's own mesh reads these (`template.DetailTrack`), as one from A's reads
+    the `Inbetween` itself."""
+
+    def __init__(self, inbetween: Inbetween) -> None:
+        self.inbetween, self.grid = inbetween, inbetween.grid
+
+    def levelset(self, t: float) -> np.ndarray:
+        """The in-between level set at s = 1 - t."""
+        return self.inbetween.levelset(1.0 - float(t))
+
+    def trajectory(self, points: ArrayLike, t: float) -> np.ndarray:
+        """Positions at time t of points of keyframe B given at t = 0: (P, d) -> (P, d)."""
+        return self.inbetween.backward.trajectories(points, t)
 
 
 class _Paths:
