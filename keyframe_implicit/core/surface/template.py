@@ -369,6 +369,9 @@ LANDING_CELLS = 1.0
 #: wound inward in places, whose signed volume nearly cancels).
 HOLD_SCALE = 0.03
 
+#: The scale, in cells, under which `DetailTrack.ripple` counts a mesh's detail.
+RIPPLE_CELLS = 2.0
+
 #: Stretch of the trajectories' local motion, |S - I|, from which the zero set steers the
 #: template fully (`DetailTrack`); a part moving more rigidly follows its paths.
 RIGID_STRAIN = 0.02
@@ -469,6 +472,7 @@ class DetailTrack:
         self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
         gap = np.linalg.norm(self.end - p1, axis=1) / inb.grid.spacing
         self.early = 1.0 - smoothstep(gap / LANDING_CELLS - 1.0)  # a: its share landing with w
+        self._fine = None  # `ripple`'s filter, made when first asked for
 
     def _volume_ends(self, v0: np.ndarray, landed: np.ndarray,
                      end_mesh: tuple[ArrayLike, ArrayLike]) -> tuple[tuple, np.ndarray]:
@@ -514,6 +518,21 @@ class DetailTrack:
         q, err = project_to_zero_set(p, self.inb.levelset(s), self.inb.grid, self.steps)
         smooth = self.smooth(q - p)
         return p + smooth, smooth, err
+
+    def ripple(self, x: np.ndarray) -> float:
+        """How much finer detail the mesh at ``x`` has gained since its start, in cells
+        (`quality.ripple` under `RIPPLE_CELLS`).
+
+        Pulled onto the zero set of a grid field, a mesh finer than the grid picks up the
+        field's sub-cell kinks: rings where its surface crosses the grid's planes at a
+        grazing angle, which smooth shading shows, growing with the distance from the
+        keyframe."""
+        from .quality import ripple
+
+        if self._fine is None:
+            self._fine = surface_filter(self.start.astype(float),
+                                        RIPPLE_CELLS * self.inb.grid.spacing)
+        return ripple(self.start, x, self.faces, self._fine) / self.inb.grid.spacing
 
     def __call__(self, s: float) -> tuple[np.ndarray, np.ndarray]:
 
