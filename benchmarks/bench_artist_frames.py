@@ -5,8 +5,8 @@
 Every figure reads the output a default bake through `core.animate` ships
 (``stats["output"]``), frame by frame, as `meshdata.output_mesh` lays it out for Blender.
 A frame "ships the artist's mesh" when its mesh has a keyframe's polygons (the same
-vertex count and corners) and its UVs: the first keyframe's, or after a topology change
-a later keyframe's, tracked from its frame on.
+vertex count and corners) and its UVs: the first keyframe's, or where that no longer
+follows, a keyframe's own mesh tracked from its frame into a segment beside it.
 
 Rods: a box 30 h long and ``t`` h thick (2.5, 2 and 1.5) with a UV map turns a quarter
 turn rigidly about the z axis through its centre while its centre moves on a straight line
@@ -94,7 +94,7 @@ def rod_keyframes(thickness: float) -> tuple[list[Keyframe], list[tuple]]:
 def shipped(anim) -> list[dict]:
     """Per frame, the mesh the bake ships: ``vertices``, ``triangles``, ``artist`` (its
     polygons are a keyframe's, with that keyframe's UVs: the first keyframe's on the
-    template, a later one's from that keyframe on)."""
+    template, a keyframe's own beside its frame)."""
     kind = anim.stats.get("output", SHAPE_KEYS)
     keys = anim.output_mesh(SHAPE_KEYS).polygons
     if kind == SHAPE_KEYS:

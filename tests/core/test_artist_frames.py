@@ -93,15 +93,16 @@ def merge_then_move():
 
 def test_a_later_segment_that_keeps_its_topology_ships_its_keyframes_mesh(merge_then_move):
     """After the balls meet, the frames of the next segment are keyframe 2's own mesh,
-    tracked (`animation.Restart`): its polygons and UVs, carried rigidly along x, not
-    each frame's own surface."""
+    tracked (`animation.KeyframeTrack`): its polygons and UVs, carried rigidly along x,
+    not each frame's own surface."""
     kfs, shift, an = merge_then_move
     big = kfs[1]
     attrs = big.attributes
     rows = np.flatnonzero((an.frames > 13) & (an.frames < 19))
     frames = frame_meshes(an.output_mesh(MESH_SEQUENCE), len(an.frames))
     assert not an.tracked[rows[0] - 1] and len(rows) == 5
-    assert [r.ships for r in an.restarts] == [5]
+    forward = [t for t in an.keyframe_tracks if t.step > 0]
+    assert [t.ships for t in forward] == [5]
     h = an.grid.spacing
     travel = [0.0]
     for i in rows:
@@ -115,20 +116,21 @@ def test_a_later_segment_that_keeps_its_topology_ships_its_keyframes_mesh(merge_
         travel.append(moved.mean(axis=0)[0])
         assert np.abs(an.sequence_velocity(i).mean(axis=0)[1:]).max() < 0.1 * h
     assert np.all(np.diff(travel + [shift[0]]) > 0)
-    assert an.stats["tracked_frames"] == int(an.tracked.sum()) + 5
-    assert "the artist's mesh of frame 13 up to frame 18" in an.stats["output_reason"]
+    assert an.stats["keyframe_track_frames"] == sum(t.ships for t in an.keyframe_tracks)
+    artist = sum(an.sequence_frame(i)[1] is not an.surfaces[i][1] for i in range(len(an.frames)))
+    assert an.stats["output_reason"].endswith(f"the artist's mesh on {artist + 2} of 19 frames")
 
 
-def test_a_template_that_follows_on_leaves_the_restarts_unshipped():
+def test_a_template_that_follows_on_leaves_the_keyframe_tracks_unshipped():
     """A ball moving through three keyframes keeps the first keyframe's mesh throughout:
-    the restart of the second segment, from keyframe 2's mesh, ships on no frame."""
+    the keyframes' own meshes, tracked into the segments next to them, ship on no frame."""
     v, polys, attrs = uv_sphere(8, 0.3)
     step = np.array([0.2, 0.0, 0.0])
     kfs = [Keyframe(v + k * step, polys, 1 + 4 * k, f"ball {k}", attrs) for k in range(3)]
     pts = np.array([[0, 0, 0], [0, 0.15, 0], [0, 0, 0.15], [0.15, 0, 0]])
     an = animate(kfs, [(pts, pts + step), (pts + step, pts + 2 * step)], resolution=20,
                  output="mesh_sequence")
-    assert len(an.restarts) == 1 and an.restarts[0].ships == 0
+    assert len(an.keyframe_tracks) == 3 and not any(t.ships for t in an.keyframe_tracks)
     assert an.stats["tracked_frames"] == len(an.frames) - 2  # but for keyframes 2 and 3
 
 
@@ -375,3 +377,52 @@ def test_tracked_frames_turn_the_custom_normals_with_their_faces():
     assert an.sequence_attributes(0) is attrs
     np.testing.assert_allclose(an.sequence_attributes(1).custom_normals,
                                np.tile([[-0.6, 0.0, 0.8]], (24, 1)), atol=1e-6)
+
+
+def test_the_frames_before_a_keyframe_lead_into_its_own_mesh(marching_cubes_merge):
+    """Once the balls have met, the frames just before keyframe B are B's own mesh tracked
+    back along its paths (`animation.KeyframeTrack`, step -1), not each frame's own
+    surface, so nothing switches at B's frame; only as long as the tracked mesh gains no
+    ripple a render would show (`chain.TRACK_RIPPLE`: further back, 0.3 cells)."""
+    from keyframe_implicit.core.bake.chain import TRACK_RIPPLE
+    from keyframe_implicit.core.surface.quality import keyframe_distance
+
+    an = marching_cubes_merge
+    back = [t for t in an.keyframe_tracks if t.step < 0]
+    assert len(back) == 1 and back[0].ships >= 2
+    track, last = back[0], len(an.frames) - 1
+    key = an.surfaces[last]
+    assert track.key_row == last and len(track.vertices[-1]) == len(key[0])
+    for i in range(last - track.ships, last):
+        v, f = an.sequence_frame(i)
+        assert len(v) == len(key[0]) and np.array_equal(f, key[1])
+        assert track.figures[i - track.first_row]["ripple"] <= TRACK_RIPPLE
+        assert not an.is_tracked(i)
+    h = an.grid.spacing
+    before = keyframe_distance(*an.sequence_frame(last - 1), *key, h)
+    after_own = keyframe_distance(*an.surfaces[last - 1], *key, h)
+    assert before["keyframe_max"] < after_own["keyframe_max"]
+    step = an.sequence_velocity(last - 1)
+    moved = np.asarray(key[0], float) - np.asarray(an.sequence_frame(last - 2)[0], float)
+    np.testing.assert_allclose(step, moved / 2, atol=1e-6)
+
+
+def test_ripple_counts_rings_not_shape():
+    """`quality.ripple` under a two-cell filter sees rings of a cell and a half on a ball,
+    and hardly a change of its shape at the scale of the ball (stretched by a fifth):
+    what `template.DetailTrack.ripple` counts."""
+    from keyframe_implicit.core.base.grid import Grid
+    from keyframe_implicit.core.surface.extract import extract_surface
+    from keyframe_implicit.core.surface.quality import ripple
+    from keyframe_implicit.core.surface.template import surface_filter
+    from keyframe_implicit.shapes import sphere_sdf
+
+    grid = Grid(np.full(3, -1.0), 0.02, (101,) * 3)
+    v, f = extract_surface(sphere_sdf(grid.points(), (0, 0, 0), 0.6), grid)
+    h = 0.05  # the bake's cell: the mesh is finer, as an artist's is
+    smooth = surface_filter(v, 2.0 * h)
+    n = v / np.linalg.norm(v, axis=1, keepdims=True)
+    rings = v + 0.05 * h * np.sin(2 * np.pi * v[:, 2:] / (1.5 * h)) * n
+    assert ripple(v, rings, f, smooth) / h > 0.02
+    assert ripple(v, v * [1.2, 1.0, 1.0], f, smooth) / h < 0.002
+    assert ripple(v, v, f, smooth) == 0.0

@@ -139,7 +139,8 @@ def test_an_output_set_in_the_settings_is_the_only_one_made_and_measured(monkeyp
     """Auto makes both outputs and measures both; an output set in the settings makes that
     one alone, with the same figures, meshes and velocities as Auto's: shape keys neither
     the mesh sequence's figures nor the frames' velocities; a mesh sequence measures the
-    template too, which says on which frames it ships the artist's mesh."""
+    template too, which says on which frames it ships the artist's mesh, and the last
+    keyframe's own mesh tracked back on each frame (`chain._keyframe_tracks`)."""
     from keyframe_implicit.core.bake import chain
     from keyframe_implicit.core.motion.levelset import Inbetween
 
@@ -162,9 +163,9 @@ def test_an_output_set_in_the_settings_is_the_only_one_made_and_measured(monkeyp
         counts[output] = dict(calls)
     auto, keys, sequence = baked["auto"], baked["shape_keys"], baked["mesh_sequence"]
     frames = len(auto.frames)
-    assert counts == {"auto": {"quality": 2 * frames, "velocity": frames},
+    assert counts == {"auto": {"quality": 3 * frames, "velocity": frames},
                       "shape_keys": {"quality": frames, "velocity": 0},
-                      "mesh_sequence": {"quality": 2 * frames, "velocity": frames}}
+                      "mesh_sequence": {"quality": 3 * frames, "velocity": frames}}
     assert set(auto.stats["quality"]) == {"shape_keys", "mesh_sequence"}
     assert keys.stats["quality"] == {"shape_keys": auto.stats["quality"]["shape_keys"]}
     assert sequence.stats["quality"] == auto.stats["quality"]  # the template's say where it ships

@@ -12,36 +12,51 @@ if TYPE_CHECKING:
     from ..surface.attributes import MeshAttributes
     from ..surface.meshdata import MeshData
 
-__all__ = ["Animation", "Restart"]
+__all__ = ["Animation", "KeyframeTrack"]
 
 
 @dataclass
-class Restart:
-    """Keyframe k's own mesh (k >= 1) tracked through segment k (`template.DetailTrack`),
-    for the mesh sequence once the first keyframe's mesh has stopped following: after a
-    topology change, a later segment that keeps its topology shows the artist's mesh
-    again, from the keyframe that begins it.
+class KeyframeTrack:
+    """A keyframe's own mesh tracked into a segment next to it (`template.DetailTrack`),
+    for the mesh sequence where no earlier mesh follows: forward through the segment the
+    keyframe begins (after a topology change, a segment that keeps its topology shows
+    the artist's mesh again), or back along B's paths through the one it ends (the
+    frames before the keyframe then lead into its mesh, not a frame's own surface).
 
-    row : the row of keyframe k's frame in `Animation.frames`.
-    faces : (F, 3) keyframe k's triangles.
-    vertices : (m + 1, V, 3) float32, keyframe k's mesh on its own frame, then the tracked
-        mesh on each frame of the segment (rows ``row`` to ``row + m``).
+    key_row : the row of the keyframe's frame in `Animation.frames`.
+    first_row : the row of ``vertices[0]``: ``key_row`` forward, the segment's first
+        in-between back.
+    faces : (F, 3) the keyframe's triangles.
+    vertices : (m, V, 3) float32, the tracked mesh on rows ``first_row`` on, in timeline
+        order; on ``key_row`` the keyframe's mesh itself.
     figures : per row as ``vertices``, what `chain.tracked_frames` judges the tracked mesh
         by (``steered``, ``shape_keys``, ``volumes``, ``flipped``).
-    ships : how many frames after ``row`` the mesh sequence ships it on (`pipeline`
-        decides: a keyframe's own frame shows its mesh, so at most m - 1).
+    ships : on how many frames from the keyframe on (forward) or back the mesh sequence
+        ships it (`pipeline` decides; the segment's other keyframe shows its own mesh).
     """
 
-    row: int
+    key_row: int
+    first_row: int
     faces: np.ndarray
     vertices: np.ndarray
     figures: list[dict[str, Any]]
     ships: int = 0
 
+    @property
+    def step(self) -> int:
+        """+1 forward from the keyframe, -1 back."""
+        return 1 if self.first_row == self.key_row else -1
+
+    def outward(self) -> list[int]:
+        """Indices into ``vertices`` from the keyframe's own row outward."""
+        key = self.key_row - self.first_row
+        return list(range(key, len(self.vertices))) if self.step > 0 else list(range(key, -1, -1))
+
     def at(self, i: int) -> int | None:
         """The index into ``vertices`` of row i where it ships, else None."""
-        j = i - self.row
-        return j if 0 < j <= self.ships else None
+        if 0 < (i - self.key_row) * self.step <= self.ships:
+            return i - self.first_row
+        return None
 
 
 @dataclass
@@ -77,8 +92,8 @@ class Animation:
     tracked : (n,) bool array, optional: the frames the mesh sequence ships as the tracked
         template rather than as their own surface (`chain.tracked_frames`: those before a
         topology change); None or empty, none.
-    restarts : `Restart` per later segment whose keyframe's own mesh was tracked (the mesh
-        sequence with the artist's meshes); it ships where its ``ships`` says.
+    keyframe_tracks : the `KeyframeTrack`s made (the mesh sequence with the artist's
+        meshes); each ships where its ``ships`` says.
     """
 
     frames: np.ndarray
@@ -93,48 +108,51 @@ class Animation:
     keyframe_attributes: dict[int, MeshAttributes] = field(default_factory=dict)
     prepared: dict[str, MeshData] = field(default_factory=dict)
     tracked: np.ndarray | None = None
-    restarts: list[Restart] = field(default_factory=list)
+    keyframe_tracks: list[KeyframeTrack] = field(default_factory=list)
 
     def is_tracked(self, i: int) -> bool:
         """Whether the mesh sequence ships frame i as the tracked template (``tracked``)."""
         return self.tracked is not None and i < len(self.tracked) and bool(self.tracked[i])
 
-    def _artist_track(self, i: int) -> tuple[np.ndarray, int, np.ndarray,
+    def _artist_track(self, i: int) -> tuple[np.ndarray, int, int, np.ndarray,
                                               MeshAttributes | None] | None:
-        """(vertices per row from the keyframe the mesh starts on, frame i's index there,
-        its triangles and attributes) where the mesh sequence ships an artist's mesh
-        tracked on frame i: the template (`is_tracked`) or a `Restart`; else None."""
+        """(vertices per row in timeline order, frame i's index there, the index of the
+        keyframe the mesh is, its triangles and attributes) where the mesh sequence ships
+        an artist's mesh tracked on frame i: the template (`is_tracked`) or a
+        `KeyframeTrack`; else None."""
         if self.is_tracked(i):
-            return self.vertices, i, self.faces, self.attributes
-        for r in self.restarts:
-            j = r.at(i)
+            return self.vertices, i, 0, self.faces, self.attributes
+        for track in self.keyframe_tracks:
+            j = track.at(i)
             if j is not None:
-                attrs = self.keyframe_attributes.get(int(self.frames[r.row]))
-                return r.vertices, j, r.faces, attrs
+                attrs = self.keyframe_attributes.get(int(self.frames[track.key_row]))
+                return (track.vertices, j, track.key_row - track.first_row, track.faces,
+                        attrs)
         return None
 
     def sequence_frame(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """(vertices, triangles) the mesh sequence ships on frame i: an artist's mesh
-        tracked (the template where ``tracked`` says so, a `Restart` where it ships),
+        tracked (the template where ``tracked`` says so, a `KeyframeTrack` where it ships),
         else the frame's own surface."""
         track = self._artist_track(i)
         if track is None:
             return self.surfaces[i]
-        vertices, j, faces, _ = track
+        vertices, j, _, faces, _ = track
         return vertices[j], faces
 
     def sequence_attributes(self, i: int) -> MeshAttributes | None:
         """`attributes.MeshAttributes` of `sequence_frame` (i), or None: on a tracked frame
-        the artist's own (``attributes``, or a `Restart`'s keyframe's), as on the shape
-        keys, its custom normals turned with their polygons (`_turned_normals`); else its
-        surface's (`surface_attributes`)."""
+        the artist's own (``attributes``, or a `KeyframeTrack`'s keyframe's), as on the
+        shape keys, its custom normals turned with their polygons (`_turned_normals`);
+        else its surface's (`surface_attributes`)."""
         track = self._artist_track(i)
         if track is None:
             return self.surface_attributes(i)
-        vertices, j, _, attrs = track
-        if attrs is None or attrs.custom_normals is None or j == 0:
+        vertices, j, key, _, attrs = track
+        if attrs is None or attrs.custom_normals is None or j == key:
             return attrs
-        return replace(attrs, custom_normals=_turned_normals(attrs, vertices[0], vertices[j]))
+        return replace(attrs, custom_normals=_turned_normals(attrs, vertices[key],
+                                                             vertices[j]))
 
     def sequence_velocity(self, i: int) -> np.ndarray:
         """Velocity of `sequence_frame` (i)'s vertices, world units per frame: a tracked

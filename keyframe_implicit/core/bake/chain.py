@@ -14,9 +14,9 @@ kept across the whole animation.
 Where topology changes one template cannot stay clean (docs/method.md, section
 9), so every frame's own surface is also kept, with the velocity of its
 vertices for motion blur, and both outputs are measured against it
-(`quality`): the caller picks the output. With the artist's meshes, each later
-segment also tracks its first keyframe's own mesh (`_restart`): once the template has
-stopped following, the mesh sequence shows the artist's mesh again from that keyframe.
+(`quality`): the caller picks the output. With the artist's meshes, each segment also
+tracks its keyframes' own meshes into it (`_keyframe_tracks`): where the template has
+stopped following, the mesh sequence shows the artist's mesh again next to a keyframe.
 
 Each segment alone would move every point on a path of its own, its velocity
 jumping at every inner keyframe (the thesis's limitation, its chapter 5). By
@@ -42,7 +42,7 @@ from ..fields.measure import read_mesh
 from ..surface.quality import LIMITS, failures, flipped_fraction, frame_quality
 from ..surface.extract import extract_surface, material_topology, piece_volumes
 from ..surface.options import SurfaceOptions
-from .animation import Animation, Restart
+from .animation import Animation, KeyframeTrack
 from .options import BakeOptions, refuse_unread
 from .cache import content_key, grid_key
 from .steps import FRAMES, MAPS, PATHS
@@ -473,9 +473,9 @@ class Kept:
     """What `animate_chain` keeps of every frame's record (`_frames`): the template's
     vertices, the per-frame figures in ``stats`` (the quality figures of the outputs
     measured, `SurfaceOptions.measured`), and as ``outputs`` (`SurfaceOptions`) asks the
-    level sets, the frames' own meshes and their velocities, and the restarts' figures
-    (`_restart_figures`, by row; on a keyframe's row, those of the restart that begins
-    there come with its segment's first frame's record)."""
+    level sets, the frames' own meshes and their velocities, and the keyframe tracks'
+    figures (`_track_figures`, by name and row; on keyframe k's row, those of the track
+    that begins there come with its segment's first frame's record)."""
 
     def __init__(self, frames: np.ndarray, template_shape: tuple[int, ...],
                  outputs: SurfaceOptions) -> None:
@@ -487,8 +487,8 @@ class Kept:
             self.stats["quality"] = {name: [] for name in outputs.measured}
             self.stats["topology"], self.stats["volumes"], self.stats["flipped"] = [], [], []
         self.meshes, self.velocities, self.fields = [], [], []
-        self.restarts: dict[int, dict[str, Any]] = {}
-        self.restart_keys: dict[int, dict[str, Any]] = {}
+        self.tracks: dict[str, dict[int, dict[str, Any]]] = {
+            "from_start": {}, "from_end": {}, "from_start_key": {}}
 
     def add(self, rows: Iterable[int], records: Iterable[dict[str, Any]]) -> None:
         """Keep ``records``, those of the frames at ``rows`` of ``frames``, in order."""
@@ -511,10 +511,9 @@ class Kept:
             if outputs.keeps_meshes:
                 self.meshes.append(rec["mesh"])
                 self.velocities.append(rec["velocity"])
-            if "restart" in rec:
-                self.restarts[row] = rec["restart"]
-            if "restart_key" in rec:
-                self.restart_keys[row - 1] = rec["restart_key"]
+            for name, kept in self.tracks.items():
+                if name in rec:
+                    kept[row - (name == "from_start_key")] = rec[name]
 
     def animation(self, chain: Chain, seconds: float) -> Animation:
         """The `animation.Animation` of the frames kept, ``chain`` (`Chain`) their source."""
@@ -522,22 +521,28 @@ class Kept:
         self.stats.update(seconds=seconds, vertices=int(len(verts)), faces=int(len(faces)))
         return Animation(self.frames, self.vertices, faces, chain.inbetweens.grid, self.stats,
                          self.meshes, self.velocities, self.fields,
-                         restarts=self._restarts(chain))
+                         keyframe_tracks=self._keyframe_tracks(chain))
 
-    def _restarts(self, chain: Chain) -> list[Restart]:
-        """One `animation.Restart` per segment whose frames carry restart figures: rows
-        from its first keyframe's to its last's."""
+    def _keyframe_tracks(self, chain: Chain) -> list[KeyframeTrack]:
+        """The `animation.KeyframeTrack`s whose figures were kept, segment by segment:
+        keyframe k's mesh forward over rows k .. k + 1 of its segment, and keyframe
+        k + 1's back over rows k + 1 .. k (keyframe k's own row is the segment before's)."""
         rows = [int(f - self.frames[0]) for f in chain.frames]
         out = []
-        for k in range(1, len(rows) - 1):
-            span = range(rows[k] + 1, rows[k + 1] + 1)
-            if rows[k] not in self.restart_keys or not all(r in self.restarts for r in span):
-                continue
-            figures = [self.restart_keys[rows[k]]] + [self.restarts[r] for r in span]
-            tris = np.asarray(chain.keyframe_meshes[k][1], dtype=np.int64).reshape(-1, 3)
-            out.append(Restart(rows[k], tris, np.stack([f["vertices"] for f in figures]),
-                               [{n: v for n, v in f.items() if n != "vertices"}
-                                for f in figures]))
+        for k in range(len(rows) - 1):
+            for name, key in (("from_start", k), ("from_end", k + 1)):
+                kept, span = self.tracks[name], range(rows[k] + 1, rows[k + 1] + 1)
+                records = [kept.get(r) for r in span]
+                if name == "from_start":  # the segment before holds keyframe k's own row
+                    span = range(rows[k], rows[k + 1] + 1)
+                    records.insert(0, self.tracks["from_start_key"].get(rows[k]))
+                if any(r is None for r in records):
+                    continue
+                tris = np.asarray(chain.keyframe_meshes[key][1], dtype=np.int64).reshape(-1, 3)
+                out.append(KeyframeTrack(rows[key], span[0], tris,
+                                         np.stack([r["vertices"] for r in records]),
+                                         [{n: v for n, v in r.items() if n != "vertices"}
+                                          for r in records]))
         return out
 
 
@@ -623,16 +628,17 @@ def _frames(inb, frames, segment, rep=None, alongside=0):
     rep = rep or Reporter()
     (f0, f1), k = segment.ends, segment.k
     _hold_volumes(inb, segment.volumes)  # a helper's in-betweens are made from the recipe
-    detail, restart = _detail(inb, segment), _restart(inb, segment)
+    detail, tracks = _detail(inb, segment), _keyframe_tracks(inb, segment)
     records = []
     for i, f in enumerate(frames):  # loop over frames; each step is followed by a cancel check
         s = (f - f0) / float(f1 - f0)
         with rep.step(FRAMES, i, len(frames)) as part:
             rec = _template(inb, segment, detail, s)
             part.check()
-            rec.update(_frame_outputs(inb, s, segment, rec["vertices"], part, restart))
-            if restart is not None and f == f0 + 1:  # the restart's figures on keyframe k
-                rec["restart_key"] = _restart_figures(inb, 0.0, restart, part)
+            rec.update(_frame_outputs(inb, s, segment, rec["vertices"], part, tracks))
+            if "from_start" in tracks and f == f0 + 1:  # its figures on keyframe k's frame
+                rec["from_start_key"] = _track_figures(inb, 0.0, tracks["from_start"], 0.0,
+                                                       part)
         records.append(rec)
         rep.elsewhere(FRAMES, (i + 1) * alongside // len(frames) - i * alongside // len(frames))
     return records
@@ -653,31 +659,43 @@ def _detail(inb, segment):
     return DetailTrack(inb, *segment.template, meshes[segment.k + 1])
 
 
-def _restart(inb, segment):
-    """The `template.DetailTrack` of keyframe k's own mesh through segment k (k >= 1), where
-    the mesh sequence is made: it ships where the first keyframe's mesh has stopped
-    following (`animation.Restart`); else None."""
+def _keyframe_tracks(inb, segment):
+    """The `template.DetailTrack`s of segment k's keyframes' own meshes, where the mesh
+    sequence is made (`animation.KeyframeTrack`): ``"from_start"``, keyframe k's mesh
+    forward through the segment (k >= 1: the template begins on keyframe 0's), and
+    ``"from_end"``, keyframe k + 1's mesh back along B's paths (`levelset.SeenFromB`,
+    two-sided transport only). They ship where no earlier mesh follows."""
     meshes = segment.keyframe_meshes
-    if meshes is None or segment.k == 0 or not segment.outputs.keeps_meshes:
-        return None
-    v, tris = meshes[segment.k]
-    return DetailTrack(inb, np.asarray(v, dtype=float).reshape(-1, 3),
-                       np.asarray(tris, dtype=np.int64).reshape(-1, 3), meshes[segment.k + 1])
+    if meshes is None or not segment.outputs.keeps_meshes:
+        return {}
+    k = segment.k
+
+    def track(ends, key, other):
+        v, tris = meshes[key]
+        return DetailTrack(ends, np.asarray(v, dtype=float).reshape(-1, 3),
+                           np.asarray(tris, dtype=np.int64).reshape(-1, 3), meshes[other])
+    tracks = {} if k == 0 else {"from_start": track(inb, k, k + 1)}
+    back = inb.seen_from_b()
+    if back is not None:
+        tracks["from_end"] = track(back, k + 1, k)
+    return tracks
 
 
-def _restart_figures(inb, s, restart, rep, levelset=None, surface=None):
-    """The restart's vertices at time ``s`` (float32) and what `tracked_frames` judges them
-    by: how far the zero set steered them, their quality figures (as the shape keys'),
-    their pieces' volumes and their area turned over. ``levelset`` and ``surface`` are
-    the frame's, made here when not given."""
+def _track_figures(inb, s, track, t, rep, levelset=None, surface=None):
+    """A keyframe track's vertices (float32) on the frame at time ``s``, its own time
+    ``t``, and what `tracked_frames` judges them by: how far the zero set steered them,
+    their quality figures (as the shape keys'), their pieces' volumes and their area
+    turned over and their ripple (`template.DetailTrack.ripple`). ``levelset`` and
+    ``surface`` are the frame's, made here when not given."""
     ls = inb.levelset(s) if levelset is None else levelset
     surf = extract_surface(ls, inb.grid) if surface is None else surface
-    q, _ = restart(s)
+    q, _ = track(t)
     rep.check()
-    faces = restart.faces
-    return dict(vertices=q.astype(np.float32), steered=restart.guides.get(float(s), 0.0),
+    faces = track.faces
+    return dict(vertices=q.astype(np.float32), steered=track.guides.get(float(t), 0.0),
                 shape_keys=frame_quality(ls, inb.grid, q, faces, surf),
-                volumes=piece_volumes(q, faces), flipped=flipped_fraction(restart.start, q, faces))
+                volumes=piece_volumes(q, faces), flipped=flipped_fraction(track.start, q, faces),
+                ripple=track.ripple(q))
 
 
 def _template(inb, segment, detail, s):
@@ -694,14 +712,14 @@ def _template(inb, segment, detail, s):
                 steered=detail.guides.get(float(s), 0.0))
 
 
-def _frame_outputs(inb, s, segment, p, rep, restart=None):
+def _frame_outputs(inb, s, segment, p, rep, tracks=None):
     """What ``segment.outputs`` asks of the frame at time ``s`` whose template vertices
     are ``p``: its level set, uncovered area, the quality figures of the outputs measured,
     its material's topology (`extract.material_topology`), the volumes of the template's
     pieces and its area turned over (`tracked_frames`), own mesh and velocity, and the
-    ``restart``'s figures (`_restart_figures`) when there is one. The frame's own surface
-    is made whenever a figure needs it; its mesh and velocities only for the mesh
-    sequence."""
+    figures of the keyframe ``tracks`` (`_keyframe_tracks`, `_track_figures`). The
+    frame's own surface is made whenever a figure needs it; its mesh and velocities only
+    for the mesh sequence."""
     outputs, grid, faces = segment.outputs, inb.grid, segment.template[1]
     out = {}
     if outputs.levelsets:
@@ -728,8 +746,9 @@ def _frame_outputs(inb, s, segment, p, rep, restart=None):
         step = 1.0 / float(segment.ends[1] - segment.ends[0])  # a frame, in s
         out["mesh"] = (own[0].astype(np.float32), own[1].astype(np.int32))
         out["velocity"] = (inb.velocity(own[0], s, ds=step) * step).astype(np.float32)
-    if restart is not None:
-        out["restart"] = _restart_figures(inb, s, restart, rep, ls, surf)
+    for name, track in (tracks or {}).items():
+        t = s if name == "from_start" else 1.0 - s
+        out[name] = _track_figures(inb, s, track, t, rep, ls, surf)
     return out
 
 
@@ -760,12 +779,21 @@ RIGID_STEER = 0.05
 #: frame (`tracked_frames`): the volume step where the frames switch.
 TRACKED_VOLUME = 0.01
 
+#: The most ripple (`template.DetailTrack.ripple`, cells) a keyframe's mesh tracked from
+#: it (`animation.KeyframeTrack`) may gain and still ship (`tracked_frames`): the
+#: frame's own surface, which it replaces, has none. Two merged balls (marching cubes at
+#: four vertices a cell) tracked back from their keyframe showed rings plainly from
+#: 0.018, faintly at 0.011-0.014; the splash's coarser bump none at 0.04.
+TRACK_RIPPLE = 0.015
+
 
 def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]],
                    topology: Sequence[tuple[int, ...]],
                    steered: Sequence[float] | None = None,
                    volumes: Sequence[np.ndarray] | None = None,
-                   flipped: Sequence[float] | None = None) -> np.ndarray:
+                   flipped: Sequence[float] | None = None,
+                   limits: Mapping[str, Any] = TRACKED_LIMITS,
+                   ripple: Sequence[float] | None = None) -> np.ndarray:
     """Which frames a mesh sequence ships as the tracked template, the artist's own mesh:
     (n,) bool over ``frames``.
 
@@ -776,7 +804,8 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     where the viewer expects a change. A frame before the change on which the template
     stretches or folds ends the tracked frames there instead: its figures (``shape_keys``,
     `quality.frame_quality`'s, as measured) relative to the first frame's, where the
-    template is the artist's mesh itself, break `TRACKED_LIMITS`. A frame whose template
+    template is the artist's mesh itself, break ``limits`` (`TRACKED_LIMITS`; a keyframe's
+    mesh tracked after parts met answers to coverage too, `LIMITS`). A frame whose template
     its paths carried rigidly (``steered``, per frame, at most `RIGID_STEER`; None: every
     frame steered) cannot stretch or fold: its figures measure how coarse the grid's
     surface is, and it passes. A frame on which a piece of the template swells or shrinks
@@ -785,7 +814,8 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     where the frames switch to their own surfaces, which hold it. So does a frame on which
     any face of the template has turned over since the first (``flipped``, per frame its
     area share, `quality.flipped_fraction`): a fold of the artist's mesh shows as specks
-    of its inside, however small.
+    of its inside, however small. So does a frame that has gained more ripple than
+    `TRACK_RIPPLE` since the first (``ripple``, per frame; None: not judged).
 
     ``shape_keys`` is updated in place to those relative figures on the tracked frames.
     """
@@ -795,13 +825,14 @@ def tracked_frames(frames: np.ndarray, shape_keys: Sequence[Mapping[str, float]]
     drift = (np.zeros(n) if volumes is None else
              np.array([np.max(np.abs(v / volumes[0] - 1.0), initial=0.0) for v in volumes]))
     folded = np.zeros(n) if flipped is None else np.asarray(flipped, dtype=float)
+    rippled = np.zeros(n) if ripple is None else np.asarray(ripple, dtype=float)
     end = n
     for i, (q, t) in enumerate(zip(shape_keys, topology)):
         rel = dict(q, area_ratio=q["area_ratio"] / first["area_ratio"],
                    inverted_fraction=max(q["inverted_fraction"] - first["inverted_fraction"], 0.0))
         rigid = steered[i] <= RIGID_STEER
         if (tuple(t) != start or drift[i] > TRACKED_VOLUME or folded[i] > 0.0
-                or (not rigid and failures(rel, TRACKED_LIMITS))):
+                or rippled[i] > TRACK_RIPPLE or (not rigid and failures(rel, limits))):
             end = i
             break
         shape_keys[i] = rel

@@ -21,7 +21,7 @@ from ..base.progress import Reporter, Tally
 from ..motion.spline import bends_needed, check_key_interpolation
 from ..surface.attributes import MeshAttributes
 from ..surface.extract import mesh_volume
-from ..surface.quality import OWN_SURFACES, choose_output, keyframe_distance
+from ..surface.quality import LIMITS, OWN_SURFACES, choose_output, keyframe_distance
 from .animation import Animation
 from .cache import WorkCache, content_key, grid_key
 from .chain import HELPER_PRELOAD, Chain, tracked_frames
@@ -461,9 +461,11 @@ def finish_bake(plan: BakePlan, chain: Animation, t0: float, rep: Reporter) -> A
         _choose_output(stats, keyframes, chain, plan.grid.spacing, artist is not None,
                        plan.options.surface.output)
         if artist is not None and "mesh_sequence" in stats["quality"]:
-            tracked = _sequence_tracked(stats, chain.frames, measured, keyframes,
-                                        plan.options.surface.output == "auto")
-            _restarts_shipped(stats, chain.frames, chain.restarts, tracked)
+            tracked, reach = _sequence_tracked(stats, chain.frames, measured, keyframes,
+                                               plan.options.surface.output == "auto")
+            _keyframe_tracks_shipped(stats, chain.frames, chain.keyframe_tracks, tracked,
+                                     keyframes)
+            _say_artist_frames(stats, chain.frames, reach, len(keyframes))
     stats["total_seconds"] = time.perf_counter() - t0
     rep(1.0, "Done")
     return dataclasses.replace(
@@ -577,10 +579,10 @@ def _sequence_tracked(stats, frames, measured, keyframes, auto):
     """The frames the mesh sequence ships as the artist's mesh, tracked (`chain.
     tracked_frames`, from the shape keys' figures as ``measured``), but for the later
     keyframes' frames, which show each keyframe's own mesh (the first keyframe's is the
-    template itself). Their mesh-sequence figures become the template's (what ships
-    there), the output's reason names them and ``stats["tracked_frames"]`` counts them.
-    When the template may ship on every frame, Auto's choice (``auto``: the output is not
-    set in the settings) becomes the shape keys."""
+    template itself), and how many frames from the first it reaches. Their mesh-sequence
+    figures become the template's (what ships there) and ``stats["tracked_frames"]``
+    counts them. When the template may ship on every frame, Auto's choice (``auto``: the
+    output is not set in the settings) becomes the shape keys."""
     quality = stats["quality"]
     tracked = tracked_frames(frames, measured, stats["topology"], stats["steered"],
                              stats["volumes"], stats["flipped"])
@@ -593,38 +595,57 @@ def _sequence_tracked(stats, frames, measured, keyframes, auto):
     for i in np.flatnonzero(tracked[1:]) + 1:  # the first frame: the keyframe mesh itself
         quality["mesh_sequence"][i] = measured[i]
     stats["tracked_frames"] = int(tracked.sum())
-    if stats["output"] == "mesh_sequence" and reach > 1:
-        stats["output_reason"] = (stats["output_reason"].removesuffix(OWN_SURFACES)
-                                  + f"; the artist's mesh up to frame {frames[reach - 1]}")
-    return tracked
+    return tracked, reach
 
 
-def _restarts_shipped(stats, frames, restarts, tracked):
-    """Each `animation.Restart`'s ``ships``: where the template stopped following before
-    its segment, its keyframe's own mesh follows from that keyframe as long as
-    `chain.tracked_frames` allows (judged from the keyframe's frame, where it is the
-    mesh itself), but for the segment's last frame, the next keyframe's. Their
-    mesh-sequence figures become the restart's, ``stats["tracked_frames"]`` counts them
-    and the output's reason names them."""
+def _say_artist_frames(stats, frames, reach, keyframes):
+    """A mesh sequence's reason, ending on where it ships the artist's mesh: up to the
+    frame the template reaches (``reach`` frames), or with keyframe tracks shipped, on
+    how many frames (the ``keyframes``' own frames too)."""
+    if stats["output"] != "mesh_sequence":
+        return
+    reason = stats["output_reason"].removesuffix(OWN_SURFACES)
+    beside = stats.get("keyframe_track_frames", 0)
+    if beside:
+        count = stats["tracked_frames"] + beside + keyframes - 1  # the first is the template's
+        stats["output_reason"] = reason + (f"; the artist's mesh on {count} of {len(frames)} "
+                                           "frames")
+    elif reach > 1:
+        stats["output_reason"] = reason + f"; the artist's mesh up to frame {frames[reach - 1]}"
+
+
+def _keyframe_tracks_shipped(stats, frames, tracks, tracked, keyframes):
+    """Each `animation.KeyframeTrack`'s ``ships``. From its keyframe's frame, where it is
+    the keyframe's mesh itself, outward over the frames no other mesh ships (the template
+    where ``tracked``, the keyframes' frames, then the tracks forward from a keyframe,
+    then those back), as long as `chain.tracked_frames` allows, coverage and shading
+    ripple included: the frames' own surfaces, which they replace, have parts met or
+    parted as the keyframe has (a mesh that leaves some of a surface uncovered misses a
+    neck the viewer expects) and show no sub-cell ripple. Their mesh-sequence
+    figures become the track's and ``stats["keyframe_track_frames"]`` counts them."""
     quality = stats["quality"]
-    for r in restarts:
-        if tracked[r.row + 1]:
+    stats["keyframe_track_frames"] = 0
+    taken = np.array(tracked, dtype=bool)
+    taken[[kf.frame - frames[0] for kf in keyframes]] = True
+    for track in sorted(tracks, key=lambda t: -t.step):  # forward ones first
+        order = track.outward()
+        rows = [track.first_row + j for j in order]
+        free = next((n for n, r in enumerate(rows[1:]) if taken[r]), len(rows) - 1)
+        if free == 0:
             continue
-        figures = r.figures
+        order, rows = order[:free + 1], rows[:free + 1]
+        figures = [track.figures[j] for j in order]
         rel = [dict(f["shape_keys"]) for f in figures]
-        topology = stats["topology"][r.row:r.row + len(figures)]
-        follows = tracked_frames(np.arange(len(figures)), rel, topology,
+        follows = tracked_frames(np.asarray(rows), rel, [stats["topology"][r] for r in rows],
                                  [f["steered"] for f in figures],
                                  [f["volumes"] for f in figures],
-                                 [f["flipped"] for f in figures])
-        r.ships = min(int(np.count_nonzero(follows)) - 1, len(figures) - 2)
-        for j in range(1, r.ships + 1):
-            quality["mesh_sequence"][r.row + j] = rel[j]
-        stats["tracked_frames"] += r.ships
-        if r.ships > 0 and stats["output"] == "mesh_sequence":
-            stats["output_reason"] = (stats["output_reason"].removesuffix(OWN_SURFACES)
-                                      + f"; the artist's mesh of frame {frames[r.row]} up to "
-                                      f"frame {frames[r.row + r.ships]}")
+                                 [f["flipped"] for f in figures], LIMITS,
+                                 [f["ripple"] for f in figures])
+        track.ships = int(np.count_nonzero(follows)) - 1
+        for n in range(1, track.ships + 1):
+            taken[rows[n]] = True
+            quality["mesh_sequence"][rows[n]] = rel[n]
+        stats["keyframe_track_frames"] += track.ships
 
 
 def _artist_template(keyframe, mesh, tracked_mesh):
