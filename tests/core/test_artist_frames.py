@@ -413,7 +413,7 @@ def test_ripple_counts_rings_not_shape():
     what `template.DetailTrack.ripple` counts."""
     from keyframe_implicit.core.base.grid import Grid
     from keyframe_implicit.core.surface.extract import extract_surface
-    from keyframe_implicit.core.surface.quality import ripple
+    from keyframe_implicit.core.surface.quality import fine_detail, ripple
     from keyframe_implicit.core.surface.template import surface_filter
     from keyframe_implicit.shapes import sphere_sdf
 
@@ -423,6 +423,7 @@ def test_ripple_counts_rings_not_shape():
     smooth = surface_filter(v, 2.0 * h)
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
     rings = v + 0.05 * h * np.sin(2 * np.pi * v[:, 2:] / (1.5 * h)) * n
-    assert ripple(v, rings, f, smooth) / h > 0.02
-    assert ripple(v, v * [1.2, 1.0, 1.0], f, smooth) / h < 0.002
-    assert ripple(v, v, f, smooth) == 0.0
+    start = fine_detail(v, f, smooth)
+    assert ripple(start, rings, f, smooth) / h > 0.02
+    assert ripple(start, v * [1.2, 1.0, 1.0], f, smooth) / h < 0.002
+    assert ripple(start, v, f, smooth) == 0.0

@@ -189,14 +189,14 @@ def fine_detail(vertices: ArrayLike, faces: ArrayLike,
     return np.einsum("ij,ij->i", v - smooth(v), normal)
 
 
-def ripple(start: ArrayLike, vertices: ArrayLike, faces: ArrayLike,
+def ripple(start_detail: np.ndarray, vertices: ArrayLike, faces: ArrayLike,
            smooth: Callable[[np.ndarray], np.ndarray]) -> float:
     """How much detail finer than ``smooth`` a tracked mesh has gained since its first
-    frame ``start``, in world units: the root mean square of the change of `fine_detail`,
-    less its own smoothed part. A change of shape over more than the filter (a ball
-    stretched by a fifth) shifts the fine detail smoothly and counts for little (0.0006
-    cells, against 0.035 for rings 0.05 cells high)."""
-    change = fine_detail(vertices, faces, smooth) - fine_detail(start, faces, smooth)
+    frame, whose `fine_detail` is ``start_detail``, in world units: the root mean square
+    of the change of `fine_detail`, less its own smoothed part. A change of shape over
+    more than the filter (a ball stretched by a fifth) shifts the fine detail smoothly
+    and counts for little (0.0006 cells, against 0.035 for rings 0.05 cells high)."""
+    change = fine_detail(vertices, faces, smooth) - start_detail
     return float(np.sqrt(np.mean((change - smooth(change)) ** 2)))
 
 

@@ -472,7 +472,7 @@ class DetailTrack:
         self.pull_b = np.einsum("pji,pj->pi", rot_b, pulled - p1)
         gap = np.linalg.norm(self.end - p1, axis=1) / inb.grid.spacing
         self.early = 1.0 - smoothstep(gap / LANDING_CELLS - 1.0)  # a: its share landing with w
-        self._fine = None  # `ripple`'s filter, made when first asked for
+        self._fine = None  # `ripple`'s filter and the start's detail, made when first asked
 
     def _volume_ends(self, v0: np.ndarray, landed: np.ndarray,
                      end_mesh: tuple[ArrayLike, ArrayLike]) -> tuple[tuple, np.ndarray]:
@@ -527,12 +527,14 @@ class DetailTrack:
         field's sub-cell kinks: rings where its surface crosses the grid's planes at a
         grazing angle, which smooth shading shows, growing with the distance from the
         keyframe."""
-        from .quality import ripple
+        from .quality import fine_detail, ripple
 
-        if self._fine is None:
-            self._fine = surface_filter(self.start.astype(float),
-                                        RIPPLE_CELLS * self.inb.grid.spacing)
-        return ripple(self.start, x, self.faces, self._fine) / self.inb.grid.spacing
+        if self._fine is None:  # the filter and the start's detail, once
+            smooth = surface_filter(self.start.astype(float),
+                                    RIPPLE_CELLS * self.inb.grid.spacing)
+            self._fine = smooth, fine_detail(self.start, self.faces, smooth)
+        smooth, start_detail = self._fine
+        return ripple(start_detail, x, self.faces, smooth) / self.inb.grid.spacing
 
     def __call__(self, s: float) -> tuple[np.ndarray, np.ndarray]:
 
